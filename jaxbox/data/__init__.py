@@ -1,0 +1,12 @@
+"""Monitoring data: load, check, resample, slice and split time series of a building.
+
+pandas is used here (and in :mod:`jaxbox.datasets`) only; everything downstream receives numpy
+arrays from :meth:`Dataset.array`. Signals use canonical names with fixed units (°C, W, W/m²),
+listed in :data:`SIGNALS`.
+"""
+
+from ._dataset import Dataset as Dataset
+from ._errors import DataError as DataError
+from ._load import load as load
+from ._signals import SIGNALS as SIGNALS
+from ._signals import signal_unit as signal_unit

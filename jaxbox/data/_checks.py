@@ -1,0 +1,235 @@
+"""Checks of time stamps and values; each failure raises a :class:`DataError` that names the
+offending column, row or time stamp and says what to do.
+
+Row positions are described by a ``where(i)`` callable supplied by the caller (for a CSV file it
+gives the line number, for a DataFrame the position).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+import pandas as pd
+
+from ._errors import DataError
+from ._signals import is_temperature
+
+__all__ = [
+    "Where",
+    "check_kelvin",
+    "check_missing",
+    "check_order",
+    "check_regular",
+    "irregular_position",
+    "median_step",
+    "parse_time",
+    "to_float",
+]
+
+Where = Callable[[int], str]
+
+#: Relative tolerance on the sampling step (float seconds round to the nanosecond).
+_STEP_RTOL = 1e-6
+#: Absolute tolerance on the sampling step [s].
+_STEP_ATOL = 1e-6
+#: A temperature column with a median above this [°C] is taken to be in kelvin.
+_KELVIN_MEDIAN = 150.0
+
+
+def _position(i: int) -> str:
+    return f"row {i}"
+
+
+def _seconds(delta: pd.Timedelta | np.timedelta64) -> float:
+    return float(pd.Timedelta(delta) / pd.Timedelta(seconds=1))
+
+
+def fmt_seconds(seconds: float) -> str:
+    """Short human form of a duration given in seconds."""
+    if seconds == int(seconds):
+        seconds = int(seconds)
+    return f"{seconds} s"
+
+
+def parse_time(
+    values: pd.Series,
+    name: str,
+    *,
+    epoch: pd.Timestamp,
+    where: Where = _position,
+) -> pd.DatetimeIndex:
+    """Turn a column of time stamps into a DatetimeIndex named ``time`` (nanosecond unit).
+
+    Date-time strings (ISO 8601 or any format pandas can infer) and datetime values are parsed
+    as they are; numbers are seconds since ``epoch``.
+    """
+    if isinstance(values.dtype, pd.DatetimeTZDtype) or pd.api.types.is_datetime64_dtype(values):
+        parsed = pd.Series(pd.DatetimeIndex(values))
+    elif pd.api.types.is_bool_dtype(values):
+        raise DataError(
+            f"the time column {name!r} holds booleans; give date-time strings or seconds."
+        )
+    elif pd.api.types.is_numeric_dtype(values):
+        seconds = values.to_numpy(dtype=np.float64, na_value=np.nan)
+        bad = np.flatnonzero(~np.isfinite(seconds))
+        if bad.size:
+            i = int(bad[0])
+            raise DataError(
+                f"the time column {name!r} has no valid value at {where(i)} ({values.iloc[i]!r}); "
+                "fill or drop that row."
+            )
+        parsed = pd.Series(epoch + pd.to_timedelta(seconds, unit="s"))
+    else:
+        parsed = _parse_strings(values, name)
+    missing = np.flatnonzero(parsed.isna().to_numpy())
+    if missing.size:
+        i = int(missing[0])
+        raise DataError(
+            f"cannot parse the time stamp {values.iloc[i]!r} in column {name!r} at {where(i)}"
+            f"{f' ({missing.size} unparseable in all)' if missing.size > 1 else ''}; use ISO 8601 "
+            "('2013-08-21 00:10:00') or parse the column yourself and pass a DataFrame with a "
+            "DatetimeIndex."
+        )
+    index = pd.DatetimeIndex(parsed, name="time")
+    return index.as_unit("ns")
+
+
+def _parse_strings(values: pd.Series, name: str) -> pd.Series:
+    text = values.astype("string")
+    try:
+        iso = pd.to_datetime(text, format="ISO8601", errors="coerce")
+    except (ValueError, TypeError) as error:
+        raise DataError(
+            f"the time stamps in column {name!r} mix several UTC offsets ({error}); convert them "
+            "to one time zone (e.g. pd.to_datetime(..., utc=True)) and pass a DataFrame."
+        ) from None
+    if not iso.isna().any():
+        return iso
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            inferred = pd.to_datetime(text, errors="coerce")
+    except (ValueError, TypeError):
+        return iso
+    return inferred if inferred.isna().sum() < iso.isna().sum() else iso
+
+
+def check_order(index: pd.DatetimeIndex, where: Where = _position) -> None:
+    """Time stamps must strictly increase: name the first step back and the first duplicate."""
+    values = index.asi8
+    steps = np.diff(values)
+    back = np.flatnonzero(steps < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise DataError(
+            f"time stamps are not increasing: {where(i)} ({index[i]}) comes after "
+            f"{where(i - 1)} ({index[i - 1]}); sort the data by time first."
+        )
+    same = np.flatnonzero(steps == 0)
+    if same.size:
+        i = int(same[0]) + 1
+        raise DataError(
+            f"duplicate time stamp {index[i]} at {where(i - 1)} and {where(i)}"
+            f"{f' ({same.size} duplicates in all)' if same.size > 1 else ''}; drop or average "
+            "the duplicates first."
+        )
+
+
+def median_step(index: pd.DatetimeIndex) -> float:
+    """Median time step [s] (``nan`` for fewer than two samples)."""
+    if len(index) < 2:
+        return float("nan")
+    return float(np.median(np.diff(index.asi8))) * 1e-9
+
+
+def irregular_position(index: pd.DatetimeIndex) -> int | None:
+    """Position of the first sample whose step from the previous one differs from the median."""
+    if len(index) < 3:
+        return None
+    steps = np.diff(index.asi8) * 1e-9
+    step = float(np.median(steps))
+    off = np.flatnonzero(np.abs(steps - step) > _STEP_ATOL + _STEP_RTOL * step)
+    return int(off[0]) + 1 if off.size else None
+
+
+def check_regular(index: pd.DatetimeIndex, where: Where = _position) -> None:
+    """The sampling step must be constant; name the first place where it is not."""
+    i = irregular_position(index)
+    if i is None:
+        return
+    step = median_step(index)
+    this = _seconds(index[i] - index[i - 1])
+    raise DataError(
+        f"irregular sampling: the step from {index[i - 1]} to {index[i]} ({where(i)}) is "
+        f"{fmt_seconds(this)} but the median step is {fmt_seconds(step)}; pass resample= "
+        f"(e.g. resample='{_rule_hint(step)}') to average onto a regular grid."
+    )
+
+
+def _rule_hint(step: float) -> str:
+    for seconds, rule in ((3600, "1h"), (900, "15min"), (600, "10min"), (300, "5min")):
+        if step <= seconds:
+            return rule
+    return "1h" if step <= 3600 else f"{int(np.ceil(step / 3600))}h"
+
+
+def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:
+    """Convert every column to float64; name the first value that is not a number."""
+    out = {}
+    for name in frame.columns:
+        column = frame[name]
+        if pd.api.types.is_numeric_dtype(column.dtype) and not pd.api.types.is_complex_dtype(
+            column.dtype
+        ):
+            out[name] = column.to_numpy(dtype=np.float64, na_value=np.nan)
+            continue
+        numbers = pd.to_numeric(column, errors="coerce")
+        blank = column.isna() | column.astype("string").str.strip().eq("").fillna(True)
+        bad = np.flatnonzero((numbers.isna() & ~blank).to_numpy(dtype=bool, na_value=False))
+        if bad.size:
+            i = int(bad[0])
+            value = column.iloc[i]
+            hint = (
+                " (a decimal comma? read the file with pd.read_csv(..., decimal=',') and pass "
+                "the DataFrame)"
+                if isinstance(value, str) and value.strip().replace(",", "", 1).isdigit()
+                else ""
+            )
+            raise DataError(
+                f"column {name!r} has a non-numeric value {value!r} at {where(i)}{hint}; fix or "
+                "drop that value, or drop the column before loading."
+            )
+        out[name] = numbers.to_numpy(dtype=np.float64, na_value=np.nan)
+    return pd.DataFrame(out, index=frame.index, columns=frame.columns)
+
+
+def check_missing(frame: pd.DataFrame) -> None:
+    """No NaN or empty values: name the first column with some, how many and where."""
+    holes = frame.isna()
+    counts = holes.sum()
+    bad = [name for name in frame.columns if counts[name] > 0]
+    if not bad:
+        return
+    name = bad[0]
+    times = frame.index[holes[name].to_numpy()]
+    others = f" (also in {', '.join(map(repr, bad[1:4]))}{', ...' if len(bad) > 4 else ''})"
+    raise DataError(
+        f"column {name!r} has {int(counts[name])} missing (NaN or empty) values between "
+        f"{times[0]} and {times[-1]}{others if len(bad) > 1 else ''}; slice the data to a "
+        "period without gaps or fill them (e.g. DataFrame.interpolate) before loading."
+    )
+
+
+def check_kelvin(frame: pd.DataFrame) -> None:
+    """Canonical temperature columns must be in °C, not kelvin."""
+    for name in frame.columns:
+        if not is_temperature(name):
+            continue
+        median = float(np.nanmedian(frame[name].to_numpy())) if len(frame) else np.nan
+        if median > _KELVIN_MEDIAN:
+            raise DataError(
+                f"column {name!r} looks like kelvin (median {median:.1f}); convert to °C "
+                "(subtract 273.15)."
+            )

@@ -1,0 +1,357 @@
+"""The :class:`Dataset` value object: measured signals on a regular time grid."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from ._checks import (
+    Where,
+    check_kelvin,
+    check_missing,
+    check_order,
+    check_regular,
+    fmt_seconds,
+    median_step,
+    to_float,
+)
+from ._errors import DataError, list_names
+from ._resample import resample_mean
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+__all__ = ["Dataset"]
+
+TimeLike = str | pd.Timestamp | np.datetime64
+
+
+def _position(i: int) -> str:
+    return f"row {i}"
+
+
+def _names(names: str | Iterable[str]) -> list[str]:
+    return [names] if isinstance(names, str) else list(names)
+
+
+def validated_frame(
+    frame: pd.DataFrame, *, check: bool, regular: bool = True, where: Where = _position
+) -> pd.DataFrame:
+    """A fresh float64 copy of ``frame`` (DatetimeIndex named ``time``) after the checks.
+
+    Always: unique string column names, strictly increasing time stamps, numeric values, at
+    least two samples. With ``check``: no NaN, no temperature in kelvin and, with ``regular``,
+    a constant sampling step.
+    """
+    if not isinstance(frame, pd.DataFrame):
+        raise DataError(
+            f"expected a pandas DataFrame, got {type(frame).__name__}; use jaxbox.data.load "
+            "for files or Dataset.from_arrays for numpy arrays."
+        )
+    if not isinstance(frame.index, pd.DatetimeIndex):
+        raise DataError(
+            "the DataFrame has no DatetimeIndex; use jaxbox.data.load(frame, time='your_column') "
+            "to take the time stamps from a column."
+        )
+    columns = [str(name) for name in frame.columns]
+    seen: set[str] = set()
+    for name in columns:
+        if name in seen:
+            raise DataError(f"two columns are named {name!r}; rename or drop one of them.")
+        seen.add(name)
+    if len(frame) < 2:
+        raise DataError(
+            f"the data have {len(frame)} sample(s); at least two are needed to know the step."
+        )
+    index = pd.DatetimeIndex(frame.index, name="time").as_unit("ns")
+    check_order(index, where)
+    if check and regular:
+        check_regular(index, where)
+    values = to_float(frame.set_axis(columns, axis=1).set_axis(index, axis=0), where)
+    if check:
+        check_missing(values)
+        check_kelvin(values)
+    return values
+
+
+class Dataset:
+    """Measured signals on a regular time grid: an immutable wrapper around a DataFrame.
+
+    The index is a DatetimeIndex named ``time``; every column is float64 in the unit of its
+    canonical name (see :data:`jaxbox.data.SIGNALS`: °C, W, W/m²). Other columns are kept as
+    they are. Build one with :func:`jaxbox.data.load`, :meth:`from_arrays` or
+    ``Dataset(frame)`` for a DataFrame that already has a DatetimeIndex. Every method returns a
+    new Dataset; ``frame`` and ``array`` return copies.
+    """
+
+    __slots__ = ("_frame", "_step")
+    _frame: pd.DataFrame
+    _step: float
+
+    def __init__(self, frame: pd.DataFrame, *, check: bool = True) -> None:
+        values = validated_frame(frame, check=check)
+        object.__setattr__(self, "_frame", values)
+        object.__setattr__(self, "_step", median_step(values.index))
+
+    @classmethod
+    def _new(cls, frame: pd.DataFrame, step: float | None = None) -> Dataset:
+        """Wrap an already validated frame without checking it again."""
+        self = object.__new__(cls)
+        object.__setattr__(self, "_frame", frame)
+        object.__setattr__(
+            self, "_step", median_step(frame.index) if len(frame) > 1 or step is None else step
+        )
+        return self
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError("a Dataset is immutable; with_columns, slice, ... return new ones")
+
+    def __delattr__(self, name: str) -> None:
+        raise AttributeError("a Dataset is immutable")
+
+    # -- construction ---------------------------------------------------------------------------
+
+    @classmethod
+    def from_arrays(
+        cls,
+        time: Any,
+        signals: Mapping[str, Any],
+        *,
+        start: TimeLike = "2000-01-01",
+        check: bool = True,
+    ) -> Dataset:
+        """Build a dataset from numpy arrays (handy for synthetic data).
+
+        Args:
+            time: seconds since ``start`` (1-D array, regular step), or a DatetimeIndex.
+            signals: name -> 1-D array of the same length (units of the canonical names: °C,
+                W, W/m²).
+            start: time stamp of ``time == 0`` when ``time`` is in seconds.
+            check: run the checks of :func:`jaxbox.data.load` (regular step, no NaN, ...).
+        """
+        if isinstance(time, pd.DatetimeIndex):
+            index = time
+        else:
+            seconds = np.asarray(time, dtype=np.float64)
+            if seconds.ndim != 1:
+                raise DataError(f"time must be a 1-D array of seconds, got shape {seconds.shape}.")
+            index = pd.Timestamp(start) + pd.to_timedelta(seconds, unit="s")
+        data = {}
+        for name, values in signals.items():
+            array = np.asarray(values, dtype=np.float64)
+            if array.ndim == 0:
+                array = np.full(len(index), float(array))
+            if array.shape != (len(index),):
+                raise DataError(
+                    f"signal {name!r} has shape {array.shape} but there are {len(index)} time "
+                    "stamps; give one value per time stamp."
+                )
+            data[name] = array
+        return cls(pd.DataFrame(data, index=pd.DatetimeIndex(index, name="time")), check=check)
+
+    def with_columns(self, columns: Mapping[str, Any] | None = None, /, **arrays: Any) -> Dataset:
+        """A new dataset with columns added or replaced.
+
+        Give a mapping and/or keywords ``name=values``; values are 1-D arrays with one value
+        per sample, or scalars (repeated). Units are those of the canonical names.
+        """
+        new = {**(columns or {}), **arrays}
+        frame = self._frame.copy()
+        for name, values in new.items():
+            array = np.asarray(values, dtype=np.float64)
+            if array.ndim == 0:
+                array = np.full(len(frame), float(array))
+            if array.shape != (len(frame),):
+                raise DataError(
+                    f"column {name!r} has shape {array.shape} but the data have {len(frame)} "
+                    "samples; give one value per sample."
+                )
+            frame[str(name)] = array
+        added = frame[[str(name) for name in new]]
+        check_missing(added)
+        check_kelvin(added)
+        return Dataset._new(frame, self._step)
+
+    # -- views ----------------------------------------------------------------------------------
+
+    @property
+    def frame(self) -> pd.DataFrame:
+        """A copy of the data (DatetimeIndex ``time``, float64 columns)."""
+        return self._frame.copy(deep=True)
+
+    @property
+    def index(self) -> pd.DatetimeIndex:
+        """The time stamps (DatetimeIndex named ``time``)."""
+        return self._frame.index  # type: ignore[return-value]
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """Column names."""
+        return tuple(str(name) for name in self._frame.columns)
+
+    def __len__(self) -> int:
+        return len(self._frame)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._frame.columns
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """One column as a new 1-D float64 array."""
+        self.require([name])
+        return self._frame[name].to_numpy(dtype=np.float64, copy=True)
+
+    @property
+    def step(self) -> float:
+        """Sampling step [s] (the median step when the data are not regular)."""
+        return self._step
+
+    @property
+    def t(self) -> np.ndarray:
+        """Time [s] since the first sample, float64, shape (N,)."""
+        ns = self._frame.index.asi8
+        return (ns - ns[0]).astype(np.float64) / 1e9
+
+    @property
+    def start(self) -> pd.Timestamp:
+        """First time stamp."""
+        return self._frame.index[0]
+
+    @property
+    def end(self) -> pd.Timestamp:
+        """Last time stamp."""
+        return self._frame.index[-1]
+
+    def __repr__(self) -> str:
+        names = self.columns
+        shown = ", ".join(names[:8]) + (f", ... ({len(names) - 8} more)" if len(names) > 8 else "")
+        span = self.end - self.start
+        return (
+            f"Dataset({len(self)} samples, step {fmt_seconds(self._step)}, "
+            f"{self.start} to {self.end} ({span}), columns: {shown or '(none)'})"
+        )
+
+    def equals(self, other: object) -> bool:
+        """Same time stamps, columns and values (NaN equal to NaN)."""
+        return isinstance(other, Dataset) and self._frame.equals(other._frame)
+
+    # -- access ---------------------------------------------------------------------------------
+
+    def require(self, names: str | Iterable[str], what: str | None = None) -> None:
+        """Raise :class:`DataError` unless every column in ``names`` is present.
+
+        ``what`` completes the message, e.g. ``what="model 'TiTe'"`` gives "required by model
+        'TiTe'".
+        """
+        missing = [name for name in _names(names) if name not in self._frame.columns]
+        if not missing:
+            return
+        plural = "s" if len(missing) > 1 else ""
+        listed = ", ".join(repr(name) for name in missing)
+        close = [
+            match
+            for name in missing
+            for match in difflib.get_close_matches(name, self.columns, n=1, cutoff=0.7)
+        ]
+        hint = f" (did you mean {list_names(close)}?)" if close else ""
+        mapping = ", ".join(f"{name!r}: 'your_col'" for name in missing)
+        raise DataError(
+            f"the data has no column{plural} {listed}"
+            f"{f' required by {what}' if what else ''}{hint}; available: "
+            f"{list_names(self.columns)}; map yours with columns={{{mapping}}} in "
+            "jaxbox.data.load."
+        )
+
+    def array(self, names: str | Iterable[str]) -> np.ndarray:
+        """Columns ``names`` as a new C-contiguous float64 array of shape (N, len(names))."""
+        names = _names(names)
+        self.require(names)
+        return np.array(self._frame[names].to_numpy(dtype=np.float64), dtype=np.float64, order="C")
+
+    # -- new datasets ---------------------------------------------------------------------------
+
+    def resample(self, rule: str | pd.Timedelta) -> Dataset:
+        """Average onto a coarser regular grid (``rule`` such as ``"1h"``).
+
+        Mean over right-closed intervals labelled at their right edge (each sample stamps the
+        end of its averaging interval); an incomplete interval at the start or end is dropped,
+        an interval without any sample raises :class:`DataError`.
+        """
+        return Dataset._new(resample_mean(self._frame, rule, self._step))
+
+    def _bound(self, value: TimeLike, name: str) -> pd.Timestamp:
+        try:
+            stamp = pd.Timestamp(value)
+        except (ValueError, TypeError):
+            raise DataError(f"cannot read {name}={value!r} as a time stamp.") from None
+        tz = self._frame.index.tz
+        if tz is not None and stamp.tzinfo is None:
+            stamp = stamp.tz_localize(tz)
+        elif tz is None and stamp.tzinfo is not None:
+            raise DataError(f"{name}={value!r} has a time zone but the data have none; drop it.")
+        return stamp
+
+    def slice(self, start: TimeLike | None = None, end: TimeLike | None = None) -> Dataset:
+        """Samples with ``start <= time <= end`` (both inclusive; ``None`` = open).
+
+        A date without a time means midnight at the start of that day.
+        """
+        keep = np.ones(len(self), dtype=bool)
+        lo = hi = None
+        if start is not None:
+            lo = self._bound(start, "start")
+            keep &= self._frame.index >= lo
+        if end is not None:
+            hi = self._bound(end, "end")
+            keep &= self._frame.index <= hi
+        if lo is not None and hi is not None and lo > hi:
+            raise DataError(f"start {lo} is after end {hi}.")
+        if not keep.any():
+            raise DataError(
+                f"no samples between {lo if lo is not None else 'the start'} and "
+                f"{hi if hi is not None else 'the end'}; the data span {self.start} to "
+                f"{self.end}."
+            )
+        return Dataset._new(self._frame[keep].copy(), self._step)
+
+    def split(self, at: TimeLike | None = None, fraction: float = 0.5) -> tuple[Dataset, Dataset]:
+        """Split into (identification, validation) parts.
+
+        With ``at``: identification ``time <= at``, validation ``time > at``. Otherwise the first
+        ``floor(N * fraction)`` samples and the rest (two equal halves by default).
+        """
+        n = len(self)
+        if at is not None:
+            stamp = self._bound(at, "at")
+            first = int(np.searchsorted(self._frame.index.asi8, stamp.as_unit("ns").value, "right"))
+        else:
+            if not 0.0 < fraction < 1.0:
+                raise DataError(f"fraction must be between 0 and 1 (exclusive), got {fraction}.")
+            first = int(np.floor(n * fraction))
+        if first == 0 or first == n:
+            where = f"at {at}" if at is not None else f"with fraction {fraction}"
+            raise DataError(
+                f"splitting {where} leaves one part empty; the data span {self.start} to "
+                f"{self.end} ({n} samples)."
+            )
+        frame = self._frame
+        return (
+            Dataset._new(frame.iloc[:first].copy(), self._step),
+            Dataset._new(frame.iloc[first:].copy(), self._step),
+        )
+
+    def plot(self, columns: str | Iterable[str] | None = None, ax: Axes | None = None) -> Figure:
+        """Plot the signals against time; returns a matplotlib Figure.
+
+        Temperatures (°C), powers (W) and irradiances (W/m²) go on separate stacked axes,
+        other columns on a last one. With ``ax``, everything goes on that one axes.
+        """
+        from ._plot import plot_dataset
+
+        names = list(self.columns) if columns is None else _names(columns)
+        self.require(names)
+        return plot_dataset(self._frame, names, ax)

@@ -1,0 +1,187 @@
+"""Loading monitoring data from a CSV file or a DataFrame into a checked :class:`Dataset`."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import pandas as pd
+
+from ._checks import parse_time
+from ._dataset import Dataset, validated_frame
+from ._errors import DataError, list_names
+from ._signals import signal_base
+
+__all__ = ["load"]
+
+_TIME_NAMES = ("time",)
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    if not path.exists():
+        raise DataError(
+            f"file not found: {str(path)!r} (relative paths are taken from the current "
+            f"directory {os.getcwd()!r}); check the path."
+        )
+    if path.is_dir():
+        raise DataError(f"{str(path)!r} is a directory; give the path of a CSV file.")
+    try:
+        return pd.read_csv(path)
+    except pd.errors.EmptyDataError:
+        raise DataError(f"the file {str(path)!r} is empty; give a CSV with a header.") from None
+    except pd.errors.ParserError as error:
+        first = str(error).strip().splitlines()[0]
+        raise DataError(
+            f"cannot read {str(path)!r} as CSV ({first}); check the separator and quoting, or "
+            "read it with pandas yourself and pass the DataFrame."
+        ) from None
+    except UnicodeDecodeError:
+        raise DataError(
+            f"{str(path)!r} is not UTF-8 text; read it with pd.read_csv(..., encoding=...) and "
+            "pass the DataFrame."
+        ) from None
+
+
+def _time_values(
+    raw: pd.DataFrame, time: str | None, from_frame: bool
+) -> tuple[pd.Series | pd.Index, str, str | None]:
+    """Return (time values, their name, the column to drop or None when from the index)."""
+    names = [str(name) for name in raw.columns]
+    if time is not None:
+        if time in names:
+            return raw[time], time, time
+        if from_frame and raw.index.name == time:
+            return raw.index, time, None
+        raise DataError(
+            f"no time column {time!r}; columns: {list_names(names)}; pass time= with one of them."
+        )
+    for name in _TIME_NAMES:
+        if name in names:
+            return raw[name], name, name
+    if from_frame and isinstance(raw.index, pd.DatetimeIndex):
+        return raw.index, str(raw.index.name or "index"), None
+    tried = ", ".join(repr(name) for name in _TIME_NAMES)
+    extra = " and the DataFrame index (not a DatetimeIndex)" if from_frame else ""
+    raise DataError(
+        f"no time column found (tried {tried}{extra}); columns: {list_names(names)}; pass "
+        "time='your_time_column'."
+    )
+
+
+def _renaming(
+    columns: Mapping[str, str] | None, signals: list[str], time_name: str
+) -> dict[str, str]:
+    """Validate ``columns`` (canonical -> user name) and return user -> canonical."""
+    if not columns:
+        return {}
+    if not isinstance(columns, Mapping):
+        raise DataError(
+            "columns must map canonical names to your column names, e.g. "
+            "columns={'T_zon': 'living_T'}."
+        )
+    renaming: dict[str, str] = {}
+    for canonical, user in columns.items():
+        if user == time_name:
+            raise DataError(
+                f"columns maps {canonical!r} to {user!r}, which is the time column; map a "
+                "signal column instead."
+            )
+        if user not in signals:
+            backwards = canonical in signals and signal_base(str(user)) is not None
+            hint = (
+                f" (the mapping goes canonical -> yours: did you mean {{{user!r}: {canonical!r}}}?)"
+                if backwards
+                else ""
+            )
+            raise DataError(
+                f"columns maps {canonical!r} to {user!r}, but there is no column {user!r}{hint}; "
+                f"available: {list_names(signals)}."
+            )
+        if user in renaming:
+            raise DataError(
+                f"column {user!r} is mapped twice (to {renaming[user]!r} and {canonical!r}); map "
+                "each of your columns to one canonical name."
+            )
+        renaming[user] = str(canonical)
+    for user, canonical in renaming.items():
+        if canonical in signals and canonical not in renaming:
+            raise DataError(
+                f"two columns would be named {canonical!r}: yours {user!r} (mapped by columns=) "
+                f"and the existing {canonical!r}; drop one or map to a numbered variant "
+                f"such as {canonical + '2'!r}."
+            )
+    return renaming
+
+
+def load(
+    source: str | os.PathLike[str] | pd.DataFrame,
+    *,
+    time: str | None = None,
+    columns: Mapping[str, str] | None = None,
+    resample: str | None = None,
+    check: bool = True,
+    epoch: str | pd.Timestamp = "1970-01-01",
+) -> Dataset:
+    """Load monitoring data into a checked :class:`Dataset`.
+
+    Args:
+        source: path of a CSV file (with a header; ``.gz`` etc. decompressed by extension) or a
+            pandas DataFrame.
+        time: name of the time column. By default the column ``time``, or else the
+            DatetimeIndex of a DataFrame. Date-time strings are parsed (ISO 8601 preferred);
+            numbers are **seconds since** ``epoch`` (default 1970-01-01 00:00). Each time stamp
+            should mark the end of its averaging interval.
+        columns: canonical name -> your column name, e.g. ``{"T_zon": "living_T"}``; those
+            columns are renamed, all others are kept as they are. Units must be those of the
+            canonical names (°C, W, W/m²; see :data:`SIGNALS`).
+        resample: a pandas frequency such as ``"1h"``: after the checks, average onto that grid
+            (see :meth:`Dataset.resample`); irregular sampling is then allowed.
+        check: also require a regular step, no NaN and no temperature in kelvin. Parseable,
+            strictly increasing time stamps and numeric values are always required.
+        epoch: time of ``0`` for a numeric time column.
+
+    Raises:
+        DataError: for any problem with the input; the message names the column, row or
+            time stamp at fault and the fix.
+    """
+    from_frame = isinstance(source, pd.DataFrame)
+    if from_frame:
+        raw = source
+        label = "the DataFrame"
+
+        def where(i: int) -> str:
+            return f"row {i}"
+
+    elif isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        raw = _read_csv(path)
+        label = path.name
+
+        def where(i: int) -> str:
+            return f"row {i} (line {i + 2} of {label})"
+
+    else:
+        raise DataError(
+            f"source must be a CSV path or a pandas DataFrame, got {type(source).__name__}."
+        )
+    if raw.columns.has_duplicates:
+        name = raw.columns[raw.columns.duplicated()][0]
+        raise DataError(f"two columns are named {name!r} in {label}; rename or drop one of them.")
+
+    values, time_name, time_column = _time_values(raw, time, from_frame)
+    signals = [str(name) for name in raw.columns if name != time_column]
+    renaming = _renaming(columns, signals, time_name)
+    try:
+        origin = pd.Timestamp(epoch)
+    except (ValueError, TypeError):
+        raise DataError(f"cannot read epoch={epoch!r} as a time stamp.") from None
+    index = parse_time(pd.Series(values), time_name, epoch=origin, where=where)
+
+    frame = raw.drop(columns=[time_column]) if time_column is not None else raw
+    frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)
+    frame = frame.set_axis(index, axis=0)
+    dataset = Dataset._new(
+        validated_frame(frame, check=check, regular=resample is None, where=where)
+    )
+    return dataset if resample is None else dataset.resample(resample)

@@ -1,0 +1,16 @@
+"""Estimation: output-error least squares, bound transforms, multistart Levenberg–Marquardt."""
+
+from ._fit import clear_compile_cache as clear_compile_cache
+from ._fit import compile_cache_info as compile_cache_info
+from ._fit import fit as fit
+from ._fit import solve_starts as solve_starts
+from ._problem import FitError as FitError
+from ._problem import Problem as Problem
+from ._problem import initial_guess as initial_guess
+from ._problem import make_problem as make_problem
+from ._problem import problem_arrays as problem_arrays
+from ._result import FitResult as FitResult
+from ._result import StartReport as StartReport
+from ._starts import latin_hypercube as latin_hypercube
+from ._transforms import Transform as Transform
+from ._transforms import make_transform as make_transform

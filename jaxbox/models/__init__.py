@@ -1,0 +1,11 @@
+"""Model declaration: linear RC networks, parameters by naming convention, the model library."""
+
+from ._library import get_model as get_model
+from ._library import library_models as library_models
+from ._library import list_models as list_models
+from ._library import register as register
+from ._network import RCModel as RCModel
+from ._network import RCNetwork as RCNetwork
+from ._parameters import ModelError as ModelError
+from ._parameters import Parameter as Parameter
+from ._parameters import parameter_for as parameter_for

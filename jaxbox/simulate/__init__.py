@@ -1,0 +1,9 @@
+"""Simulation: exact first-order-hold discretisation and diffrax implicit integration."""
+
+from ._diffrax import simulate_diffrax as simulate_diffrax
+from ._exact import discretize_foh as discretize_foh
+from ._exact import simulate_exact as simulate_exact
+from ._simulate import METHODS as METHODS
+from ._simulate import Simulation as Simulation
+from ._simulate import simulate as simulate
+from ._simulate import simulate_arrays as simulate_arrays

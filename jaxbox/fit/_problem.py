@@ -1,0 +1,249 @@
+"""The estimation problem: free/fixed parameters, bounds, guesses, weights, and its residuals.
+
+Output-error least squares: the residual of output ``j`` at sample ``k`` is
+``sqrt(q_j / N) · (ŷ_jk(θ) − y_jk)``, so the cost ``Σ r²`` is the weighted mean squared
+simulation error [K²] and ``sqrt(cost)`` an RMSE when there is one output with weight 1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..models import RCModel
+from ..simulate import simulate_arrays
+from ._transforms import Transform, make_transform
+
+__all__ = ["Problem", "FitError", "make_problem", "initial_guess"]
+
+
+class FitError(ValueError):
+    """The estimation problem is ill-posed or every start failed; the message says why."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Problem:
+    """Everything static about an estimation problem (no data arrays).
+
+    Attributes:
+        model: the RC model.
+        free: names of the estimated parameters, in model order.
+        fixed: fixed parameter values (SI).
+        guess: initial guess for every parameter (SI).
+        transform: bounds transform of the free parameters.
+        weights: output weights q_j (≥ 0), in ``model.outputs`` order.
+        simulator: ``"exact"`` or ``"diffrax"``.
+        sim_options: options for the diffrax simulator (sorted tuple of items).
+    """
+
+    model: RCModel
+    free: tuple[str, ...]
+    fixed: tuple[tuple[str, float], ...]
+    guess: tuple[tuple[str, float], ...]
+    transform: Transform
+    weights: tuple[float, ...]
+    simulator: str = "exact"
+    sim_options: tuple = ()
+
+    @property
+    def fixed_dict(self) -> dict[str, float]:
+        return dict(self.fixed)
+
+    @property
+    def guess_dict(self) -> dict[str, float]:
+        return dict(self.guess)
+
+    @property
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        return {
+            n: (float(lo), float(hi))
+            for n, lo, hi in zip(
+                self.transform.names, self.transform.lower, self.transform.upper, strict=True
+            )
+        }
+
+    def theta(self, p_free, fixed_values) -> dict:
+        """θ dict from free values (jnp [p]) and fixed values (jnp [q], in ``fixed`` order)."""
+        theta = {n: p_free[..., i] for i, n in enumerate(self.free)}
+        theta.update({n: fixed_values[i] for i, (n, _) in enumerate(self.fixed)})
+        return theta
+
+    def simulate(self, p_free, fixed_values, t, u):
+        """Outputs [N, p] for free parameter values (physical)."""
+        theta = self.theta(p_free, fixed_values)
+        opts = dict(self.sim_options)
+        if self.simulator == "diffrax":
+            import diffrax
+
+            opts.setdefault("adaptive", False)
+            opts.setdefault("adjoint", diffrax.ForwardMode())
+            opts.setdefault("throw", False)
+        return simulate_arrays(self.model, theta, t, u, method=self.simulator, **opts)[0]
+
+    def residuals(self, z, args):
+        """Weighted residual vector for internal coordinates z (the LM objective)."""
+        fixed_values, t, u, y, sqrt_w, lo, hi, sc = args
+        p = self.transform.to_physical(z, lo, hi, sc)
+        ysim = self.simulate(p, fixed_values, t, u)
+        return ((ysim - y) * sqrt_w).ravel()
+
+
+def initial_guess(model: RCModel, data) -> dict[str, float]:
+    """Default guess: naming-convention defaults, initial states from the data.
+
+    A measured state starts at its first measurement. An unmeasured state starts at the mean of
+    the first values of the measured temperatures around it (zone outputs and the boundary
+    temperatures it is linked to), which keeps multistart families away from unphysical
+    initial temperatures.
+    """
+    guess = model.defaults()
+    net = model.network
+    first = {}
+    cols = set(data.columns)
+    for name in {*model.outputs, *[i for i in model.inputs if i.startswith("T_")]}:
+        if name in cols:
+            first[name] = float(data.array([name])[0, 0])
+    measured = {n.name: first[n.output] for n in net.nodes if n.output in first}
+    for node in net.nodes:
+        if node.name in measured:
+            value = measured[node.name]
+        else:
+            around = []
+            for e in net.edges:
+                for a, b in ((e.a, e.b), (e.b, e.a)):
+                    if a != node.name:
+                        continue
+                    if b in measured:
+                        around.append(measured[b])
+                    elif b in first:
+                        around.append(first[b])
+            if not around:
+                around = list(measured.values())
+            if not around:
+                continue
+            value = float(np.mean(around))
+        spec = model.parameter(node.T0)
+        guess[node.T0] = float(np.clip(value, spec.lower, spec.upper))
+    return guess
+
+
+def make_problem(
+    model: RCModel,
+    data,
+    *,
+    free: Sequence[str] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    guess: Mapping[str, float] | None = None,
+    weights: Mapping[str, float] | Sequence[float] | None = None,
+    simulator: str = "exact",
+    sim_options: Mapping | None = None,
+) -> Problem:
+    """Check and assemble an estimation problem. Every misuse raises :class:`FitError`."""
+    names = model.param_names
+    fixed = dict(fixed or {})
+    bounds = dict(bounds or {})
+    user_guess = dict(guess or {})
+    for label, d in (("fixed", fixed), ("bounds", bounds), ("guess", user_guess)):
+        bad = [k for k in d if k not in names]
+        if bad:
+            raise FitError(
+                f"{label}: model {model.name} has no parameter(s) {', '.join(bad)}; its "
+                f"parameters are {', '.join(names)}"
+            )
+    if free is None:
+        free = [n for n in names if n not in fixed]
+    else:
+        bad = [k for k in free if k not in names]
+        if bad:
+            raise FitError(
+                f"free: model {model.name} has no parameter(s) {', '.join(bad)}; its parameters "
+                f"are {', '.join(names)}"
+            )
+        clash = [k for k in free if k in fixed]
+        if clash:
+            raise FitError(f"parameter(s) {', '.join(clash)} are both free and fixed")
+    free = tuple(n for n in names if n in set(free))
+    if not free:
+        raise FitError(f"nothing to estimate: every parameter of {model.name} is fixed")
+    full_guess = initial_guess(model, data)
+    full_guess.update({k: float(v) for k, v in user_guess.items()})
+    # parameters neither free nor explicitly fixed are held at their guess
+    for n in names:
+        if n not in free and n not in fixed:
+            fixed[n] = full_guess[n]
+    fixed = {n: float(fixed[n]) for n in names if n in fixed}
+    for n, v in fixed.items():
+        if not np.isfinite(v):
+            raise FitError(f"fixed value of {n} is {v}; give a finite number")
+    lo, hi, g = [], [], []
+    for n in free:
+        spec = model.parameter(n)
+        b = bounds.get(n, (spec.lower, spec.upper))
+        try:
+            blo, bhi = (float(b[0]), float(b[1]))
+        except (TypeError, ValueError, IndexError):
+            raise FitError(f"bounds of {n} must be a pair (lower, upper), got {b!r}") from None
+        if not blo < bhi:
+            raise FitError(f"bounds of {n}: lower {blo:g} must be below upper {bhi:g}")
+        gn = full_guess[n]
+        if not np.isfinite(gn):
+            raise FitError(f"guess of {n} is {gn}; give a finite number")
+        if not blo <= gn <= bhi:
+            if n in user_guess:
+                raise FitError(f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]")
+            gn = float(np.clip(gn, blo, bhi))
+            full_guess[n] = gn
+        lo.append(blo)
+        hi.append(bhi)
+        g.append(gn)
+    try:
+        transform = make_transform(free, lo, hi, g)
+    except ValueError as err:
+        raise FitError(str(err)) from None
+    outs = model.outputs
+    if weights is None:
+        w = [1.0] * len(outs)
+    elif isinstance(weights, Mapping):
+        bad = [k for k in weights if k not in outs]
+        if bad:
+            raise FitError(
+                f"weights given for {', '.join(bad)}, which are not outputs of {model.name} "
+                f"(outputs: {', '.join(outs)})"
+            )
+        w = [float(weights.get(o, 1.0)) for o in outs]
+    else:
+        w = [float(x) for x in weights]
+        if len(w) != len(outs):
+            raise FitError(f"{len(w)} weights for {len(outs)} outputs {', '.join(outs)}")
+    if any((not np.isfinite(x)) or x < 0 for x in w) or sum(w) == 0:
+        raise FitError(f"output weights must be finite, ≥ 0 and not all zero, got {w}")
+    if simulator not in ("exact", "diffrax"):
+        raise FitError(f"unknown simulator {simulator!r}; choose 'exact' or 'diffrax'")
+    return Problem(
+        model=model,
+        free=free,
+        fixed=tuple(fixed.items()),
+        guess=tuple((n, float(full_guess[n])) for n in names),
+        transform=transform,
+        weights=tuple(w),
+        simulator=simulator,
+        sim_options=tuple(sorted((sim_options or {}).items())),
+    )
+
+
+def problem_arrays(problem: Problem, data):
+    """(t, u, y, sqrt_w) arrays of a dataset for a problem: the data side of the residuals."""
+    model = problem.model
+    what = f"model {model.name}"
+    data.require(list(model.inputs) + list(model.outputs), what=what)
+    t = np.asarray(data.t, dtype=float)
+    u = data.array(list(model.inputs))
+    y = data.array(list(model.outputs))
+    n = len(t)
+    if n < 3:
+        raise FitError(f"the identification data has {n} samples; at least 3 are needed")
+    sqrt_w = np.sqrt(np.asarray(problem.weights) / n)
+    return t, u, y, sqrt_w

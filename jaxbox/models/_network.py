@@ -1,0 +1,427 @@
+"""Declarative linear RC networks, compiled into pure state-space functions θ ↦ (A, B, C, D).
+
+A network has *nodes* (thermal capacities, one state each, temperature in °C), *resistances*
+between two nodes or between a node and a measured boundary temperature (an input such as
+``T_amb``), and *heat sources* that inject ``gain · input`` watts into a node (``Q_hea`` with gain
+1, ``I_glo_hor`` with gain ``gA`` m², …). Declaring holds no parameter values: the built
+:class:`RCModel` maps a parameter dict θ (SI values) to matrices with ``jax.numpy`` only, so it can
+be jitted, differentiated and ``vmap``-ped over parameter sets.
+
+Example::
+
+    net = (
+        RCNetwork("TiTe")
+        .node("zon", output="T_zon")
+        .node("wal")
+        .resistance("zon", "wal", "R_wal", scale=0.5)
+        .resistance("wal", "T_amb", "R_wal", scale=0.5)
+        .heat("zon", "Q_hea")
+        .heat("zon", "I_glo_hor", gain="gA")
+    )
+    model = net.build()
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from collections.abc import Mapping
+
+import jax.numpy as jnp
+
+from ._parameters import ModelError, Parameter, parameter_for
+
+__all__ = ["RCNetwork", "RCModel"]
+
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]*")
+_PARAM = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+def _parse_gain(gain) -> tuple[tuple[str, object], ...]:
+    """Parse a gain expression into factors: ('const', float) | ('param', name) | ('compl', name).
+
+    Accepted: a number, a parameter name, ``1-name`` and products of those joined by ``*``.
+    """
+    if isinstance(gain, int | float):
+        return (("const", float(gain)),)
+    if not isinstance(gain, str) or not gain.strip():
+        raise ModelError(f"gain {gain!r} must be a number or an expression like 'gA_e*fra_sol'")
+    factors = []
+    for term in gain.replace(" ", "").split("*"):
+        if m := re.fullmatch(r"1-(" + _PARAM.pattern + ")", term):
+            factors.append(("compl", m.group(1)))
+        elif _PARAM.fullmatch(term):
+            factors.append(("param", term))
+        else:
+            try:
+                factors.append(("const", float(term)))
+            except ValueError:
+                raise ModelError(
+                    f"cannot read gain term {term!r} in {gain!r}: use numbers, parameter names, "
+                    "'1-name' and '*'"
+                ) from None
+    return tuple(factors)
+
+
+def _gain_text(factors) -> str:
+    out = []
+    for kind, value in factors:
+        out.append(f"{value:g}" if kind == "const" else value if kind == "param" else f"1-{value}")
+    return "*".join(out)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Node:
+    name: str
+    C: str
+    T0: str
+    output: str | None
+
+
+@dataclasses.dataclass(frozen=True)
+class _Edge:
+    a: str
+    b: str  # node name or boundary input name
+    R: str
+    scale: float
+
+
+@dataclasses.dataclass(frozen=True)
+class _Source:
+    node: str
+    input: str
+    gain: tuple[tuple[str, object], ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class RCNetwork:
+    """Immutable declaration of a thermal RC network; each method returns a new network.
+
+    Args:
+        name: model name, shown in tables and reports.
+        description: one line on what the structure represents.
+    """
+
+    name: str
+    description: str = ""
+    nodes: tuple[_Node, ...] = ()
+    edges: tuple[_Edge, ...] = ()
+    sources: tuple[_Source, ...] = ()
+
+    # ---- declaration -------------------------------------------------------------------------
+    def _node_names(self) -> tuple[str, ...]:
+        return tuple(n.name for n in self.nodes)
+
+    def _require_node(self, name: str, where: str) -> None:
+        if name not in self._node_names():
+            raise ModelError(
+                f"{self.name}: {where} refers to unknown node {name!r}; declare it first with "
+                f".node({name!r}) (nodes so far: {', '.join(self._node_names()) or 'none'})"
+            )
+
+    def node(
+        self,
+        name: str,
+        C: str | None = None,
+        T0: str | None = None,
+        output: str | bool | None = None,
+    ) -> RCNetwork:
+        """Add a thermal node (one state, temperature ``T_<name>`` in °C).
+
+        Args:
+            name: node name, letters and digits (``zon``, ``wal``, ``int``, ``zon1``…).
+            C: its heat-capacity parameter [J/K]; default ``C_<name>``.
+            T0: its initial-temperature parameter [°C]; default ``T_<name>0``.
+            output: ``True`` to measure the node as output ``T_<name>``, or the output name.
+        """
+        if not isinstance(name, str) or not _NAME.fullmatch(name):
+            raise ModelError(f"{self.name}: node name {name!r} must be letters and digits only")
+        if name in self._node_names():
+            raise ModelError(f"{self.name}: duplicate node {name!r}; node names must be unique")
+        C = f"C_{name}" if C is None else C
+        T0 = f"T_{name}0" if T0 is None else T0
+        if not C:
+            raise ModelError(f"{self.name}: node {name!r} has no capacity; give C='C_{name}'")
+        if not C.startswith("C_"):
+            raise ModelError(
+                f"{self.name}: capacity of node {name!r} is {C!r}; capacities are named C_*"
+            )
+        if not re.fullmatch(r"T_\w+0", T0):
+            raise ModelError(f"{self.name}: initial state of node {name!r} must be named T_*0")
+        if output is True:
+            output = f"T_{name}"
+        elif output is False:
+            output = None
+        if output is not None and output in [n.output for n in self.nodes]:
+            raise ModelError(f"{self.name}: duplicate output {output!r}")
+        return dataclasses.replace(self, nodes=self.nodes + (_Node(name, C, T0, output),))
+
+    def resistance(self, a: str, b: str, R: str, scale: float = 1.0) -> RCNetwork:
+        """Add a resistance ``scale · R`` [K/W] between node ``a`` and node or boundary input ``b``.
+
+        ``b`` is a node name, or a measured temperature input (a name starting with ``T_``,
+        e.g. ``T_amb``, ``T_bou``), in °C.
+        """
+        self._require_node(a, f"resistance {R!r}")
+        if b not in self._node_names():
+            if not b.startswith("T_"):
+                raise ModelError(
+                    f"{self.name}: resistance {R!r} links {a!r} to {b!r}, which is neither a "
+                    "declared node nor a temperature input (inputs are named T_*, e.g. T_amb)"
+                )
+        if a == b:
+            raise ModelError(f"{self.name}: resistance {R!r} links node {a!r} to itself")
+        if not R.startswith("R_"):
+            raise ModelError(f"{self.name}: resistance parameter {R!r} must be named R_*")
+        if not float(scale) > 0:
+            raise ModelError(f"{self.name}: resistance {R!r} needs scale > 0, got {scale!r}")
+        return dataclasses.replace(self, edges=self.edges + (_Edge(a, b, R, float(scale)),))
+
+    def heat(self, node: str, input: str, gain: str | float = 1.0) -> RCNetwork:
+        """Inject ``gain · input`` [W] into ``node``.
+
+        ``input`` is a power [W] (``Q_hea``, ``P_ele``) or an irradiance [W/m²] (``I_glo_hor``,
+        ``I_e``…), ``gain`` a number or an expression of parameters: ``"gA"``,
+        ``"gA_e*fra_sol"``, ``"1-fra_rad"``.
+        """
+        self._require_node(node, f"heat input {input!r}")
+        if input.startswith("T_"):
+            raise ModelError(
+                f"{self.name}: {input!r} is a temperature; link it with .resistance(), not .heat()"
+            )
+        return dataclasses.replace(
+            self, sources=self.sources + (_Source(node, input, _parse_gain(gain)),)
+        )
+
+    # ---- build ---------------------------------------------------------------------------------
+    def build(self, params: Mapping[str, Parameter | Mapping] | None = None) -> RCModel:
+        """Check the network and compile it into an :class:`RCModel`.
+
+        Args:
+            params: optional overrides per parameter name: a :class:`Parameter`, or a dict of the
+                fields to change (``{"R_wal": {"default": 0.02, "upper": 1.0}}``).
+
+        Raises:
+            ModelError: no node, no output, a node with no path to a boundary temperature
+                (its temperature would drift without bound), an override for an unknown
+                parameter.
+        """
+        if not self.nodes:
+            raise ModelError(f"{self.name}: the network has no node; add one with .node()")
+        if not any(n.output for n in self.nodes):
+            raise ModelError(f"{self.name}: no node is measured; mark one with output=True")
+        names = self._node_names()
+        # connectivity: every node must reach a boundary temperature through resistances
+        linked = {n: set() for n in names}
+        grounded = set()
+        for e in self.edges:
+            if e.b in linked:
+                linked[e.a].add(e.b)
+                linked[e.b].add(e.a)
+            else:
+                grounded.add(e.a)
+        reach = set(grounded)
+        frontier = list(grounded)
+        while frontier:
+            for m in linked[frontier.pop()]:
+                if m not in reach:
+                    reach.add(m)
+                    frontier.append(m)
+        lost = [n for n in names if n not in reach]
+        if lost:
+            raise ModelError(
+                f"{self.name}: node(s) {', '.join(lost)} have no resistance path to a boundary "
+                "temperature (e.g. T_amb); connect them, or the network has no steady state"
+            )
+        # inputs in order of first use
+        inputs: list[str] = []
+        for e in self.edges:
+            if e.b not in linked and e.b not in inputs:
+                inputs.append(e.b)
+        for s in self.sources:
+            if s.input not in inputs:
+                inputs.append(s.input)
+        # parameters in a canonical order: capacities, resistances, gains, initial states
+        order: list[str] = []
+        for n in self.nodes:
+            order.append(n.C)
+        for e in self.edges:
+            order.append(e.R)
+        for s in self.sources:
+            order.extend(v for k, v in s.gain if k != "const")
+        for n in self.nodes:
+            order.append(n.T0)
+        seen: dict[str, None] = {}
+        for p in order:
+            seen.setdefault(p, None)
+        specs = {p: parameter_for(p) for p in seen}
+        for p, over in (params or {}).items():
+            if p not in specs:
+                raise ModelError(
+                    f"{self.name}: override for unknown parameter {p!r}; the model's parameters "
+                    f"are {', '.join(specs)}"
+                )
+            if isinstance(over, Parameter):
+                specs[p] = over.replace(name=p)
+            else:
+                specs[p] = specs[p].replace(**dict(over))
+        return RCModel(
+            name=self.name,
+            description=self.description,
+            network=self,
+            states=tuple(f"T_{n.name}" for n in self.nodes),
+            inputs=tuple(inputs),
+            outputs=tuple(n.output for n in self.nodes if n.output),
+            parameters=tuple(specs.values()),
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class RCModel:
+    """A compiled linear RC model: ``dx/dt = A x + B u``, ``y = C x + D u``.
+
+    States are node temperatures [°C], inputs are in the data's units (°C, W, W/m²), time is in
+    seconds. Holds no parameter values: pass θ, a mapping ``name -> value`` (SI units), to
+    :meth:`state_space` and :meth:`initial_state`. Hashable and comparable by value, so it can key
+    compiled-function caches.
+    """
+
+    name: str
+    description: str
+    network: RCNetwork
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    parameters: tuple[Parameter, ...]
+
+    # ---- introspection -----------------------------------------------------------------------
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def n_states(self) -> int:
+        return len(self.states)
+
+    def parameter(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise ModelError(
+            f"model {self.name} has no parameter {name!r}; its parameters are "
+            f"{', '.join(self.param_names)}"
+        )
+
+    def defaults(self) -> dict[str, float]:
+        """Default guess for every parameter (SI), by the naming convention or overrides."""
+        return {p.name: p.default for p in self.parameters}
+
+    @property
+    def structure(self) -> tuple:
+        """Everything that shapes the compiled computation, but no default values or bounds."""
+        n = self.network
+        return (self.states, self.inputs, self.outputs, n.nodes, n.edges, n.sources)
+
+    def with_parameters(self, params: Mapping[str, Parameter | Mapping]) -> RCModel:
+        """A copy with some parameter specs (defaults, bounds) changed."""
+        return self.network.build({**{p.name: p for p in self.parameters}, **dict(params)})
+
+    def renamed(self, name: str, description: str | None = None) -> RCModel:
+        return dataclasses.replace(
+            self,
+            name=name,
+            description=self.description if description is None else description,
+            network=dataclasses.replace(self.network, name=name),
+        )
+
+    def describe(self) -> dict:
+        """A JSON-ready description: name, states, inputs, outputs, parameters with units/bounds."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "states": list(self.states),
+            "inputs": list(self.inputs),
+            "outputs": list(self.outputs),
+            "parameters": [
+                {
+                    "name": p.name,
+                    "unit": p.unit,
+                    "default": p.default,
+                    "lower": p.lower,
+                    "upper": p.upper,
+                    "description": p.description,
+                }
+                for p in self.parameters
+            ],
+        }
+
+    def equations(self) -> list[str]:
+        """Human-readable energy balance per node."""
+        n = self.network
+        lines = []
+        for node in n.nodes:
+            terms = []
+            for e in n.edges:
+                R = e.R if e.scale == 1 else f"({e.scale:g}*{e.R})"
+                if e.a == node.name:
+                    other = f"T_{e.b}" if e.b in [m.name for m in n.nodes] else e.b
+                    terms.append(f"({other} - T_{node.name})/{R}")
+                elif e.b == node.name:
+                    terms.append(f"(T_{e.a} - T_{node.name})/{R}")
+            for s in n.sources:
+                if s.node == node.name:
+                    g = _gain_text(s.gain)
+                    terms.append(s.input if g == "1" else f"{g}*{s.input}")
+            lines.append(f"{node.C} dT_{node.name}/dt = " + " + ".join(terms))
+        return lines
+
+    def __repr__(self) -> str:
+        return (
+            f"RCModel({self.name!r}, states={list(self.states)}, inputs={list(self.inputs)}, "
+            f"outputs={list(self.outputs)}, parameters={list(self.param_names)})"
+        )
+
+    # ---- numerics (pure jnp; jit/vmap/grad friendly) -------------------------------------------
+    def state_space(self, theta: Mapping) -> tuple:
+        """Continuous-time matrices (A [1/s], B, C, D) for parameters θ (SI values).
+
+        B maps inputs to dT/dt: ``1/(R C)`` [1/s] for boundary temperatures, ``gain/C`` [K/J] for
+        heat inputs. Every parameter of the model must be in θ.
+        """
+        n = self.network
+        names = [m.name for m in n.nodes]
+        idx = {name: i for i, name in enumerate(names)}
+        uidx = {u: j for j, u in enumerate(self.inputs)}
+        ns, nu = len(names), len(self.inputs)
+        caps = jnp.stack([jnp.asarray(theta[m.C], dtype=float) for m in n.nodes])
+        G = jnp.zeros((ns, ns))  # conductances between nodes [W/K] (Laplacian form)
+        H = jnp.zeros((ns, nu))  # couplings to inputs [W/K or W/unit]
+        for e in n.edges:
+            g = 1.0 / (e.scale * jnp.asarray(theta[e.R], dtype=float))
+            i = idx[e.a]
+            G = G.at[i, i].add(-g)
+            if e.b in idx:
+                j = idx[e.b]
+                G = G.at[j, j].add(-g).at[i, j].add(g).at[j, i].add(g)
+            else:
+                H = H.at[i, uidx[e.b]].add(g)
+        for s in n.sources:
+            gain = 1.0
+            for kind, value in s.gain:
+                if kind == "const":
+                    gain = gain * value
+                elif kind == "param":
+                    gain = gain * jnp.asarray(theta[value], dtype=float)
+                else:
+                    gain = gain * (1.0 - jnp.asarray(theta[value], dtype=float))
+            H = H.at[idx[s.node], uidx[s.input]].add(gain)
+        A = G / caps[:, None]
+        B = H / caps[:, None]
+        out_nodes = [idx[m.name] for m in n.nodes if m.output]
+        C = jnp.zeros((len(out_nodes), ns)).at[jnp.arange(len(out_nodes)), out_nodes].set(1.0)
+        D = jnp.zeros((len(out_nodes), nu))
+        return A, B, C, D
+
+    def initial_state(self, theta: Mapping):
+        """Initial node temperatures x0 [°C] from the ``T_*0`` parameters in θ."""
+        return jnp.stack([jnp.asarray(theta[m.T0], dtype=float) for m in self.network.nodes])

@@ -1,0 +1,127 @@
+"""Parameters and the naming convention that gives them units, default guesses and bounds.
+
+Every model parameter is named by a strict convention so that defaults, bounds and parent values
+can be matched by name:
+
+========== ======= ============================= =================================
+prefix     unit    default guess                 default bounds
+========== ======= ============================= =================================
+``R_*``    K/W     1e-2 (per name, see below)    [1e-5, 10]
+``C_*``    J/K     2e6 zone … 2e7 wall           [1e4, 1e10]
+``gA*``    m²      2                             [0, 50]
+``fra_*``  –       0.5                           [0, 1] (``fra_ele``: [0, 3])
+``T_*0``   °C      20                            [-3, 37]
+========== ======= ============================= =================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+__all__ = ["Parameter", "ModelError", "parameter_for", "NAMING"]
+
+
+class ModelError(ValueError):
+    """A model declaration or parameter specification is wrong; the message says how to fix it."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Parameter:
+    """One model parameter: SI value space, default guess and bounds.
+
+    Attributes:
+        name: parameter name following the naming convention (``R_wal``, ``C_zon``, …).
+        unit: SI unit string (``K/W``, ``J/K``, ``m²``, ``-``, ``°C``).
+        default: default initial guess in ``unit``.
+        lower: lower bound in ``unit`` (may be ``-inf``).
+        upper: upper bound in ``unit`` (may be ``inf``).
+        description: one-line physical meaning.
+    """
+
+    name: str
+    unit: str
+    default: float
+    lower: float
+    upper: float
+    description: str = ""
+
+    def __post_init__(self):
+        for field in ("default", "lower", "upper"):
+            object.__setattr__(self, field, float(getattr(self, field)))
+        if math.isnan(self.default) or math.isnan(self.lower) or math.isnan(self.upper):
+            raise ModelError(f"parameter {self.name!r}: default and bounds must not be NaN")
+        if not self.lower < self.upper:
+            raise ModelError(
+                f"parameter {self.name!r}: lower bound {self.lower:g} must be below upper bound "
+                f"{self.upper:g}"
+            )
+        if not self.lower <= self.default <= self.upper:
+            raise ModelError(
+                f"parameter {self.name!r}: default {self.default:g} lies outside its bounds "
+                f"[{self.lower:g}, {self.upper:g}]; change the default or the bounds"
+            )
+
+    @property
+    def is_initial_state(self) -> bool:
+        """True for initial-state parameters ``T_*0``."""
+        return _T0.fullmatch(self.name) is not None
+
+    def replace(self, **changes) -> Parameter:
+        """Return a copy with fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+_T0 = re.compile(r"T_\w+0")
+
+# Name-specific default guesses (SI), refined within a prefix.
+_DEFAULTS = {
+    "C_zon": 2e6,
+    "C_wal": 2e7,
+    "C_int": 1e7,
+    "C_bou": 1e7,
+    "C_emb": 5e6,
+    "C_hea": 1e5,
+    "C_sen": 1e5,
+    "R_wal": 1e-2,
+    "R_int": 2e-3,
+    "R_inf": 3e-2,
+    "R_bou": 2e-2,
+    "R_gro": 2e-2,
+    "R_emb": 2e-3,
+}
+
+# (regex, unit, default, lower, upper, description template)
+NAMING: tuple[tuple[str, str, float, float, float, str], ...] = (
+    (r"T_\w+0", "°C", 20.0, -3.0, 37.0, "initial temperature of state {}"),
+    (r"R_\w+", "K/W", 1e-2, 1e-5, 10.0, "thermal resistance {}"),
+    (r"C_\w+", "J/K", 1e7, 1e4, 1e10, "heat capacity {}"),
+    (r"gA(_\w+)?", "m²", 2.0, 0.0, 50.0, "solar aperture {}"),
+    (r"fra_ele", "-", 1.0, 0.0, 3.0, "fraction of electricity use released as internal gains"),
+    (r"fra_\w+", "-", 0.5, 0.0, 1.0, "fraction {}"),
+)
+
+
+def parameter_for(name: str, description: str | None = None) -> Parameter:
+    """The default :class:`Parameter` for ``name`` by the naming convention.
+
+    Raises:
+        ModelError: when ``name`` follows none of the prefixes ``R_``, ``C_``, ``gA``, ``fra_``,
+            ``T_*0``.
+    """
+    for pattern, unit, default, lower, upper, text in NAMING:
+        if re.fullmatch(pattern, name):
+            default = _DEFAULTS.get(name, default)
+            if pattern.startswith("T_"):
+                text = text.format(name[2:-1])
+            elif "{}" in text:
+                text = text.format(name.split("_", 1)[1] if "_" in name else name)
+            return Parameter(name, unit, default, lower, upper, description or text)
+    raise ModelError(
+        f"parameter name {name!r} follows no naming convention (R_* K/W, C_* J/K, gA* m², "
+        "fra_* -, T_*0 °C); rename it or pass an explicit Parameter for it"
+    )

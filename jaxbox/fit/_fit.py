@@ -211,8 +211,8 @@ def fit(
         x0s = np.atleast_2d(np.asarray(starts, dtype=float))
         if x0s.shape[1] != len(problem.free):
             raise FitError(
-                f"explicit starts must have one column per free parameter ({', '.join(problem.free)}),"
-                f" got shape {x0s.shape}"
+                "explicit starts must have one column per free parameter "
+                f"({', '.join(problem.free)}), got shape {x0s.shape}"
             )
     out = solve_starts(problem, x0s, arrays, max_steps=max_steps, rtol=rtol, atol=atol)
     status = [_status(c, k, p) for c, k, p in zip(out["code"], out["cost"], out["p"], strict=True)]

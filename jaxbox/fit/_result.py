@@ -166,7 +166,8 @@ class FitResult:
         """A readable table of the estimate."""
         lines = [
             f"model {self.model.name}: {len(self.free)} free parameters, {self.n_samples} samples, "
-            f"RMS error {np.sqrt(self.cost):.4f} K ({'converged' if self.converged else 'NOT converged'})",
+            f"RMS error {np.sqrt(self.cost):.4f} K "
+            f"({'converged' if self.converged else 'NOT converged'})",
             f"starts: {self.starts.n} ({self.starts.status_summary()}), "
             f"{self.starts.n_at_best()} reached the best cost",
             f"{'parameter':<10} {'value':>12} {'unit':<4} {'lower':>10} {'upper':>10}  note",
@@ -181,6 +182,6 @@ class FitResult:
 
     def __repr__(self) -> str:
         return (
-            f"FitResult(model={self.model.name!r}, cost={self.cost:.6g}, converged={self.converged}, "
-            f"starts={self.starts.n})"
+            f"FitResult(model={self.model.name!r}, cost={self.cost:.6g}, "
+            f"converged={self.converged}, starts={self.starts.n})"
         )

@@ -66,7 +66,7 @@ class Transform:
         return jnp.stack(out, axis=-1)
 
     def to_internal(self, p):
-        """Internal coordinates z from physical values p (numpy; values at a bound are nudged in)."""
+        """Internal coordinates z from physical values p (numpy; bound values are nudged in)."""
         p = np.asarray(p, dtype=float)
         z = np.empty_like(p)
         for i, k in enumerate(self.kinds):

@@ -1,0 +1,29 @@
+"""jaxbox: grey-box RC thermal models of buildings, identified and validated with JAX.
+
+Data → models → simulate → fit → validate. Call :func:`enable_x64` once after import (the
+command line does it for you): every computation runs in float64.
+"""
+
+from . import data as data
+from . import datasets as datasets
+from . import fit as fit_
+from . import models as models
+from . import simulate as simulate_
+from ._x64 import PrecisionError as PrecisionError
+from ._x64 import enable_x64 as enable_x64
+from .data import Dataset as Dataset
+from .data import DataError as DataError
+from .data import load as load
+from .fit import FitError as FitError
+from .fit import FitResult as FitResult
+from .fit import fit as fit
+from .models import ModelError as ModelError
+from .models import Parameter as Parameter
+from .models import RCModel as RCModel
+from .models import RCNetwork as RCNetwork
+from .models import get_model as get_model
+from .models import list_models as list_models
+from .simulate import Simulation as Simulation
+from .simulate import simulate as simulate
+
+__version__ = "0.1.0"

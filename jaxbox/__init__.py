@@ -6,9 +6,7 @@ command line does it for you): every computation runs in float64.
 
 from . import data as data
 from . import datasets as datasets
-from . import fit as fit_
 from . import models as models
-from . import simulate as simulate_
 from ._x64 import PrecisionError as PrecisionError
 from ._x64 import enable_x64 as enable_x64
 from .data import Dataset as Dataset

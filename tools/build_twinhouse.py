@@ -23,6 +23,7 @@ twinhouse_exp1`` next to the repository root).
 from __future__ import annotations
 
 import argparse
+import gzip
 import sys
 from pathlib import Path
 
@@ -93,13 +94,9 @@ def derive(source: Path, house: str) -> dict[str, pd.DataFrame]:
 
 
 def write(frame: pd.DataFrame, path: Path) -> None:
-    """Write a table as a reproducible gzip CSV (no time stamp in the gzip header)."""
-    frame.to_csv(
-        path,
-        index_label="time",
-        date_format="%Y-%m-%d %H:%M:%S",
-        compression={"method": "gzip", "compresslevel": 9, "mtime": 0},
-    )
+    """Write a table as a reproducible gzip CSV (no name or time stamp in the gzip header)."""
+    text = frame.to_csv(index_label="time", date_format="%Y-%m-%d %H:%M:%S", lineterminator="\n")
+    Path(path).write_bytes(gzip.compress(text.encode("utf-8"), compresslevel=9, mtime=0))
 
 
 def main(argv: list[str] | None = None) -> int:

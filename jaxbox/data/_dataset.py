@@ -68,7 +68,7 @@ def validated_frame(
         raise DataError(
             f"the data have {len(frame)} sample(s); at least two are needed to know the step."
         )
-    index = pd.DatetimeIndex(frame.index, name="time").as_unit("ns")
+    index = pd.DatetimeIndex(frame.index, freq=None, name="time").as_unit("ns")
     check_order(index, where)
     if check and regular:
         check_regular(index, where)

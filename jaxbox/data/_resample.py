@@ -94,4 +94,4 @@ def resample_mean(
             f"column {name!r} has no values in the interval ({end - span}, {end}]; fill the "
             "gap or slice the data around it."
         )
-    return means.rename_axis("time")
+    return means.set_axis(pd.DatetimeIndex(means.index, freq=None, name="time"), axis=0)

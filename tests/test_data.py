@@ -1,0 +1,442 @@
+"""Tests of jaxbox.data: loading, checks, the Dataset value object."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from jaxbox.data import SIGNALS, DataError, Dataset, load, signal_unit
+
+STEP = 600.0  # s
+
+
+def frame(n: int = 13, step: float = STEP, start: str = "2020-01-01 00:00") -> pd.DataFrame:
+    """A small regular DataFrame with a ``time`` column of ISO strings."""
+    time = pd.Timestamp(start) + pd.to_timedelta(np.arange(n) * step, unit="s")
+    return pd.DataFrame(
+        {
+            "time": time.strftime("%Y-%m-%d %H:%M:%S"),
+            "T_zon": 20.0 + np.arange(n),
+            "Q_hea": 100.0 * np.arange(n),
+        }
+    )
+
+
+def synthetic(n: int = 37, step: float = STEP) -> Dataset:
+    t = np.arange(n) * step
+    return Dataset.from_arrays(t, {"T_zon": 20.0 + t / 3600.0, "Q_hea": 10.0 * np.arange(n)})
+
+
+# -- signals --------------------------------------------------------------------------------------
+
+
+def test_signal_units() -> None:
+    assert signal_unit("T_zon") == "°C"
+    assert signal_unit("T_zon2") == "°C"
+    assert signal_unit("T_bou1") == "°C"
+    assert signal_unit("Q_hea3") == "W"
+    assert signal_unit("I_glo_hor") == "W/m²"
+    assert signal_unit("P_ele") == "W"
+    assert signal_unit("living_T") is None
+    assert signal_unit("T_zonX") is None
+    for name, (unit, description) in SIGNALS.items():
+        assert signal_unit(name) == unit
+        assert description
+
+
+# -- load: sources and time -----------------------------------------------------------------------
+
+
+def test_load_dataframe_with_time_column() -> None:
+    ds = load(frame())
+    assert ds.columns == ("T_zon", "Q_hea")
+    assert ds.index.name == "time"
+    assert ds.step == STEP
+    assert len(ds) == 13
+    assert ds.start == pd.Timestamp("2020-01-01 00:00")
+    assert ds.end == pd.Timestamp("2020-01-01 02:00")
+    np.testing.assert_array_equal(ds.t, np.arange(13) * STEP)
+    assert ds.t.dtype == np.float64
+
+
+def test_load_dataframe_with_datetime_index() -> None:
+    df = frame()
+    df.index = pd.DatetimeIndex(pd.to_datetime(df.pop("time")))
+    ds = load(df)
+    assert ds.columns == ("T_zon", "Q_hea")
+    assert ds.step == STEP
+
+
+def test_load_csv(tmp_path) -> None:
+    path = tmp_path / "data.csv"
+    frame().rename(columns={"T_zon": "living"}).to_csv(path, index=False)
+    ds = load(path, columns={"T_zon": "living"})
+    assert ds.columns == ("T_zon", "Q_hea")
+    np.testing.assert_array_equal(ds["T_zon"], 20.0 + np.arange(13))
+    assert load(str(path)).columns == ("living", "Q_hea")
+
+
+def test_load_does_not_modify_the_input() -> None:
+    df = frame()
+    before = df.copy()
+    load(df, columns={"T_zon1": "T_zon"})
+    pd.testing.assert_frame_equal(df, before)
+
+
+def test_numeric_time_is_seconds_since_1970() -> None:
+    df = frame().assign(time=np.arange(13) * STEP + 86400.0)
+    ds = load(df)
+    assert ds.start == pd.Timestamp("1970-01-02 00:00")
+    assert ds.step == STEP
+    assert load(df, epoch="2013-01-01").start == pd.Timestamp("2013-01-02 00:00")
+
+
+def test_named_time_column_is_dropped() -> None:
+    df = frame().rename(columns={"time": "stamp"})
+    ds = load(df, time="stamp")
+    assert "stamp" not in ds.columns
+
+
+def test_file_not_found(tmp_path) -> None:
+    with pytest.raises(DataError, match="file not found.*nope.csv"):
+        load(tmp_path / "nope.csv")
+
+
+def test_no_time_column() -> None:
+    df = frame().rename(columns={"time": "when"})
+    with pytest.raises(DataError, match=r"no time column found \(tried 'time'.*'when'.*time="):
+        load(df)
+    with pytest.raises(DataError, match="no time column 'stamp'.*'when'"):
+        load(df, time="stamp")
+
+
+def test_unparseable_time_stamp_names_row() -> None:
+    df = frame()
+    df.loc[4, "time"] = "yesterday"
+    with pytest.raises(DataError, match="cannot parse the time stamp 'yesterday'.*row 4"):
+        load(df)
+
+
+def test_unparseable_time_stamp_names_csv_line(tmp_path) -> None:
+    df = frame()
+    df.loc[4, "time"] = "2020-13-45 00:00"
+    path = tmp_path / "bad.csv"
+    df.to_csv(path, index=False)
+    with pytest.raises(DataError, match=r"row 4 \(line 6 of bad.csv\)"):
+        load(path)
+
+
+def test_non_iso_time_strings_are_inferred() -> None:
+    df = frame()
+    df["time"] = pd.to_datetime(df["time"]).dt.strftime("%d/%m/%Y %H:%M")
+    assert load(df).step == STEP
+
+
+def test_non_monotonic_time_stamps() -> None:
+    df = frame()
+    df.loc[[5, 6], "time"] = df.loc[[6, 5], "time"].to_numpy()
+    with pytest.raises(DataError, match=r"not increasing: row 6 \(2020-01-01 00:50:00\) .*row 5"):
+        load(df)
+
+
+def test_duplicate_time_stamps() -> None:
+    df = frame()
+    df.loc[7, "time"] = df.loc[6, "time"]
+    df.loc[8:, "time"] = frame(n=13, start="2020-01-01 00:10")["time"].iloc[8:].to_numpy()
+    with pytest.raises(
+        DataError, match="duplicate time stamp 2020-01-01 01:00:00 at row 6 and row 7"
+    ):
+        load(df)
+
+
+def test_irregular_sampling_suggests_resample() -> None:
+    df = frame(n=20)
+    df = df.drop(index=9).reset_index(drop=True)
+    with pytest.raises(
+        DataError, match=r"irregular sampling.*01:20:00 to .*01:40:00.*1200 s.*resample="
+    ):
+        load(df)
+
+
+def test_irregular_sampling_accepted_with_resample() -> None:
+    df = frame(n=25).drop(index=9).reset_index(drop=True)  # 00:00 ... 04:00 without 01:30
+    ds = load(df, resample="1h")
+    assert ds.step == 3600.0
+    assert list(ds.index) == list(pd.date_range("2020-01-01 01:00", periods=4, freq="1h"))
+    # the second hour (01:00, 02:00] holds 01:10, 01:20, 01:40, 01:50, 02:00
+    assert ds["T_zon"][1] == pytest.approx(np.mean(20.0 + np.array([7, 8, 10, 11, 12])))
+
+
+def test_irregular_sampling_allowed_without_checks() -> None:
+    df = frame(n=20).drop(index=9).reset_index(drop=True)
+    assert load(df, check=False).step == STEP
+
+
+def test_non_numeric_value() -> None:
+    df = frame()
+    df["Q_hea"] = df["Q_hea"].astype(object)
+    df.loc[3, "Q_hea"] = "n/a"
+    with pytest.raises(DataError, match="column 'Q_hea' has a non-numeric value 'n/a' at row 3"):
+        load(df)
+
+
+def test_decimal_comma_hint(tmp_path) -> None:
+    path = tmp_path / "comma.csv"
+    path.write_text('time,T_zon\n2020-01-01 00:00,"20,5"\n2020-01-01 00:10,"20,6"\n')
+    with pytest.raises(DataError, match=r"'20,5' at row 0 \(line 2 of comma.csv\).*decimal"):
+        load(path)
+
+
+def test_missing_values(tmp_path) -> None:
+    df = frame()
+    df.loc[[3, 4, 9], "T_zon"] = np.nan
+    with pytest.raises(
+        DataError,
+        match=r"column 'T_zon' has 3 missing .* between 2020-01-01 00:30:00 and "
+        r"2020-01-01 01:30:00.*slice.*fill",
+    ):
+        load(df)
+    path = tmp_path / "gap.csv"
+    frame().to_csv(path, index=False)
+    text = path.read_text().splitlines()
+    text[3] = text[3].rsplit(",", 1)[0] + ","  # empty Q_hea in the third data row
+    path.write_text("\n".join(text) + "\n")
+    with pytest.raises(DataError, match="column 'Q_hea' has 1 missing"):
+        load(path)
+    assert np.isnan(load(path, check=False)["Q_hea"][2])
+
+
+def test_kelvin_temperature() -> None:
+    df = frame().assign(T_amb=np.full(13, 283.15))
+    with pytest.raises(DataError, match=r"'T_amb' looks like kelvin.*subtract 273.15"):
+        load(df)
+    # a non-canonical column may hold anything
+    assert "Tk" in load(frame().assign(Tk=np.full(13, 283.15))).columns
+
+
+def test_mapping_to_missing_column_lists_available() -> None:
+    with pytest.raises(
+        DataError,
+        match=r"maps 'T_zon' to 'living_T'.*no column 'living_T'.*available: 'T_zon', 'Q_hea'",
+    ):
+        load(frame(), columns={"T_zon": "living_T"})
+
+
+def test_mapping_written_backwards() -> None:
+    df = frame().rename(columns={"T_zon": "living"})
+    with pytest.raises(DataError, match=r"did you mean \{'T_zon': 'living'\}"):
+        load(df, columns={"living": "T_zon"})
+
+
+def test_mapping_collides_with_existing_column() -> None:
+    df = frame().assign(living=1.0)
+    with pytest.raises(DataError, match="two columns would be named 'T_zon'.*'living'"):
+        load(df, columns={"T_zon": "living"})
+    # swapping names is fine
+    ds = load(df, columns={"T_zon": "living", "T_zon2": "T_zon"})
+    assert ds["T_zon"][0] == 1.0 and ds["T_zon2"][0] == 20.0
+
+
+def test_mapping_same_column_twice() -> None:
+    with pytest.raises(DataError, match="'T_zon' is mapped twice"):
+        load(frame(), columns={"T_zon1": "T_zon", "T_zon2": "T_zon"})
+
+
+def test_duplicate_column_names() -> None:
+    df = pd.concat([frame(), frame()[["T_zon"]]], axis=1)
+    with pytest.raises(DataError, match="two columns are named 'T_zon'"):
+        load(df)
+
+
+def test_load_resample() -> None:
+    ds = load(frame(n=13), resample="1h")
+    assert ds.step == 3600.0
+    assert len(ds) == 2  # (23:00, 00:00] is incomplete and dropped
+
+
+# -- resample -------------------------------------------------------------------------------------
+
+
+def test_resample_hand_computed() -> None:
+    ds = synthetic(n=37)  # 00:00 ... 06:00 every 10 min
+    hourly = ds.resample("1h")
+    # (00:00, 01:00] averages the samples at 00:10 ... 01:00, i.e. numbers 1 ... 6
+    expected = ds.array(["T_zon", "Q_hea"])[1:].reshape(6, 6, 2).mean(axis=1)
+    np.testing.assert_allclose(hourly.array(["T_zon", "Q_hea"]), expected, rtol=0, atol=1e-12)
+    assert list(hourly.index) == list(pd.date_range("2000-01-01 01:00", periods=6, freq="1h"))
+    assert hourly["Q_hea"][0] == 35.0  # mean of 10, 20, ..., 60 W
+    assert hourly.step == 3600.0
+
+
+def test_resample_drops_incomplete_last_interval() -> None:
+    ds = synthetic(n=40)  # ends at 06:30
+    hourly = ds.resample("1h")
+    assert hourly.end == pd.Timestamp("2000-01-01 06:00")
+    assert len(hourly) == 6
+
+
+def test_resample_keeps_complete_first_interval() -> None:
+    ds = synthetic(n=37).slice("2000-01-01 00:10")  # 00:10 ... 06:00: six complete hours
+    assert len(ds.resample("1h")) == 6
+
+
+def test_resample_errors() -> None:
+    ds = synthetic()
+    with pytest.raises(DataError, match="shorter than the sampling step"):
+        ds.resample("5min")
+    with pytest.raises(DataError, match="not a whole multiple of the sampling step"):
+        ds.resample("25min")
+    with pytest.raises(DataError, match="no fixed length"):
+        ds.resample("MS")
+    with pytest.raises(DataError, match="cannot read resample rule"):
+        ds.resample("often")
+    with pytest.raises(DataError, match="do not cover one complete"):
+        ds.slice(end="2000-01-01 00:30").resample("1h")
+
+
+def test_resample_empty_interval() -> None:
+    df = frame(n=37)
+    df = df.drop(index=range(13, 19)).reset_index(drop=True)  # no data in (02:00, 03:00]
+    with pytest.raises(DataError, match=r"no samples in the interval \(2020-01-01 02:00:00, "):
+        load(df, resample="1h")
+    with pytest.raises(DataError, match=r"\(2020-01-01 02:00:00, 2020-01-01 03:00:00\]"):
+        load(df, check=False).resample("1h")
+
+
+# -- Dataset --------------------------------------------------------------------------------------
+
+
+def test_slice_is_inclusive() -> None:
+    ds = synthetic()
+    part = ds.slice("2000-01-01 01:00", pd.Timestamp("2000-01-01 02:00"))
+    assert part.start == pd.Timestamp("2000-01-01 01:00")
+    assert part.end == pd.Timestamp("2000-01-01 02:00")
+    assert len(part) == 7
+    assert len(ds.slice(start="2000-01-01 05:00")) == 7
+    assert len(ds.slice(end="2000-01-01 00:10")) == 2
+
+
+def test_slice_errors() -> None:
+    ds = synthetic()
+    with pytest.raises(DataError, match="no samples between .* the data span 2000-01-01 00:00:00"):
+        ds.slice("2001-01-01")
+    with pytest.raises(DataError, match="is after end"):
+        ds.slice("2000-01-01 02:00", "2000-01-01 01:00")
+
+
+def test_split_halves() -> None:
+    ds = synthetic(n=40)
+    ident, valid = ds.split()
+    assert len(ident) == len(valid) == 20
+    assert ident.end < valid.start
+    np.testing.assert_array_equal(np.concatenate([ident.t, valid.t + 20 * STEP]), ds.t)
+    assert [len(part) for part in synthetic(n=37).split()] == [18, 19]
+    assert [len(part) for part in ds.split(fraction=0.75)] == [30, 10]
+
+
+def test_split_at() -> None:
+    ds = synthetic()
+    ident, valid = ds.split(at="2000-01-01 01:00")
+    assert ident.end == pd.Timestamp("2000-01-01 01:00")
+    assert valid.start == pd.Timestamp("2000-01-01 01:10")
+    assert len(ident) + len(valid) == len(ds)
+    with pytest.raises(DataError, match="leaves one part empty"):
+        ds.split(at="2000-01-01 06:00")
+    with pytest.raises(DataError, match="fraction must be between 0 and 1"):
+        ds.split(fraction=1.0)
+
+
+def test_require_message() -> None:
+    ds = synthetic()
+    ds.require(["T_zon", "Q_hea"])
+    with pytest.raises(
+        DataError,
+        match=r"no column 'T_amb' required by model 'TiTe'; available: 'T_zon', 'Q_hea'; "
+        r"map yours with columns=\{'T_amb': 'your_col'\}",
+    ):
+        ds.require(["T_zon", "T_amb"], what="model 'TiTe'")
+    with pytest.raises(DataError, match="no columns 'T_amb', 'I_s'"):
+        ds.require(["T_amb", "I_s"])
+    with pytest.raises(DataError, match="did you mean 'T_zon'"):
+        ds.require("T_zon1")
+
+
+def test_array_is_a_contiguous_copy() -> None:
+    ds = synthetic()
+    a = ds.array(["Q_hea", "T_zon"])
+    assert a.shape == (len(ds), 2) and a.dtype == np.float64 and a.flags.c_contiguous
+    np.testing.assert_array_equal(a[:, 0], 10.0 * np.arange(len(ds)))
+    a[:] = -1.0
+    assert ds.array("Q_hea")[1, 0] == 10.0
+    with pytest.raises(DataError, match="no column 'T_amb'"):
+        ds.array(["T_amb"])
+
+
+def test_dataset_is_immutable() -> None:
+    ds = synthetic()
+    frame_copy = ds.frame
+    frame_copy.iloc[:, :] = 0.0
+    frame_copy["extra"] = 1.0
+    assert ds["Q_hea"][1] == 10.0
+    assert "extra" not in ds.columns
+    ds["Q_hea"][1] = 0.0
+    assert ds["Q_hea"][1] == 10.0
+    with pytest.raises(AttributeError):
+        ds.step = 1.0  # type: ignore[misc]
+
+
+def test_repr_is_short() -> None:
+    text = repr(synthetic())
+    assert text.startswith("Dataset(37 samples, step 600 s")
+    assert "T_zon, Q_hea" in text and "\n" not in text
+
+
+def test_with_columns() -> None:
+    ds = synthetic()
+    new = ds.with_columns(T_amb=np.linspace(0.0, 10.0, len(ds)), P_ele=5.0)
+    assert new.columns == ("T_zon", "Q_hea", "T_amb", "P_ele")
+    assert ds.columns == ("T_zon", "Q_hea")
+    np.testing.assert_array_equal(new["P_ele"], 5.0)
+    replaced = ds.with_columns({"Q_hea": np.zeros(len(ds))})
+    assert replaced.columns == ds.columns and not replaced["Q_hea"].any()
+    with pytest.raises(DataError, match="column 'T_amb' has shape"):
+        ds.with_columns(T_amb=np.zeros(3))
+    with pytest.raises(DataError, match="looks like kelvin"):
+        ds.with_columns(T_amb=np.full(len(ds), 290.0))
+
+
+def test_from_arrays() -> None:
+    ds = Dataset.from_arrays(np.arange(5) * 3600.0, {"T_zon": np.ones(5)}, start="2020-06-01")
+    assert ds.start == pd.Timestamp("2020-06-01") and ds.step == 3600.0
+    index = pd.date_range("2020-06-01", periods=5, freq="15min")
+    assert Dataset.from_arrays(index, {"T_zon": np.ones(5)}).step == 900.0
+    with pytest.raises(DataError, match="signal 'T_zon' has shape"):
+        Dataset.from_arrays(np.arange(5) * 3600.0, {"T_zon": np.ones(4)})
+    with pytest.raises(DataError, match="irregular sampling"):
+        Dataset.from_arrays(np.array([0.0, 1.0, 2.0, 4.0]) * 3600.0, {"T_zon": np.ones(4)})
+
+
+def test_dataset_from_frame_needs_datetime_index() -> None:
+    with pytest.raises(DataError, match="no DatetimeIndex.*time="):
+        Dataset(frame())
+
+
+def test_time_zone_aware_data() -> None:
+    df = frame()
+    df["time"] = pd.to_datetime(df["time"]).dt.tz_localize("UTC").astype(str)
+    ds = load(df)
+    assert str(ds.index.tz) == "UTC"
+    assert len(ds.slice("2020-01-01 01:00")) == 7
+
+
+def test_plot_returns_figure() -> None:
+    from matplotlib.figure import Figure
+
+    ds = synthetic().with_columns(I_s=1.0, other=2.0)
+    figure = ds.plot()
+    assert isinstance(figure, Figure)
+    assert len(figure.axes) == 4
+    assert figure.axes[0].get_ylabel() == "temperature [°C]"
+    one = Figure().subplots()
+    assert ds.plot(["T_zon"], ax=one) is one.figure

@@ -105,10 +105,28 @@ def test_file_not_found(tmp_path) -> None:
 
 def test_no_time_column() -> None:
     df = frame().rename(columns={"time": "when"})
-    with pytest.raises(DataError, match=r"no time column found \(tried 'time'.*'when'.*time="):
+    with pytest.raises(
+        DataError, match=r"no time column found \(tried 'time'.*time=.*columns: 'when'"
+    ):
         load(df)
     with pytest.raises(DataError, match="no time column 'stamp'.*'when'"):
         load(df, time="stamp")
+
+
+def test_no_time_column_suggests_likely_names() -> None:
+    df = frame().rename(columns={"time": "Date_Time"})
+    with pytest.raises(DataError, match=r"perhaps 'Date_Time'"):
+        load(df)
+
+
+def test_text_columns_are_dropped_with_a_warning() -> None:
+    df = frame().assign(note="ok", stamp=pd.Timestamp("2020-01-01"))
+    with pytest.warns(UserWarning, match="dropped column.*'note', 'stamp'"):
+        ds = load(df)
+    assert ds.columns == ("T_zon", "Q_hea")
+    df = frame().assign(T_amb="cold")  # a canonical name must hold numbers
+    with pytest.raises(DataError, match="column 'T_amb' has a non-numeric value 'cold' at row 0"):
+        load(df)
 
 
 def test_unparseable_time_stamp_names_row() -> None:
@@ -136,7 +154,9 @@ def test_non_iso_time_strings_are_inferred() -> None:
 def test_non_monotonic_time_stamps() -> None:
     df = frame()
     df.loc[[5, 6], "time"] = df.loc[[6, 5], "time"].to_numpy()
-    with pytest.raises(DataError, match=r"not increasing: row 6 \(2020-01-01 00:50:00\) .*row 5"):
+    with pytest.raises(
+        DataError, match=r"not increasing: row 6 has 2020-01-01 00:50:00, earlier than .* at row 5"
+    ):
         load(df)
 
 
@@ -221,11 +241,13 @@ def test_mapping_to_missing_column_lists_available() -> None:
         match=r"maps 'T_zon' to 'living_T'.*no column 'living_T'.*available: 'T_zon', 'Q_hea'",
     ):
         load(frame(), columns={"T_zon": "living_T"})
+    with pytest.raises(DataError, match=r"did you mean 'Q_hea'"):
+        load(frame(), columns={"Q_hea1": "Q_heat"})
 
 
 def test_mapping_written_backwards() -> None:
     df = frame().rename(columns={"T_zon": "living"})
-    with pytest.raises(DataError, match=r"did you mean \{'T_zon': 'living'\}"):
+    with pytest.raises(DataError, match=r"canonical -> yours: \{'T_zon': 'living'\}"):
         load(df, columns={"living": "T_zon"})
 
 
@@ -384,6 +406,15 @@ def test_dataset_is_immutable() -> None:
     assert ds["Q_hea"][1] == 10.0
     with pytest.raises(AttributeError):
         ds.step = 1.0  # type: ignore[misc]
+
+
+def test_pickle_and_copy() -> None:
+    import copy
+    import pickle
+
+    ds = synthetic()
+    for other in (pickle.loads(pickle.dumps(ds)), copy.copy(ds), copy.deepcopy(ds)):
+        assert other.equals(ds) and other.step == ds.step
 
 
 def test_repr_is_short() -> None:

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from ._errors import DataError
-from ._signals import is_temperature
+from ._signals import is_temperature, signal_base
 
 __all__ = [
     "Where",
@@ -124,8 +124,8 @@ def check_order(index: pd.DatetimeIndex, where: Where = _position) -> None:
     if back.size:
         i = int(back[0]) + 1
         raise DataError(
-            f"time stamps are not increasing: {where(i)} ({index[i]}) comes after "
-            f"{where(i - 1)} ({index[i - 1]}); sort the data by time first."
+            f"time stamps are not increasing: {where(i)} has {index[i]}, earlier than "
+            f"{index[i - 1]} at {where(i - 1)}; sort the data by time first."
         )
     same = np.flatnonzero(steps == 0)
     if same.size:
@@ -176,18 +176,29 @@ def _rule_hint(step: float) -> str:
 
 
 def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:
-    """Convert every column to float64; name the first value that is not a number."""
+    """Convert every column to float64; name the first value that is not a number.
+
+    A column without a single number (dates, comments, ...) whose name is not canonical is not
+    a signal: it is dropped with a warning. Any other non-numeric value is an error.
+    """
     out = {}
+    dropped = []
     for name in frame.columns:
         column = frame[name]
-        if pd.api.types.is_numeric_dtype(column.dtype) and not pd.api.types.is_complex_dtype(
-            column.dtype
-        ):
+        kind = column.dtype
+        if pd.api.types.is_numeric_dtype(kind) and not pd.api.types.is_complex_dtype(kind):
             out[name] = column.to_numpy(dtype=np.float64, na_value=np.nan)
             continue
-        numbers = pd.to_numeric(column, errors="coerce")
+        if pd.api.types.is_datetime64_any_dtype(kind) or pd.api.types.is_timedelta64_dtype(kind):
+            numbers = pd.Series(np.nan, index=column.index)
+        else:
+            numbers = pd.to_numeric(column, errors="coerce")
         blank = column.isna() | column.astype("string").str.strip().eq("").fillna(True)
-        bad = np.flatnonzero((numbers.isna() & ~blank).to_numpy(dtype=bool, na_value=False))
+        blank = blank.to_numpy(dtype=bool, na_value=True)
+        bad = np.flatnonzero(numbers.isna().to_numpy() & ~blank)
+        if bad.size and bad.size == np.count_nonzero(~blank) and signal_base(str(name)) is None:
+            dropped.append(str(name))
+            continue
         if bad.size:
             i = int(bad[0])
             value = column.iloc[i]
@@ -202,7 +213,13 @@ def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:
                 "drop that value, or drop the column before loading."
             )
         out[name] = numbers.to_numpy(dtype=np.float64, na_value=np.nan)
-    return pd.DataFrame(out, index=frame.index, columns=frame.columns)
+    if dropped:
+        warnings.warn(
+            f"dropped column(s) without any number: {', '.join(map(repr, dropped))}.",
+            UserWarning,
+            stacklevel=4,
+        )
+    return pd.DataFrame(out, index=frame.index, columns=[n for n in frame.columns if n in out])
 
 
 def check_missing(frame: pd.DataFrame) -> None:

@@ -114,6 +114,9 @@ class Dataset:
     def __delattr__(self, name: str) -> None:
         raise AttributeError("a Dataset is immutable")
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (Dataset._new, (self._frame, self._step))
+
     # -- construction ---------------------------------------------------------------------------
 
     @classmethod
@@ -121,8 +124,8 @@ class Dataset:
         cls,
         time: Any,
         signals: Mapping[str, Any],
-        *,
         start: TimeLike = "2000-01-01",
+        *,
         check: bool = True,
     ) -> Dataset:
         """Build a dataset from numpy arrays (handy for synthetic data).

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -63,9 +64,11 @@ def _time_values(
         return raw.index, str(raw.index.name or "index"), None
     tried = ", ".join(repr(name) for name in _TIME_NAMES)
     extra = " and the DataFrame index (not a DatetimeIndex)" if from_frame else ""
+    likely = [name for name in names if any(k in name.lower() for k in ("time", "date", "stamp"))]
+    hint = f" (perhaps {list_names(likely, 5)}?)" if likely else ""
     raise DataError(
-        f"no time column found (tried {tried}{extra}); columns: {list_names(names)}; pass "
-        "time='your_time_column'."
+        f"no time column found (tried {tried}{extra}); pass time='your_time_column'{hint}; "
+        f"columns: {list_names(names)}."
     )
 
 
@@ -88,12 +91,13 @@ def _renaming(
                 "signal column instead."
             )
         if user not in signals:
-            backwards = canonical in signals and signal_base(str(user)) is not None
-            hint = (
-                f" (the mapping goes canonical -> yours: did you mean {{{user!r}: {canonical!r}}}?)"
-                if backwards
-                else ""
-            )
+            close = difflib.get_close_matches(str(user), signals, n=3, cutoff=0.6)
+            if canonical in signals and signal_base(str(user)) is not None:
+                hint = f" (the mapping goes canonical -> yours: {{{user!r}: {canonical!r}}}?)"
+            elif close:
+                hint = f" (did you mean {list_names(close)}?)"
+            else:
+                hint = ""
             raise DataError(
                 f"columns maps {canonical!r} to {user!r}, but there is no column {user!r}{hint}; "
                 f"available: {list_names(signals)}."

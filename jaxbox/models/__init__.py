@@ -1,8 +1,12 @@
-"""Model declaration: linear RC networks, parameters by naming convention, the model library."""
+"""Model declaration: linear RC networks, parameters by naming convention, components, library."""
 
+from . import _components as components  # noqa: F401  (the namespace jaxbox.models.components)
+from ._library import describe_models as describe_models
+from ._library import families as families
 from ._library import get_model as get_model
 from ._library import library_models as library_models
 from ._library import list_models as list_models
+from ._library import model_families as model_families
 from ._library import register as register
 from ._network import RCModel as RCModel
 from ._network import RCNetwork as RCNetwork

@@ -3,7 +3,11 @@
 A network has *nodes* (thermal capacities, one state each, temperature in °C), *resistances*
 between two nodes or between a node and a measured boundary temperature (an input such as
 ``T_amb``), and *heat sources* that inject ``gain · input`` watts into a node (``Q_hea`` with gain
-1, ``I_glo_hor`` with gain ``gA`` m², …). Declaring holds no parameter values: the built
+1, ``I_glo_hor`` with gain ``gA`` m², …). A node may also be held at a constant, unknown
+temperature (:meth:`RCNetwork.constant`, e.g. deep ground): its "state" keeps its initial value.
+A resistance may carry a parametric share (``scale="fra_wal"``, ``scale="1-fra_wal"``), so that
+the position of a capacity inside a resistance can be estimated. Declaring holds no parameter
+values (only, optionally, parameter specs: :meth:`RCNetwork.parameter`): the built
 :class:`RCModel` maps a parameter dict θ (SI values) to matrices with ``jax.numpy`` only, so it can
 be jitted, differentiated and ``vmap``-ped over parameter sets.
 
@@ -70,12 +74,20 @@ def _gain_text(factors) -> str:
     return "*".join(out)
 
 
+def _factor_value(kind, value, theta):
+    if kind == "const":
+        return value
+    v = jnp.asarray(theta[value], dtype=float)
+    return v if kind == "param" else 1.0 - v
+
+
 @dataclasses.dataclass(frozen=True)
 class _Node:
     name: str
-    C: str
+    C: str  # "" for a constant node
     T0: str
     output: str | None
+    constant: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,6 +96,12 @@ class _Edge:
     b: str  # node name or boundary input name
     R: str
     scale: float
+    factors: tuple[tuple[str, object], ...] = ()  # parametric share of R: ('param'|'compl', name)
+
+    def text(self) -> str:
+        parts = [] if self.scale == 1 else [f"{self.scale:g}"]
+        parts += [v if k == "param" else f"(1-{v})" for k, v in self.factors]
+        return self.R if not parts else "(" + "*".join(parts + [self.R]) + ")"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -100,6 +118,9 @@ class RCNetwork:
     Args:
         name: model name, shown in tables and reports.
         description: one line on what the structure represents.
+
+    Networks are usually assembled from components (:mod:`jaxbox.models.components`), each a
+    function ``network -> network``; :meth:`add` chains them fluently.
     """
 
     name: str
@@ -107,6 +128,7 @@ class RCNetwork:
     nodes: tuple[_Node, ...] = ()
     edges: tuple[_Edge, ...] = ()
     sources: tuple[_Source, ...] = ()
+    specs: tuple[Parameter, ...] = ()
 
     # ---- declaration -------------------------------------------------------------------------
     def _node_names(self) -> tuple[str, ...]:
@@ -156,11 +178,27 @@ class RCNetwork:
             raise ModelError(f"{self.name}: duplicate output {output!r}")
         return dataclasses.replace(self, nodes=self.nodes + (_Node(name, C, T0, output),))
 
-    def resistance(self, a: str, b: str, R: str, scale: float = 1.0) -> RCNetwork:
+    def constant(self, name: str, T0: str | None = None) -> RCNetwork:
+        """Add a node held at a constant temperature ``T0`` [°C] (a parameter, ``T_<name>0``).
+
+        A boundary whose temperature is not measured but constant over the data, e.g. deep
+        ground: it is a state with ``dT/dt = 0``, so its value is estimated like an initial state
+        (or fixed). It takes no heat input and cannot be measured.
+        """
+        net = self.node(name, T0=T0)
+        node = dataclasses.replace(net.nodes[-1], C="", constant=True)
+        return dataclasses.replace(net, nodes=self.nodes + (node,))
+
+    def _constant_nodes(self) -> tuple[str, ...]:
+        return tuple(n.name for n in self.nodes if n.constant)
+
+    def resistance(self, a: str, b: str, R: str, scale: float | str = 1.0) -> RCNetwork:
         """Add a resistance ``scale · R`` [K/W] between node ``a`` and node or boundary input ``b``.
 
         ``b`` is a node name, or a measured temperature input (a name starting with ``T_``,
-        e.g. ``T_amb``, ``T_bou``), in °C.
+        e.g. ``T_amb``, ``T_bou``), in °C. ``scale`` is a positive number, or an expression of
+        fractions such as ``"fra_wal"`` or ``"1-fra_wal"`` (``"0.5*fra_wal"``…): a share of ``R``
+        that is itself estimated.
         """
         self._require_node(a, f"resistance {R!r}")
         if b not in self._node_names():
@@ -171,11 +209,33 @@ class RCNetwork:
                 )
         if a == b:
             raise ModelError(f"{self.name}: resistance {R!r} links node {a!r} to itself")
-        if not R.startswith("R_"):
+        if not isinstance(R, str) or not R.startswith("R_"):
             raise ModelError(f"{self.name}: resistance parameter {R!r} must be named R_*")
-        if not float(scale) > 0:
+        const = self._constant_nodes()
+        if a in const and (b in const or b not in self._node_names()):
+            raise ModelError(
+                f"{self.name}: resistance {R!r} links the constant node {a!r} to another boundary "
+                f"{b!r}; a constant node can only be linked to a node with a capacity"
+            )
+        factors: tuple = ()
+        if isinstance(scale, str):
+            value = 1.0
+            for kind, v in _parse_gain(scale):
+                if kind == "const":
+                    value *= v
+                else:
+                    factors += ((kind, v),)
+            scale = value
+        try:
+            scale = float(scale)
+        except (TypeError, ValueError):
+            raise ModelError(
+                f"{self.name}: scale of resistance {R!r} must be a number or an expression like "
+                f"'fra_wal', got {scale!r}"
+            ) from None
+        if not scale > 0:
             raise ModelError(f"{self.name}: resistance {R!r} needs scale > 0, got {scale!r}")
-        return dataclasses.replace(self, edges=self.edges + (_Edge(a, b, R, float(scale)),))
+        return dataclasses.replace(self, edges=self.edges + (_Edge(a, b, R, scale, factors),))
 
     def heat(self, node: str, input: str, gain: str | float = 1.0) -> RCNetwork:
         """Inject ``gain · input`` [W] into ``node``.
@@ -185,6 +245,11 @@ class RCNetwork:
         ``"gA_e*fra_sol"``, ``"1-fra_rad"``.
         """
         self._require_node(node, f"heat input {input!r}")
+        if node in self._constant_nodes():
+            raise ModelError(
+                f"{self.name}: node {node!r} is held at a constant temperature and takes no heat "
+                f"input {input!r}"
+            )
         if input.startswith("T_"):
             raise ModelError(
                 f"{self.name}: {input!r} is a temperature; link it with .resistance(), not .heat()"
@@ -192,6 +257,46 @@ class RCNetwork:
         return dataclasses.replace(
             self, sources=self.sources + (_Source(node, input, _parse_gain(gain)),)
         )
+
+    def parameter(self, name: str, spec: Parameter | None = None, **fields) -> RCNetwork:
+        """Declare the spec of a parameter: its default guess, bounds or description.
+
+        Starts from ``spec``, else from a spec declared before, else from the naming convention
+        (:func:`~jaxbox.models.parameter_for`), and changes ``fields`` (``default``, ``lower``,
+        ``upper``, ``description``, ``unit``). The parameter must be used by the network when it
+        is built; :meth:`build`'s ``params`` still override it.
+
+        Example: ``net.parameter("fra_wal", lower=0.05, upper=0.95)``.
+        """
+        if spec is not None:
+            if not isinstance(spec, Parameter):
+                raise ModelError(f"{self.name}: spec of {name!r} must be a Parameter")
+            base = spec.replace(name=name)
+        else:
+            known = [p for p in self.specs if p.name == name]
+            base = known[0] if known else parameter_for(name)
+        if fields:
+            allowed = {"unit", "default", "lower", "upper", "description"}
+            bad = [f for f in fields if f not in allowed]
+            if bad:
+                raise ModelError(
+                    f"{self.name}: parameter {name!r} has no field(s) {', '.join(bad)}; give "
+                    "default, lower, upper, unit or description"
+                )
+            base = base.replace(**fields)
+        specs = tuple(p for p in self.specs if p.name != name) + (base,)
+        return dataclasses.replace(self, specs=specs)
+
+    def add(self, component, *args, **kwargs) -> RCNetwork:
+        """Apply a component ``component(network, *args, **kwargs) -> network`` (fluent style).
+
+        Example: ``RCNetwork("M").add(zone).add(wall).add(heating).add(window, "I_glo_hor")``.
+        """
+        net = component(self, *args, **kwargs)
+        if not isinstance(net, RCNetwork):
+            name = getattr(component, "__name__", repr(component))
+            raise ModelError(f"component {name} must return an RCNetwork, got {type(net).__name__}")
+        return net
 
     # ---- build ---------------------------------------------------------------------------------
     def build(self, params: Mapping[str, Parameter | Mapping] | None = None) -> RCModel:
@@ -211,15 +316,24 @@ class RCNetwork:
         if not any(n.output for n in self.nodes):
             raise ModelError(f"{self.name}: no node is measured; mark one with output=True")
         names = self._node_names()
+        const = set(self._constant_nodes())
         # connectivity: every node must reach a boundary temperature through resistances
-        linked = {n: set() for n in names}
+        linked = {n: set() for n in names if n not in const}
         grounded = set()
+        used = set()
         for e in self.edges:
-            if e.b in linked:
+            used.update((e.a, e.b))
+            if e.a in linked and e.b in linked:
                 linked[e.a].add(e.b)
                 linked[e.b].add(e.a)
-            else:
-                grounded.add(e.a)
+            else:  # to a boundary input or a constant node
+                grounded.add(e.b if e.a in const else e.a)
+        idle = [n for n in names if n in const and n not in used]
+        if idle:
+            raise ModelError(
+                f"{self.name}: constant node(s) {', '.join(idle)} are linked to nothing; link "
+                "them with .resistance() or remove them"
+            )
         reach = set(grounded)
         frontier = list(grounded)
         while frontier:
@@ -227,7 +341,7 @@ class RCNetwork:
                 if m not in reach:
                     reach.add(m)
                     frontier.append(m)
-        lost = [n for n in names if n not in reach]
+        lost = [n for n in names if n not in reach and n not in const]
         if lost:
             raise ModelError(
                 f"{self.name}: node(s) {', '.join(lost)} have no resistance path to a boundary "
@@ -236,7 +350,7 @@ class RCNetwork:
         # inputs in order of first use
         inputs: list[str] = []
         for e in self.edges:
-            if e.b not in linked and e.b not in inputs:
+            if e.b not in names and e.b not in inputs:
                 inputs.append(e.b)
         for s in self.sources:
             if s.input not in inputs:
@@ -244,9 +358,11 @@ class RCNetwork:
         # parameters in a canonical order: capacities, resistances, gains, initial states
         order: list[str] = []
         for n in self.nodes:
-            order.append(n.C)
+            if not n.constant:
+                order.append(n.C)
         for e in self.edges:
             order.append(e.R)
+            order.extend(v for _, v in e.factors)
         for s in self.sources:
             order.extend(v for k, v in s.gain if k != "const")
         for n in self.nodes:
@@ -254,7 +370,14 @@ class RCNetwork:
         seen: dict[str, None] = {}
         for p in order:
             seen.setdefault(p, None)
-        specs = {p: parameter_for(p) for p in seen}
+        declared = {p.name: p for p in self.specs}
+        unused = [p for p in declared if p not in seen]
+        if unused:
+            raise ModelError(
+                f"{self.name}: spec declared for parameter(s) {', '.join(unused)}, which no "
+                f"element of the network uses (parameters: {', '.join(seen)})"
+            )
+        specs = {p: declared[p] if p in declared else parameter_for(p) for p in seen}
         for p, over in (params or {}).items():
             if p not in specs:
                 raise ModelError(
@@ -342,6 +465,8 @@ class RCModel:
             "states": list(self.states),
             "inputs": list(self.inputs),
             "outputs": list(self.outputs),
+            "constant_states": [f"T_{n.name}" for n in self.network.nodes if n.constant],
+            "equations": self.equations(),
             "parameters": [
                 {
                     "name": p.name,
@@ -355,14 +480,23 @@ class RCModel:
             ],
         }
 
+    def check_data(self, data, outputs: bool = True) -> None:
+        """Raise the dataset's ``DataError`` unless ``data`` holds every input of the model (and,
+        with ``outputs``, every output), naming the missing columns."""
+        names = list(self.inputs) + (list(self.outputs) if outputs else [])
+        data.require(names, what=f"model {self.name}")
+
     def equations(self) -> list[str]:
         """Human-readable energy balance per node."""
         n = self.network
         lines = []
         for node in n.nodes:
+            if node.constant:
+                lines.append(f"T_{node.name} = {node.T0} (constant)")
+                continue
             terms = []
             for e in n.edges:
-                R = e.R if e.scale == 1 else f"({e.scale:g}*{e.R})"
+                R = e.text()
                 if e.a == node.name:
                     other = f"T_{e.b}" if e.b in [m.name for m in n.nodes] else e.b
                     terms.append(f"({other} - T_{node.name})/{R}")
@@ -393,11 +527,16 @@ class RCModel:
         idx = {name: i for i, name in enumerate(names)}
         uidx = {u: j for j, u in enumerate(self.inputs)}
         ns, nu = len(names), len(self.inputs)
-        caps = jnp.stack([jnp.asarray(theta[m.C], dtype=float) for m in n.nodes])
+        caps = jnp.stack(
+            [jnp.asarray(1.0 if m.constant else theta[m.C], dtype=float) for m in n.nodes]
+        )
         G = jnp.zeros((ns, ns))  # conductances between nodes [W/K] (Laplacian form)
         H = jnp.zeros((ns, nu))  # couplings to inputs [W/K or W/unit]
         for e in n.edges:
-            g = 1.0 / (e.scale * jnp.asarray(theta[e.R], dtype=float))
+            r = e.scale * jnp.asarray(theta[e.R], dtype=float)
+            for kind, value in e.factors:
+                r = r * _factor_value(kind, value, theta)
+            g = 1.0 / r
             i = idx[e.a]
             G = G.at[i, i].add(-g)
             if e.b in idx:
@@ -408,13 +547,12 @@ class RCModel:
         for s in n.sources:
             gain = 1.0
             for kind, value in s.gain:
-                if kind == "const":
-                    gain = gain * value
-                elif kind == "param":
-                    gain = gain * jnp.asarray(theta[value], dtype=float)
-                else:
-                    gain = gain * (1.0 - jnp.asarray(theta[value], dtype=float))
+                gain = gain * _factor_value(kind, value, theta)
             H = H.at[idx[s.node], uidx[s.input]].add(gain)
+        held = [idx[m.name] for m in n.nodes if m.constant]
+        if held:  # constant nodes keep their value: dT/dt = 0
+            G = G.at[jnp.asarray(held)].set(0.0)
+            H = H.at[jnp.asarray(held)].set(0.0)
         A = G / caps[:, None]
         B = H / caps[:, None]
         out_nodes = [idx[m.name] for m in n.nodes if m.output]

@@ -39,6 +39,8 @@ class Validation:
         x_auto, x_cross: simulated states [°C], shape [N, n].
         rmse_auto, rmse_cross: RMSE per output [K].
         se_auto, se_cross: weighted simulation error Σ q_j RMSE_j [K].
+        inputs: input names (columns of the u arrays).
+        u_auto, u_cross: measured inputs, shape [N, m] (°C, W, W/m²).
     """
 
     model: str
@@ -57,6 +59,9 @@ class Validation:
     x_cross: np.ndarray | None = None
     rmse_cross: dict | None = None
     se_cross: float | None = None
+    inputs: tuple[str, ...] = ()
+    u_auto: np.ndarray | None = None
+    u_cross: np.ndarray | None = None
 
     @property
     def residuals_auto(self) -> np.ndarray:
@@ -66,6 +71,29 @@ class Validation:
     @property
     def residuals_cross(self) -> np.ndarray | None:
         return None if self.y_cross is None else self.y_cross - self.sim_cross
+
+    def residual_analysis(self, which: str = "auto", **options):
+        """Residual analysis (:func:`~jaxbox.validate.analyse_residuals`) of one period.
+
+        Args:
+            which: ``"auto"`` (identification data) or ``"cross"`` (validation data).
+            options: passed on (``max_lag``, ``lb_lags``, ``alpha``).
+        """
+        from ._residuals import analyse_residuals
+
+        if which not in ("auto", "cross"):
+            raise ValueError(f"which must be 'auto' or 'cross', got {which!r}")
+        e = self.residuals_auto if which == "auto" else self.residuals_cross
+        if e is None:
+            raise ValueError("no validation data: call validate(result, valid) for 'cross'")
+        u = self.u_auto if which == "auto" else self.u_cross
+        return analyse_residuals(
+            e,
+            u,
+            output_names=self.outputs,
+            input_names=self.inputs if u is not None else None,
+            **options,
+        )
 
     @property
     def x_end(self) -> np.ndarray:
@@ -151,6 +179,8 @@ def validate(
         x_auto=xs[:n_id],
         rmse_auto=dict(zip(names_out, map(float, r_auto), strict=True)),
         se_auto=simulation_error(r_auto, q),
+        inputs=tuple(names_in),
+        u_auto=u[:n_id],
     )
     if valid is not None:
         r_cross = rmse(ysim[n_id:], y[n_id:])
@@ -161,6 +191,7 @@ def validate(
             x_cross=xs[n_id:],
             rmse_cross=dict(zip(names_out, map(float, r_cross), strict=True)),
             se_cross=simulation_error(r_cross, q),
+            u_cross=u[n_id:],
         )
     return Validation(**out)
 

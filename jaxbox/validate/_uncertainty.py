@@ -1,0 +1,494 @@
+"""Parameter uncertainty from the exact output sensitivities at the optimum.
+
+With ``J`` the sensitivities ``∂ŷ/∂θ`` of the simulated outputs to the free parameters (physical
+units, forward-mode autodiff through the estimation's own simulator) and ``e = y − ŷ`` the output
+errors at the optimum θ̂, the linearised covariance is::
+
+    cov(θ̂) = σ̂² (JᵀJ)⁻¹,        σ̂² = SSE / (N − p),
+
+with N the number of measured output samples and p the number of free parameters (initial states
+included: they are estimated too). With several outputs both J and e are weighted row-wise by
+``√q_j`` (the fit's output weights, without the 1/N of the fit's residuals), which is weighted
+least squares under the assumption that the noise variance of output j is ``σ²/q_j``; with one
+output of weight 1 it is ordinary least squares. Because J is taken with respect to the physical
+parameters, the covariance needs no mapping back through the bound transforms, and a parameter
+near its bound keeps a finite sensitivity (the verdict flags it separately).
+
+Confidence intervals are ``θ̂ ± t_{N−p, 0.975} · std`` (Student-t); ``rel_ci`` is that half-width
+as a fraction of ``|θ̂|``. Intervals for the initial states are computed only on request (the
+reference study shows none), but the initial states are always part of J, so the reported
+covariance of the other parameters is their marginal covariance.
+
+**Identifiability.** J is analysed after scaling each column to unit norm (so that units do not
+matter) by a singular value decomposition ``J_n = U S Vᵀ``. ``1/s_k`` is the collinearity index
+of direction ``v_k`` (Brun, Reichert & Künsch 2001): the parameters can move along ``v_k`` and
+change the outputs by only ``s_k`` times what a unit move of one parameter alone would. A
+direction with ``s_k ≤ rcond · s_1`` is numerically singular: the parameters loading on it are
+*not identifiable* and get no standard error (``nan``), only the estimable rest of the covariance
+is kept (pseudo-inverse). A direction with ``1/s_k > max_collinearity`` is *poorly
+identifiable*: its parameters keep their (wide, but computed) intervals and are flagged. A
+parameter the outputs do not depend on at all (a zero column, e.g. a solar aperture without
+irradiance in the data) is not identifiable either. Each flagged direction is described in words
+by the parameter changes that leave the outputs unchanged to first order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy import stats
+
+from .._x64 import require_x64
+
+__all__ = ["Uncertainty", "Combination", "uncertainty", "sensitivities"]
+
+_TEMPERATURE_UNITS = ("°C", "K")
+
+
+@dataclasses.dataclass(frozen=True)
+class Combination:
+    """A direction in parameter space that the data do not determine.
+
+    Attributes:
+        parameters: the parameters that move along the direction (largest share first).
+        changes: the first-order change of each of them along the direction, normalised so the
+            largest is 1: relative [%] for ratio-scale parameters (R, C, gA, fractions),
+            absolute [K] for temperatures.
+        collinearity: collinearity index ``1/s_k`` of the column-normalised sensitivities
+            (``inf`` for a parameter with zero sensitivity).
+        singular: True when numerically singular (not identifiable at all); False when only
+            poorly identifiable.
+        text: the same in words.
+    """
+
+    parameters: tuple[str, ...]
+    changes: tuple[float, ...]
+    collinearity: float
+    singular: bool
+    text: str
+
+    def to_dict(self) -> dict:
+        return {
+            "parameters": list(self.parameters),
+            "changes": [float(c) for c in self.changes],
+            "collinearity": _finite_or_none(self.collinearity),
+            "singular": self.singular,
+            "text": self.text,
+        }
+
+
+@dataclasses.dataclass(frozen=True)
+class Uncertainty:
+    """Linearised uncertainty of a fit's parameters (lmfit-style error bars).
+
+    Attributes:
+        names: parameters with intervals (free ones; initial states only on request).
+        units: their units.
+        values: estimates θ̂ [SI].
+        std: standard errors [SI]; ``nan`` where a parameter is not identifiable.
+        ci95: (lower, upper) of the confidence interval [SI], shape [p, 2] (level ``level``).
+        rel_ci: half-width of the interval as a fraction of ``|θ̂|`` (``inf`` at θ̂ = 0).
+        cov: covariance matrix [SI²] of ``names``; rows of non-identifiable parameters ``nan``.
+        correlation: correlation matrix of ``names``.
+        identifiable: per name, False when it loads on a flagged direction.
+        level: confidence level of ``ci95`` (0.95).
+        t_quantile: Student-t quantile used for the intervals.
+        dof: degrees of freedom N − p.
+        n_obs: number of output samples N (outputs with zero weight are left out).
+        sigma2: residual variance σ̂² [K²] (weighted by q_j with several outputs).
+        condition: condition number ``s_1/s_min`` of the column-normalised sensitivities.
+        collinearity: collinearity index ``1/s_min`` of the same (all free parameters).
+        combinations: flagged directions (not or poorly identifiable).
+        free: every free parameter (columns of ``jacobian`` and of ``cov_free``).
+        cov_free: covariance of every free parameter, initial states included.
+        jacobian: weighted sensitivities ``√q_j ∂ŷ/∂θ`` [N·outputs, len(free)].
+        singular_values: of the column-normalised sensitivities, descending.
+    """
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    values: np.ndarray
+    std: np.ndarray
+    ci95: np.ndarray
+    rel_ci: np.ndarray
+    cov: np.ndarray
+    correlation: np.ndarray
+    identifiable: np.ndarray
+    level: float
+    t_quantile: float
+    dof: int
+    n_obs: int
+    sigma2: float
+    condition: float
+    collinearity: float
+    combinations: tuple[Combination, ...]
+    free: tuple[str, ...]
+    cov_free: np.ndarray
+    jacobian: np.ndarray
+    singular_values: np.ndarray
+
+    @property
+    def flagged(self) -> tuple[str, ...]:
+        """Free parameters (initial states included) on a not or poorly identifiable direction."""
+        out: dict[str, None] = {}
+        for c in self.combinations:
+            for n in c.parameters:
+                out.setdefault(n, None)
+        return tuple(n for n in self.free if n in out)
+
+    @property
+    def not_identifiable(self) -> tuple[str, ...]:
+        """Free parameters on a numerically singular direction (no standard error)."""
+        out = {n for c in self.combinations if c.singular for n in c.parameters}
+        return tuple(n for n in self.free if n in out)
+
+    def table(self) -> dict[str, dict]:
+        """Per parameter: value, unit, std, ci95, rel_ci, identifiable (``nan`` kept)."""
+        return {
+            n: {
+                "value": float(self.values[i]),
+                "unit": self.units[i],
+                "std": float(self.std[i]),
+                "ci95": (float(self.ci95[i, 0]), float(self.ci95[i, 1])),
+                "rel_ci": float(self.rel_ci[i]),
+                "identifiable": bool(self.identifiable[i]),
+            }
+            for i, n in enumerate(self.names)
+        }
+
+    def correlation_dict(self) -> dict[str, dict[str, float | None]]:
+        """The correlation matrix as nested dicts (JSON-ready: ``None`` for undefined)."""
+        return {
+            a: {b: _finite_or_none(self.correlation[i, j]) for j, b in enumerate(self.names)}
+            for i, a in enumerate(self.names)
+        }
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (``nan``/``inf`` written as ``None``)."""
+        return {
+            "params": {
+                n: {
+                    "value": row["value"],
+                    "unit": row["unit"],
+                    "std": _finite_or_none(row["std"]),
+                    "ci95": _pair_or_none(row["ci95"]),
+                    "rel_ci": _finite_or_none(row["rel_ci"]),
+                    "identifiable": row["identifiable"],
+                }
+                for n, row in self.table().items()
+            },
+            "correlation": self.correlation_dict(),
+            "dof": self.dof,
+            "n_obs": self.n_obs,
+            "sigma2": self.sigma2,
+            "level": self.level,
+            "condition": _finite_or_none(self.condition),
+            "collinearity": _finite_or_none(self.collinearity),
+            "non_identifiable": [c.to_dict() for c in self.combinations],
+        }
+
+    def summary(self) -> str:
+        """A readable table of estimates, standard errors and intervals."""
+        pct = round(100 * self.level)
+        lines = [
+            f"σ̂ = {np.sqrt(self.sigma2):.4g} K, N = {self.n_obs}, dof = {self.dof}, "
+            f"collinearity index {self.collinearity:.3g}",
+            f"{'parameter':<10} {'value':>12} {'std':>11} {f'{pct}% interval':>25} "
+            f"{'±rel':>8}  unit",
+        ]
+        for i, n in enumerate(self.names):
+            if np.isfinite(self.std[i]):
+                lo, hi = self.ci95[i]
+                ci = f"[{lo:.4g}, {hi:.4g}]"
+                rel = f"{100 * self.rel_ci[i]:.3g}%"
+                std = f"{self.std[i]:.4g}"
+            else:
+                ci, rel, std = "not identifiable", "", "-"
+            lines.append(
+                f"{n:<10} {self.values[i]:>12.5g} {std:>11} {ci:>25} {rel:>8}  {self.units[i]}"
+            )
+        for c in self.combinations:
+            lines.append("  " + c.text)
+        return "\n".join(lines)
+
+
+def _finite_or_none(x):
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _pair_or_none(pair):
+    lo, hi = (float(v) for v in pair)
+    return [lo, hi] if np.isfinite(lo) and np.isfinite(hi) else None
+
+
+_JAC: dict = {}
+
+
+def _jacobian_fn(problem):
+    """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]); cached."""
+    key = (
+        problem.model,
+        problem.free,
+        tuple(n for n, _ in problem.fixed),
+        problem.simulator,
+        problem.sim_options,
+    )
+    fn = _JAC.get(key)
+    if fn is None:
+
+        def f(p, fixed_values, t, u):
+            return problem.simulate(p, fixed_values, t, u)
+
+        def both(p, fixed_values, t, u):
+            return f(p, fixed_values, t, u), jax.jacfwd(f)(p, fixed_values, t, u)
+
+        fn = _JAC[key] = jax.jit(both)
+    return fn
+
+
+def sensitivities(result, params=None):
+    """Exact sensitivities of the simulated outputs to the free parameters.
+
+    Forward-mode autodiff through the fit's own simulator (``result.problem.simulate``) on the
+    identification data.
+
+    Args:
+        result: a :class:`~jaxbox.fit.FitResult`.
+        params: free parameter values [SI] in ``result.free`` order (default: the optimum).
+
+    Returns:
+        (ŷ [N, outputs] in °C, J [N, outputs, len(result.free)] in °C per SI unit), numpy.
+    """
+    from ..fit import problem_arrays
+
+    require_x64()
+    problem = result.problem
+    t, u, _, _ = problem_arrays(problem, result.data)
+    if params is None:
+        params = [result.params[n] for n in problem.free]
+    p = jnp.asarray(np.asarray(params, dtype=float))
+    fixed_values = jnp.asarray([v for _, v in problem.fixed], dtype=float)
+    ysim, J = _jacobian_fn(problem)(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
+    return np.asarray(ysim), np.asarray(J)
+
+
+def _is_temperature(unit: str) -> bool:
+    return unit in _TEMPERATURE_UNITS
+
+
+def _describe(names, units, values, direction, collinearity, singular, share=0.05):
+    """Readable description of a direction (per-parameter physical changes)."""
+    scaled = []
+    for unit, v, d in zip(units, values, direction, strict=True):
+        if _is_temperature(unit) or v == 0:
+            scaled.append(d)  # K (or the unit itself when the value is 0)
+        else:
+            scaled.append(100 * d / abs(v))  # %
+    scaled = np.asarray(scaled)
+    big = np.max(np.abs(scaled))
+    scaled = scaled / big
+    ranked = np.argsort(-np.round(np.abs(scaled), 6), kind="stable")
+    order = [i for i in ranked if abs(scaled[i]) >= share]
+    if scaled[order[0]] < 0:
+        scaled = -scaled
+    params = tuple(names[i] for i in order)
+    changes = tuple(float(scaled[i]) for i in order)
+
+    def one(i):
+        unit = units[i]
+        if _is_temperature(unit):
+            return f"{names[i]} by {scaled[i]:+.2f} K"
+        if values[i] == 0:
+            return f"{names[i]} by {scaled[i]:+.2f} {unit}"
+        return f"{names[i]} by {scaled[i]:+.2f} %"
+
+    if len(order) == 1:
+        n = params[0]
+        if singular:
+            text = (
+                f"{n} is not identifiable: the outputs do not depend on it (to first order) with "
+                "these data; fix it, or use data that excite it"
+            )
+        else:
+            text = (
+                f"{n} is poorly identifiable (collinearity index {collinearity:.3g}): the outputs "
+                "hardly depend on it with these data"
+            )
+        return params, changes, text
+    moves = ", ".join(one(i) for i in order)
+    who = ", ".join(params)
+    if singular:
+        text = (
+            f"{who} are not identifiable separately: changing {moves} leaves the outputs "
+            "unchanged (to first order); only a combination of them is determined by the data — "
+            "fix one of them or change the model structure"
+        )
+    else:
+        text = (
+            f"{who} are poorly identifiable together (collinearity index {collinearity:.3g}): "
+            f"changing {moves} hardly changes the outputs"
+        )
+    return params, changes, text
+
+
+def uncertainty(
+    result,
+    *,
+    include_initial_states: bool = False,
+    level: float = 0.95,
+    rcond: float = 1e-9,
+    max_collinearity: float = 1e3,
+    loading: float = 1e-3,
+) -> Uncertainty:
+    """Standard errors, confidence intervals and identifiability of a fit's parameters.
+
+    Args:
+        result: a :class:`~jaxbox.fit.FitResult`.
+        include_initial_states: also give intervals for the initial states ``T_*0``.
+        level: confidence level of the intervals.
+        rcond: singular values of the column-normalised sensitivities below ``rcond`` times the
+            largest are treated as zero (not identifiable, no standard error).
+        max_collinearity: directions whose collinearity index ``1/s_k`` exceeds this are flagged
+            as poorly identifiable (standard errors still given).
+        loading: a parameter belongs to a flagged direction when its component in the unit
+            direction vector exceeds this.
+
+    Returns:
+        :class:`Uncertainty`.
+
+    Raises:
+        ValueError: fewer output samples than free parameters (no degrees of freedom left).
+    """
+    from ..fit import problem_arrays
+
+    problem = result.problem
+    free = tuple(problem.free)
+    specs = {s.name: s for s in problem.model.parameters}
+    units = tuple(specs[n].unit for n in free)
+    theta = np.asarray([result.params[n] for n in free], dtype=float)
+    _, _, y, _ = problem_arrays(problem, result.data)
+    ysim, J = sensitivities(result)
+
+    q = np.asarray(problem.weights, dtype=float)
+    rows = q > 0
+    sq = np.sqrt(q[rows])
+    e = (y[:, rows] - ysim[:, rows]) * sq
+    Jw = (J[:, rows, :] * sq[None, :, None]).reshape(-1, len(free))
+    n_obs = e.size
+    p = len(free)
+    dof = n_obs - p
+    if dof <= 0:
+        raise ValueError(
+            f"{n_obs} output samples for {p} free parameters leave no degrees of freedom; "
+            "use more data or fewer free parameters"
+        )
+    sigma2 = float(np.sum(e * e) / dof)
+
+    norms = np.linalg.norm(Jw, axis=0)
+    scale_ref = np.max(norms) if np.any(norms > 0) else 1.0
+    zero = ~(norms > 1e-14 * scale_ref)  # also catches nan
+    live = np.flatnonzero(~zero)
+    combos: list[Combination] = []
+    affected = zero.copy()
+    flagged = zero.copy()
+    for i in np.flatnonzero(zero):
+        combos.append(
+            Combination(
+                parameters=(free[i],),
+                changes=(1.0,),
+                collinearity=float("inf"),
+                singular=True,
+                text=(
+                    f"{free[i]} is not identifiable: the outputs do not depend on it with these "
+                    "data (zero sensitivity, e.g. its input is zero); fix it, or use data that "
+                    "excite it"
+                ),
+            )
+        )
+    cov = np.full((p, p), np.nan)
+    s = np.zeros(0)
+    if live.size:
+        Jn = Jw[:, live] / norms[live]
+        _, s, Vt = np.linalg.svd(Jn, full_matrices=False)
+        V = Vt.T
+        sing = s <= rcond * s[0]
+        poor = ~sing & (s < 1.0 / max_collinearity)
+        keep = ~sing
+        covn = (V[:, keep] / s[keep] ** 2) @ V[:, keep].T * sigma2
+        d = 1.0 / norms[live]
+        cov[np.ix_(live, live)] = covn * d[:, None] * d[None, :]
+        for k in np.flatnonzero(sing | poor):
+            v = V[:, k]
+            members = np.abs(v) > loading
+            phys = v * d  # physical change per parameter along the direction
+            idx = live[members]
+            names_k, changes, text = _describe(
+                [free[i] for i in idx],
+                [units[i] for i in idx],
+                theta[idx],
+                phys[members],
+                1.0 / s[k] if s[k] > 0 else float("inf"),
+                bool(sing[k]),
+            )
+            combos.append(
+                Combination(
+                    parameters=names_k,
+                    changes=changes,
+                    collinearity=float(1.0 / s[k]) if s[k] > 0 else float("inf"),
+                    singular=bool(sing[k]),
+                    text=text,
+                )
+            )
+            flagged[idx] = True
+            if sing[k]:
+                affected[idx] = True
+    cov[affected, :] = np.nan
+    cov[:, affected] = np.nan
+    if s.size:
+        condition = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+        collinearity = float(1.0 / s[-1]) if s[-1] > 0 else float("inf")
+    else:
+        condition = collinearity = float("inf")
+    if zero.any():
+        condition = collinearity = float("inf")
+
+    show = [
+        i for i, n in enumerate(free) if include_initial_states or not specs[n].is_initial_state
+    ]
+    sub = cov[np.ix_(show, show)]
+    std = np.sqrt(np.where(np.diag(sub) >= 0, np.diag(sub), np.nan))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = sub / np.outer(std, std)
+        np.fill_diagonal(corr, np.where(np.isfinite(std), 1.0, np.nan))
+        tq = float(stats.t.ppf(0.5 + level / 2, dof))
+        vals = theta[show]
+        half = tq * std
+        ci = np.stack([vals - half, vals + half], axis=1)
+        rel = np.where(vals != 0, half / np.abs(vals), np.where(np.isnan(half), np.nan, np.inf))
+    return Uncertainty(
+        names=tuple(free[i] for i in show),
+        units=tuple(units[i] for i in show),
+        values=vals,
+        std=std,
+        ci95=ci,
+        rel_ci=rel,
+        cov=sub,
+        correlation=np.clip(corr, -1.0, 1.0),
+        identifiable=~flagged[show],
+        level=level,
+        t_quantile=tq,
+        dof=int(dof),
+        n_obs=int(n_obs),
+        sigma2=sigma2,
+        condition=condition,
+        collinearity=collinearity,
+        combinations=tuple(combos),
+        free=free,
+        cov_free=cov,
+        jacobian=Jw,
+        singular_values=s,
+    )

@@ -1,0 +1,316 @@
+"""The ``jaxbox`` sub-commands: models, fit, demo."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+from .._io import atomic_write_json, to_jsonable
+
+__all__ = ["run", "UsageError"]
+
+
+class UsageError(ValueError):
+    """A command-line argument is malformed; the message says the expected form."""
+
+
+def run(args) -> int:
+    return {"models": _models, "fit": _fit, "demo": _demo}[args.command](args)
+
+
+def _print_json(obj) -> None:
+    print(json.dumps(to_jsonable(obj), indent=2, allow_nan=False))
+
+
+def _progress(msg: str, args) -> None:
+    if not getattr(args, "json", False):
+        print(msg, file=sys.stderr, flush=True)
+
+
+# ---- models ----
+
+
+def _models(args) -> int:
+    from ..models import library_models
+
+    models = library_models()
+    if args.json:
+        _print_json({"models": [m.describe() for m in models]})
+        return 0
+    for m in models:
+        print(f"{m.name}: {m.description}")
+        print(f"  states:  {', '.join(m.states)}")
+        print(f"  inputs:  {', '.join(m.inputs)}")
+        print(f"  outputs: {', '.join(m.outputs)}")
+        for p in m.parameters:
+            print(
+                f"    {p.name:<10} [{p.unit}] default {p.default:<10.4g} "
+                f"bounds [{p.lower:g}, {p.upper:g}]"
+            )
+        print()
+    return 0
+
+
+# ---- argument helpers ----
+
+
+def _pairs(items, what: str, example: str) -> dict[str, str]:
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise UsageError(f"{what} {item!r} must look like {example}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _floats(items, what: str, example: str) -> dict[str, float]:
+    out = {}
+    for key, value in _pairs(items, what, example).items():
+        try:
+            out[key] = float(value)
+        except ValueError:
+            raise UsageError(f"{what} {key}={value!r}: {value!r} is not a number") from None
+    return out
+
+
+def _bounds(items) -> dict[str, tuple[float, float]]:
+    out = {}
+    for key, value in _pairs(items, "--bounds", "R_wal=0.001:0.1").items():
+        lo, sep, hi = value.partition(":")
+        try:
+            out[key] = (float(lo), float(hi))
+        except ValueError:
+            raise UsageError(f"--bounds {key}={value!r} must look like {key}=LO:HI") from None
+        if not sep:
+            raise UsageError(f"--bounds {key}={value!r} must look like {key}=LO:HI")
+    return out
+
+
+def _period(text: str | None, what: str):
+    if text is None:
+        return None
+    start, sep, end = text.partition("..")
+    if not sep:
+        raise UsageError(f"{what} {text!r} must look like START..END (either side may be empty)")
+    return (start.strip() or None, end.strip() or None)
+
+
+def load_data(spec: str, *, columns=None, time_column=None, resample=None):
+    """A dataset from a CSV path or a bundled name ``twinhouse_exp1:N2[@10min]``."""
+    from ..data import load
+    from ..datasets import twinhouse_exp1
+
+    if spec.startswith("twinhouse_exp1"):
+        name, _, res = spec.partition("@")
+        _, _, house = name.partition(":")
+        data = twinhouse_exp1(house=house or "N2", resolution=res or "1h")
+        if columns:
+            raise UsageError("--map applies to CSV files, not to a bundled dataset")
+        return data.resample(resample) if resample else data
+    return load(spec, time=time_column, columns=columns or None, resample=resample)
+
+
+def split_periods(data, train=None, valid=None):
+    """Identification and validation datasets from optional (start, end) periods."""
+    if train is None and valid is None:
+        return data.split()
+    if train is not None:
+        ident = data.slice(*train)
+    else:
+        ident = data.slice(None, data.index[data.index < _ts(valid[0] or data.start)][-1])
+    if valid is not None:
+        val = data.slice(*valid)
+    else:
+        rest = data.index[data.index > ident.end]
+        if len(rest) == 0:
+            raise UsageError(
+                "no data left after the identification period for validation; shorten --train "
+                "or give --validate"
+            )
+        val = data.slice(rest[0], None)
+    return ident, val
+
+
+def _ts(x):
+    import pandas as pd
+
+    return pd.Timestamp(x)
+
+
+# ---- fit ----
+
+
+def fit_json(result, validation, *, timing, data_info) -> dict:
+    """The JSON document of one fit (schema documented in the README)."""
+    starts = result.starts
+    status = list(starts.status)
+    return {
+        "model": result.model.name,
+        "params": result.params_table(),
+        "rmse_auto": validation.rmse_auto,
+        "rmse_cross": validation.rmse_cross,
+        "se_auto": validation.se_auto,
+        "se_cross": validation.se_cross,
+        "cost": result.cost,
+        "converged": result.converged,
+        "starts": {
+            "n": starts.n,
+            "converged": status.count("converged"),
+            "max_steps": status.count("max_steps"),
+            "failed": sum(s not in ("converged", "max_steps") for s in status),
+            "at_best": starts.n_at_best(),
+            "best": result.best,
+        },
+        "simulator": result.problem.simulator,
+        "timing": timing,
+        "data": data_info,
+    }
+
+
+def _fit(args) -> int:
+    from ..fit import fit
+    from ..models import get_model
+    from ..validate import validate
+
+    columns = _pairs(args.map, "--map", "T_zon=living_temp")
+    fixed = _floats(args.fix, "--fix", "gA=2.5")
+    bounds = _bounds(args.bounds)
+    model = get_model(args.model)
+    data = load_data(args.data, columns=columns, time_column=args.time, resample=args.resample)
+    ident, valid = split_periods(
+        data, _period(args.train, "--train"), _period(args.validate, "--validate")
+    )
+    ident.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+    _progress(
+        f"fitting {model.name} on {len(ident)} samples ({ident.start} .. {ident.end}) "
+        f"from {args.starts} starts …",
+        args,
+    )
+    t0 = time.perf_counter()
+    result = fit(
+        model,
+        ident,
+        fixed=fixed,
+        bounds=bounds,
+        starts=args.starts,
+        seed=args.seed,
+        simulator=args.simulator,
+        max_steps=args.max_steps,
+    )
+    t1 = time.perf_counter()
+    validation = validate(result, valid)
+    t2 = time.perf_counter()
+    timing = {**result.timing, "total_fit_s": t1 - t0, "validate_s": t2 - t1}
+    info = _data_info(args.data, ident, valid)
+    doc = fit_json(result, validation, timing=timing, data_info=info)
+    if args.plots:
+        doc["plots"] = _plots(result, valid, validation, args.plots)
+    if args.json:
+        _print_json(doc)
+    else:
+        print(result.summary())
+        print(_rmse_line(validation))
+        print(
+            f"timing: compile {timing['compile_s']:.2f} s, fit {timing['fit_s']:.3f} s, "
+            f"validation {timing['validate_s']:.2f} s"
+        )
+    return 0
+
+
+def _plots(result, valid, validation, directory) -> list[str]:
+    try:
+        from ..validate import save_plots
+    except ImportError:  # plotting arrives with the validation package
+        raise UsageError("--plots is not available in this version") from None
+    return [str(p) for p in save_plots(result, validation, directory)]
+
+
+def _rmse_line(validation) -> str:
+    auto = ", ".join(f"{k} {v:.3f} K" for k, v in validation.rmse_auto.items())
+    line = f"RMSE identification: {auto}"
+    if validation.rmse_cross is not None:
+        cross = ", ".join(f"{k} {v:.3f} K" for k, v in validation.rmse_cross.items())
+        line += f" | validation: {cross}"
+    return line
+
+
+def _data_info(spec, ident, valid) -> dict:
+    return {
+        "source": spec,
+        "step_s": ident.step,
+        "train": [str(ident.start), str(ident.end)],
+        "validate": [str(valid.start), str(valid.end)],
+        "n_train": len(ident),
+        "n_validate": len(valid),
+    }
+
+
+# ---- demo ----
+
+
+def _out_dir(out: str | None) -> Path:
+    if out:
+        path = Path(out)
+    else:
+        stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+        path = Path(f"jaxbox-out-{stamp}")
+        n = 1
+        while path.exists():
+            n += 1
+            path = Path(f"jaxbox-out-{stamp}-{n}")
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _demo(args) -> int:
+    from ..datasets import CITATION
+    from ..fit import fit
+    from ..models import get_model
+    from ..validate import validate
+
+    out = _out_dir(args.out)
+    spec = f"twinhouse_exp1:{args.house}"
+    data = load_data(spec)
+    ident, valid = data.split()
+    _progress(
+        f"jaxbox demo: twin house {args.house} (IEA EBC Annex 58, Holzkirchen 2013), "
+        f"{len(data)} hourly samples; identification {ident.start} .. {ident.end}, "
+        f"validation {valid.start} .. {valid.end}",
+        args,
+    )
+    rows, docs = [], {}
+    for name in ("Zon", "ZonWal"):
+        model = get_model(name)
+        _progress(
+            f"  fitting {name} ({len(model.parameters)} parameters, {args.starts} starts)", args
+        )
+        t0 = time.perf_counter()
+        result = fit(model, ident, starts=args.starts)
+        t1 = time.perf_counter()
+        validation = validate(result, valid)
+        timing = {**result.timing, "total_fit_s": t1 - t0}
+        docs[name] = fit_json(
+            result, validation, timing=timing, data_info=_data_info(spec, ident, valid)
+        )
+        rows.append((name, len(result.free), validation, result))
+    atomic_write_json(out / "demo.json", {"dataset": spec, "fits": docs})
+    if args.json:
+        _print_json({"dataset": spec, "out": str(out), "fits": docs})
+        return 0
+    print()
+    print(f"{'model':<10} {'#par':>4} {'RMSE ident [K]':>15} {'RMSE valid [K]':>15}  starts")
+    for name, npar, v, r in rows:
+        (ra,), (rc,) = v.rmse_auto.values(), v.rmse_cross.values()
+        print(f"{name:<10} {npar:>4} {ra:>15.3f} {rc:>15.3f}  {r.starts.status_summary()}")
+    best = min(rows, key=lambda row: row[2].se_cross)
+    print()
+    print(f"best on validation data: {best[0]}")
+    print(best[3].summary())
+    print()
+    print(f"results written to {out}/demo.json")
+    print(f"data: {CITATION}")
+    return 0

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -50,7 +51,7 @@ class Transform:
         hi = self.upper if upper is None else upper
         s = self.scale if scale is None else scale
         kinds = np.asarray(self.kinds)
-        sig = 1.0 / (1.0 + jnp.exp(-z))
+        sig = jax.nn.sigmoid(z)  # stable value and derivative for any z
         out = []
         for i, k in enumerate(kinds):
             zi, si = z[..., i], sig[..., i]

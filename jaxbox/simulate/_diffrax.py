@@ -14,11 +14,32 @@ step-size strategies:
 
 from __future__ import annotations
 
+import contextlib
+
 import diffrax
 import jax.numpy as jnp
 import optimistix as optx
 
 __all__ = ["simulate_diffrax"]
+
+
+@contextlib.contextmanager
+def _errors_as_nan(active: bool):
+    """While tracing, make equinox's runtime checks (e.g. lineax's non-finite-input check in the
+    implicit stage solves) return NaN instead of raising, so that one diverging batch member
+    under ``vmap`` yields NaN outputs (reported as a failed start) rather than stopping the
+    whole batch."""
+    if not active:
+        yield
+        return
+    import equinox._errors as eqx_errors
+
+    saved = eqx_errors.EQX_ON_ERROR
+    eqx_errors.EQX_ON_ERROR = "nan"
+    try:
+        yield
+    finally:
+        eqx_errors.EQX_ON_ERROR = saved
 
 
 def simulate_diffrax(
@@ -77,19 +98,20 @@ def simulate_diffrax(
         controller = diffrax.StepTo(ts=jnp.concatenate([grid, t[-1:]]))
         dt0 = None
         steps = max_steps or substeps * (n_samples - 1) + 16
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(rhs),
-        solver,
-        t0=t[0],
-        t1=t[-1],
-        dt0=dt0,
-        y0=x0,
-        saveat=diffrax.SaveAt(ts=t),
-        stepsize_controller=controller,
-        max_steps=steps,
-        adjoint=adjoint if adjoint is not None else diffrax.RecursiveCheckpointAdjoint(),
-        throw=throw,
-    )
+    with _errors_as_nan(not throw):
+        sol = diffrax.diffeqsolve(
+            diffrax.ODETerm(rhs),
+            solver,
+            t0=t[0],
+            t1=t[-1],
+            dt0=dt0,
+            y0=x0,
+            saveat=diffrax.SaveAt(ts=t),
+            stepsize_controller=controller,
+            max_steps=steps,
+            adjoint=adjoint if adjoint is not None else diffrax.RecursiveCheckpointAdjoint(),
+            throw=throw,
+        )
     xs = sol.ys
     if not throw:
         xs = jnp.where(sol.result == diffrax.RESULTS.successful, xs, jnp.nan)

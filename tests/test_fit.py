@@ -1,0 +1,156 @@
+"""Estimation: parameter recovery, batched multistart, failing starts, problem checks."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from jaxbox.data import Dataset
+from jaxbox.fit import FitError, compile_cache_info, fit
+from jaxbox.models import get_model
+from jaxbox.simulate import simulate_arrays
+
+TRUTH = {
+    "C_zon": 3.0e6,
+    "C_wal": 4.0e7,
+    "R_wal": 0.012,
+    "gA": 2.5,
+    "T_zon0": 26.0,
+    "T_wal0": 19.0,
+}
+
+
+def _synthetic(model, theta, n=240, seed=0, noise=0.0):
+    t = np.arange(n) * 3600.0
+    rng = np.random.default_rng(seed)
+    day = 2 * np.pi * t / 86400
+    u = {
+        "T_amb": 12 + 6 * np.sin(day - 2) + rng.normal(0, 0.3, n),
+        "Q_hea": 600.0 * (rng.random(n) > 0.5),
+        "I_glo_hor": np.maximum(0, 450 * np.sin(day)),
+    }
+    U = np.stack([u[k] for k in model.inputs], axis=1)
+    y, _ = simulate_arrays(model, theta, t, U)
+    y = np.asarray(y[:, 0]) + noise * rng.normal(size=n)
+    return Dataset.from_arrays(t, {**u, "T_zon": y})
+
+
+@pytest.fixture(scope="module")
+def zonwal_data():
+    return _synthetic(get_model("ZonWal"), TRUTH)
+
+
+@pytest.fixture(scope="module")
+def zonwal_fit(zonwal_data):
+    return fit("ZonWal", zonwal_data, starts=8, seed=3)
+
+
+def test_recovers_known_parameters_from_default_guess(zonwal_fit):
+    r = zonwal_fit
+    guess = r.problem.guess_dict
+    # the default guess is far from the truth
+    assert abs(guess["C_wal"] / TRUTH["C_wal"] - 1) > 0.4
+    assert r.converged
+    for name, true in TRUTH.items():
+        assert r.params[name] == pytest.approx(true, rel=1e-5), name
+    assert r.cost < 1e-12
+    assert not any(r.at_bound().values())
+
+
+def test_multistart_compiles_once_and_reports_a_failing_start(zonwal_data, zonwal_fit):
+    r0 = zonwal_fit
+    before = compile_cache_info()
+    starts = np.array(r0.starts.initial)
+    starts[1] = np.nan  # a start that cannot be evaluated
+    r = fit("ZonWal", zonwal_data, starts=starts)
+    after = compile_cache_info()
+    assert after["compiles"] == before["compiles"], "same shapes must reuse the compiled solve"
+    assert r.timing["compile_s"] == 0.0
+    assert r.starts.status[1] == "nonfinite"
+    assert r.best != 1
+    assert np.isfinite(r.cost)
+    # another dataset of the same shape: no recompilation either
+    other = _synthetic(get_model("ZonWal"), TRUTH | {"R_wal": 0.02}, seed=5)
+    r2 = fit("ZonWal", other, starts=starts)
+    assert compile_cache_info()["compiles"] == before["compiles"]
+    assert r2.params["R_wal"] == pytest.approx(0.02, rel=1e-5)
+
+
+def test_all_starts_failing_is_an_error(zonwal_data):
+    with pytest.raises(FitError, match="all 2 starts failed"):
+        fit("Zon", zonwal_data, starts=np.full((2, 4), np.nan))
+
+
+def test_fixed_parameters_and_bounds(zonwal_data):
+    r = fit("ZonWal", zonwal_data, fixed={"gA": 2.5}, bounds={"R_wal": (0.001, 0.1)})
+    assert "gA" not in r.free and r.params["gA"] == 2.5
+    assert r.bounds["R_wal"] == (0.001, 0.1)
+    assert r.params["R_wal"] == pytest.approx(TRUTH["R_wal"], rel=1e-5)
+    # a bound that excludes the truth: the estimate ends on it and is flagged
+    r = fit("ZonWal", zonwal_data, bounds={"R_wal": (0.001, 0.008)}, starts=1)
+    assert r.at_bound()["R_wal"]
+
+
+def test_noisy_fit_is_close(zonwal_data):
+    noisy = _synthetic(
+        get_model("Zon"),
+        {"C_zon": 8e6, "R_wal": 0.01, "gA": 3.0, "T_zon0": 25.0},
+        noise=0.05,
+        seed=2,
+    )
+    r = fit("Zon", noisy, starts=4)
+    assert r.params["R_wal"] == pytest.approx(0.01, rel=0.02)
+    assert r.params["C_zon"] == pytest.approx(8e6, rel=0.05)
+    assert np.sqrt(r.cost) == pytest.approx(0.05, rel=0.2)
+
+
+def test_diffrax_simulator_fits_too(zonwal_data):
+    r = fit("Zon", zonwal_data, simulator="diffrax", starts=1, max_steps=60)
+    r_ex = fit("Zon", zonwal_data, starts=1, max_steps=60)
+    assert r.problem.simulator == "diffrax"
+    # both fit the same (misspecified) problem; the fixed-step error is small against the misfit
+    assert r.params["R_wal"] == pytest.approx(r_ex.params["R_wal"], rel=0.05)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"fixed": {"R_nope": 1.0}}, "no parameter"),
+        ({"bounds": {"R_wal": (0.1, 0.01)}}, "must be below"),
+        ({"guess": {"R_wal": 50.0}}, "outside its bounds"),
+        ({"free": ["R_wal"], "fixed": {"R_wal": 0.01}}, "both free and fixed"),
+        ({"weights": [1.0, 2.0]}, "2 weights for 1 outputs"),
+        ({"simulator": "euler"}, "unknown simulator"),
+        ({"starts": 0}, "at least 1"),
+        ({"starts": np.ones((2, 3))}, "one column per free parameter"),
+    ],
+)
+def test_problem_errors(zonwal_data, kwargs, match):
+    with pytest.raises(FitError, match=match):
+        fit("Zon", zonwal_data, **kwargs)
+
+
+def test_missing_column_is_named(zonwal_data):
+    from jaxbox.data import DataError
+
+    data = Dataset.from_arrays(zonwal_data.t, {"T_amb": zonwal_data["T_amb"]})
+    with pytest.raises(DataError, match="Q_hea"):
+        fit("Zon", data)
+
+
+def test_float32_is_refused_with_a_clear_message():
+    code = (
+        "import jaxbox, numpy as np\n"
+        "d = jaxbox.Dataset.from_arrays(np.arange(10)*3600., {k: np.ones(10) for k in "
+        "['T_amb','Q_hea','I_glo_hor','T_zon']})\n"
+        "jaxbox.fit('Zon', d)\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env={"JAX_PLATFORMS": "cpu", "PATH": ""},
+    )
+    assert proc.returncode != 0
+    assert "enable_x64" in proc.stderr

@@ -2,9 +2,25 @@
 
 from ._metrics import rmse as rmse
 from ._metrics import simulation_error as simulation_error
+from ._multistart import MultistartView as MultistartView
+from ._multistart import Optimum as Optimum
+from ._multistart import multistart_view as multistart_view
+from ._plots import plot_autocorrelation as plot_autocorrelation
+from ._plots import plot_confidence_intervals as plot_confidence_intervals
+from ._plots import plot_cross_correlation as plot_cross_correlation
+from ._plots import plot_fit as plot_fit
+from ._plots import plot_multistart as plot_multistart
+from ._plots import plot_prediction as plot_prediction
+from ._plots import plot_residuals as plot_residuals
+from ._plots import plot_residuals_vs_inputs as plot_residuals_vs_inputs
 from ._postsim import Validation as Validation
 from ._postsim import ValidationError as ValidationError
 from ._postsim import validate as validate
+from ._prediction import PredictionPerformance as PredictionPerformance
+from ._prediction import prediction_performance as prediction_performance
+from ._report import fit_report as fit_report
+from ._report import jsonable as jsonable
+from ._report import save_plots as save_plots
 from ._residuals import CumulatedPeriodogram as CumulatedPeriodogram
 from ._residuals import LjungBox as LjungBox
 from ._residuals import OutputResiduals as OutputResiduals
@@ -19,3 +35,8 @@ from ._uncertainty import Combination as Combination
 from ._uncertainty import Uncertainty as Uncertainty
 from ._uncertainty import sensitivities as sensitivities
 from ._uncertainty import uncertainty as uncertainty
+from ._verdict import PHYSICAL_LIMITS as PHYSICAL_LIMITS
+from ._verdict import Flag as Flag
+from ._verdict import Verdict as Verdict
+from ._verdict import check_validity as check_validity
+from ._verdict import time_constants as time_constants

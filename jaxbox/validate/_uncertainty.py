@@ -17,7 +17,8 @@ near its bound keeps a finite sensitivity (the verdict flags it separately).
 Confidence intervals are ``θ̂ ± t_{N−p, 0.975} · std`` (Student-t); ``rel_ci`` is that half-width
 as a fraction of ``|θ̂|``. Intervals for the initial states are computed only on request (the
 reference study shows none), but the initial states are always part of J, so the reported
-covariance of the other parameters is their marginal covariance.
+covariance of the other parameters is their marginal covariance. The temperature of a node held
+constant (``RCNetwork.constant``) is a parameter, not an initial state, and always gets one.
 
 **Identifiability.** J is analysed after scaling each column to unit norm (so that units do not
 matter) by a singular value decomposition ``J_n = U S Vᵀ``. ``1/s_k`` is the collinearity index
@@ -348,7 +349,8 @@ def uncertainty(
 
     Args:
         result: a :class:`~jaxbox.fit.FitResult`.
-        include_initial_states: also give intervals for the initial states ``T_*0``.
+        include_initial_states: also give intervals for the initial states ``T_*0`` (those of
+            constant nodes always get one).
         level: confidence level of the intervals.
         rcond: singular values of the column-normalised sensitivities below ``rcond`` times the
             largest are treated as zero (not identifiable, no standard error).
@@ -456,8 +458,11 @@ def uncertainty(
     if zero.any():
         condition = collinearity = float("inf")
 
+    held = {m.T0 for m in problem.model.network.nodes if getattr(m, "constant", False)}
     show = [
-        i for i, n in enumerate(free) if include_initial_states or not specs[n].is_initial_state
+        i
+        for i, n in enumerate(free)
+        if include_initial_states or not specs[n].is_initial_state or n in held
     ]
     sub = cov[np.ix_(show, show)]
     std = np.sqrt(np.where(np.diag(sub) >= 0, np.diag(sub), np.nan))

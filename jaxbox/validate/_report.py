@@ -1,0 +1,229 @@
+"""Everything about a fit in one JSON-ready dict, and every validation plot written to files.
+
+:func:`fit_report` gathers the estimate, the parameter uncertainty and identifiability, the
+residual analysis, the validity verdict, the multistart view, the post-simulation errors and the
+k-step-ahead prediction errors; :func:`save_plots` writes the figures of
+:mod:`jaxbox.validate._plots`. Values that are not finite (a parameter without a standard error)
+are written as ``None`` so that the dict serialises to strict JSON.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["fit_report", "save_plots", "jsonable"]
+
+
+def jsonable(obj):
+    """A copy of ``obj`` with numpy scalars/arrays as Python values and nan/inf as ``None``."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    return obj
+
+
+def _valid_dataset(validation):
+    """The validation period of a Validation as a Dataset (its inputs and outputs)."""
+    if validation is None or validation.y_cross is None or validation.u_cross is None:
+        return None
+    from ..data import Dataset
+
+    cols = {n: validation.u_cross[:, i] for i, n in enumerate(validation.inputs)}
+    cols.update({n: validation.y_cross[:, j] for j, n in enumerate(validation.outputs)})
+    return Dataset.from_arrays(validation.index_cross, cols)
+
+
+def fit_report(
+    result,
+    valid=None,
+    *,
+    validation=None,
+    uncertainty=None,
+    include_initial_states: bool = False,
+    max_rel_ci: float = 0.5,
+    horizons=None,
+    verdict_options: dict | None = None,
+) -> dict:
+    """A JSON-ready report of a fit: estimate, uncertainty, residuals, verdict, errors.
+
+    Args:
+        result: a :class:`~jaxbox.fit.FitResult`.
+        valid: validation :class:`~jaxbox.data.Dataset` directly following the identification
+            data (optional; gives the cross-validation errors).
+        validation: a :class:`~jaxbox.validate.Validation` already computed for ``result`` and
+            ``valid`` (skips the post-simulation).
+        uncertainty: an :class:`~jaxbox.validate.Uncertainty` already computed.
+        include_initial_states: intervals for the initial states too.
+        max_rel_ci: widest acceptable confidence interval (fraction of the value).
+        horizons: k-step-ahead prediction horizons [samples] (default 1, 2, 3, 6, 12, 24).
+        verdict_options: more keyword arguments of :func:`~jaxbox.validate.check_validity`.
+
+    Returns:
+        dict with ``model``, ``n_samples``, ``free``, ``cost``, ``converged``, ``params`` (per
+        name: value, unit, lower, upper, free, at_bound, std, ci95, rel_ci), ``correlation``,
+        ``identifiability``, ``sigma``, ``dof``, ``residuals`` (``auto`` and ``cross``
+        summaries per output), ``valid``, ``reasons``, ``warnings``, ``time_constants_h``,
+        ``rmse_auto``, ``rmse_cross``, ``se_auto``, ``se_cross``, ``multistart`` and
+        ``prediction``.
+    """
+    from ._multistart import multistart_view
+    from ._postsim import validate
+    from ._prediction import prediction_performance
+    from ._uncertainty import uncertainty as _uncertainty
+    from ._verdict import check_validity
+
+    if validation is None:
+        validation = validate(result, valid)
+    if uncertainty is None:
+        uncertainty = _uncertainty(result, include_initial_states=include_initial_states)
+    res_auto = validation.residual_analysis("auto")
+    res_cross = (
+        validation.residual_analysis("cross") if validation.residuals_cross is not None else None
+    )
+    verdict = check_validity(
+        result,
+        uncertainty,
+        max_rel_ci=max_rel_ci,
+        residuals=res_auto,
+        **(verdict_options or {}),
+    )
+    ms = multistart_view(result)
+    if valid is None:
+        valid = _valid_dataset(validation)
+    try:
+        prediction = prediction_performance(result, valid, horizons=horizons).to_dict()
+    except ValueError as err:  # data too short for any horizon
+        prediction = {"error": str(err)}
+
+    table = result.params_table()
+    unc = uncertainty.table()
+    params = {}
+    for n, row in table.items():
+        u = unc.get(n)
+        params[n] = {
+            "value": row["value"],
+            "unit": row["unit"],
+            "lower": row["lower"],
+            "upper": row["upper"],
+            "free": row["free"],
+            "at_bound": row["at_bound"],
+            "std": None if u is None else u["std"],
+            "ci95": None
+            if u is None or not all(map(math.isfinite, u["ci95"]))
+            else list(u["ci95"]),
+            "rel_ci": None if u is None else u["rel_ci"],
+        }
+    report = {
+        "model": result.model.name,
+        "n_samples": result.n_samples,
+        "free": list(result.free),
+        "cost": result.cost,
+        "rms_error": math.sqrt(result.cost) if result.cost >= 0 else None,
+        "converged": result.converged,
+        "params": params,
+        "correlation": uncertainty.correlation_dict(),
+        "identifiability": {
+            "condition": uncertainty.condition,
+            "collinearity": uncertainty.collinearity,
+            "non_identifiable": [c.to_dict() for c in uncertainty.combinations],
+        },
+        "sigma": math.sqrt(uncertainty.sigma2),
+        "dof": uncertainty.dof,
+        "residuals": {
+            "auto": res_auto.to_dict(),
+            "cross": None if res_cross is None else res_cross.to_dict(),
+        },
+        "valid": verdict.valid,
+        "reasons": list(verdict.reasons),
+        "warnings": list(verdict.warnings),
+        "time_constants_h": [float(t) / 3600.0 for t in verdict.time_constants],
+        "rmse_auto": dict(validation.rmse_auto),
+        "rmse_cross": None if validation.rmse_cross is None else dict(validation.rmse_cross),
+        "se_auto": validation.se_auto,
+        "se_cross": validation.se_cross,
+        "multistart": ms.to_dict(),
+        "prediction": prediction,
+    }
+    return jsonable(report)
+
+
+def save_plots(
+    result,
+    validation,
+    directory,
+    *,
+    uncertainty=None,
+    valid=None,
+    fmt: str = "png",
+    dpi: int = 110,
+) -> list[Path]:
+    """Write every validation plot of a fit into ``directory`` (created if needed).
+
+    Args:
+        result: a :class:`~jaxbox.fit.FitResult`.
+        validation: its :class:`~jaxbox.validate.Validation` (``None``: auto-validation only).
+        directory: output folder.
+        uncertainty: an :class:`~jaxbox.validate.Uncertainty` already computed.
+        valid: the validation dataset (default: rebuilt from ``validation``), for the
+            k-step-ahead prediction plot on validation data.
+        fmt: image format (``png``, ``pdf``, ``svg``).
+        dpi: resolution of raster formats.
+
+    Returns:
+        The paths written: ``fit``, ``residuals``, ``residuals_vs_inputs``, ``autocorrelation``,
+        ``cross_correlation``, ``confidence_intervals``, ``multistart``, ``prediction`` (and
+        ``autocorrelation_validation`` with validation data).
+    """
+    from . import _plots
+    from ._postsim import validate
+    from ._prediction import prediction_performance
+    from ._uncertainty import uncertainty as _uncertainty
+
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    if validation is None:
+        validation = validate(result, valid)
+    if uncertainty is None:
+        uncertainty = _uncertainty(result)
+    analysis = validation.residual_analysis("auto")
+    figures = {
+        "fit": _plots.plot_fit(validation),
+        "residuals": _plots.plot_residuals(validation),
+        "residuals_vs_inputs": _plots.plot_residuals_vs_inputs(validation),
+        "autocorrelation": _plots.plot_autocorrelation(
+            analysis, title=f"{result.model.name}: identification residuals"
+        ),
+        "cross_correlation": _plots.plot_cross_correlation(analysis),
+        "confidence_intervals": _plots.plot_confidence_intervals(uncertainty),
+        "multistart": _plots.plot_multistart(result),
+    }
+    if validation.residuals_cross is not None:
+        figures["autocorrelation_validation"] = _plots.plot_autocorrelation(
+            validation.residual_analysis("cross"),
+            title=f"{result.model.name}: validation residuals",
+        )
+    if valid is None:
+        valid = _valid_dataset(validation)
+    try:
+        figures["prediction"] = _plots.plot_prediction(prediction_performance(result, valid))
+    except ValueError:
+        pass
+    paths = []
+    for name, fig in figures.items():
+        path = out / f"{name}.{fmt}"
+        fig.savefig(path, dpi=dpi)
+        paths.append(path)
+    return paths

@@ -26,7 +26,8 @@ def _print_json(obj) -> None:
 
 
 def _progress(msg: str, args) -> None:
-    if not getattr(args, "json", False):
+    """Progress on a terminal only (stderr), never with --json."""
+    if not getattr(args, "json", False) and sys.stderr.isatty():
         print(msg, file=sys.stderr, flush=True)
 
 

@@ -1,0 +1,131 @@
+"""The command line: JSON shape, exit codes, one-line errors."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from jaxbox.cli._main import main
+
+
+@pytest.fixture(scope="module")
+def csv_file(tmp_path_factory):
+    """A small synthetic building in a CSV with user column names (one-state truth)."""
+    n = 240
+    t = np.arange(n) * 3600.0
+    rng = np.random.default_rng(0)
+    day = 2 * np.pi * t / 86400
+    t_amb = 10 + 5 * np.sin(day)
+    q = 800.0 * (rng.random(n) > 0.5)
+    irr = np.maximum(0, 400 * np.sin(day))
+    R, C, gA = 0.01, 5e6, 2.0
+    T = np.empty(n)
+    T[0] = 22.0
+    for k in range(n - 1):  # fine explicit Euler reference, 60 substeps
+        x = T[k]
+        for s in range(60):
+            f = s / 60
+            ua = t_amb[k] + f * (t_amb[k + 1] - t_amb[k])
+            uq = q[k] + f * (q[k + 1] - q[k])
+            ui = irr[k] + f * (irr[k + 1] - irr[k])
+            x += 60.0 * ((ua - x) / R + uq + gA * ui) / C
+        T[k + 1] = x
+    frame = pd.DataFrame(
+        {
+            "time": pd.date_range("2024-01-01", periods=n, freq="h"),
+            "indoor": T,
+            "outdoor": t_amb,
+            "heater": q,
+            "sun": irr,
+        }
+    )
+    path = tmp_path_factory.mktemp("cli") / "building.csv"
+    frame.to_csv(path, index=False)
+    return path
+
+
+MAP = ["--map", "T_zon=indoor", "--map", "T_amb=outdoor", "--map", "Q_hea=heater"]
+MAP += ["--map", "I_glo_hor=sun"]
+
+
+def test_models_json(capsys):
+    assert main(["models", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    names = [m["name"] for m in doc["models"]]
+    assert "Zon" in names and "ZonWal" in names
+    zon = doc["models"][names.index("Zon")]
+    p = {q["name"]: q for q in zon["parameters"]}
+    assert p["R_wal"]["unit"] == "K/W" and p["R_wal"]["lower"] > 0
+    assert set(zon) >= {"name", "states", "inputs", "outputs", "parameters"}
+
+
+def test_fit_json_shape(csv_file, capsys):
+    code = main(["fit", str(csv_file), "--model", "Zon", "--starts", "4", "--json", *MAP])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    doc = json.loads(out.out)
+    assert doc["model"] == "Zon"
+    assert set(doc["params"]) == {"C_zon", "R_wal", "gA", "T_zon0"}
+    for row in doc["params"].values():
+        assert {"value", "lower", "upper", "at_bound"} <= set(row)
+    assert doc["params"]["R_wal"]["value"] == pytest.approx(0.01, rel=1e-3)
+    # the CSV comes from an explicit-Euler reference (60 s steps): close, not exact
+    assert doc["params"]["C_zon"]["value"] == pytest.approx(5e6, rel=5e-3)
+    assert set(doc["rmse_auto"]) == {"T_zon"} and set(doc["rmse_cross"]) == {"T_zon"}
+    assert doc["rmse_cross"]["T_zon"] < 0.01
+    assert doc["se_auto"] >= 0 and doc["se_cross"] >= 0
+    assert doc["starts"]["n"] == 4
+    assert doc["starts"]["converged"] + doc["starts"]["failed"] + doc["starts"]["max_steps"] == 4
+    assert {"compile_s", "fit_s"} <= set(doc["timing"])
+    assert doc["data"]["n_train"] == 120 and doc["data"]["n_validate"] == 120
+
+
+def test_fit_with_periods_fix_and_bounds(csv_file, capsys):
+    code = main(
+        [
+            "fit",
+            str(csv_file),
+            "--model",
+            "Zon",
+            "--starts",
+            "2",
+            "--json",
+            *MAP,
+            "--train",
+            "2024-01-01..2024-01-06",
+            "--fix",
+            "gA=2.0",
+            "--bounds",
+            "R_wal=0.001:0.1",
+        ]
+    )
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    doc = json.loads(out.out)
+    assert doc["params"]["gA"] == {**doc["params"]["gA"], "value": 2.0, "free": False}
+    assert doc["params"]["R_wal"]["lower"] == 0.001
+    assert doc["data"]["train"][1].startswith("2024-01-06")
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["fit", "nope.csv", "--model", "Zon"], "file not found"),
+        (["fit", "{csv}", "--model", "Zon"], "T_zon"),  # columns not mapped
+        (["fit", "{csv}", "--model", "Nope", *MAP], "no library model named 'Nope'"),
+        (["fit", "{csv}", "--model", "Zon", *MAP, "--fix", "gA"], "must look like"),
+        (["fit", "{csv}", "--model", "Zon", *MAP, "--fix", "R_x=1"], "no parameter"),
+        (["fit", "{csv}", "--model", "Zon", *MAP, "--bounds", "R_wal=1:0.1"], "below"),
+        (["fit", "{csv}", "--model", "Zon", *MAP, "--train", "2024-01-01"], "START..END"),
+        (["fit", "{csv}", "--model", "Zon", "--map", "T_zon=nothere"], "nothere"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(csv_file, capsys, args, words):
+    args = [str(csv_file) if a == "{csv}" else a for a in args]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ")
+    assert words in lines[0]
+    assert "Traceback" not in err

@@ -24,6 +24,7 @@ Everything is returned as data (numpy arrays and JSON-ready summaries); the plot
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -195,6 +196,11 @@ class CumulatedPeriodogram:
         }
 
 
+@functools.lru_cache(maxsize=256)
+def _ks_critical(alpha: float, m: int) -> float:
+    return float(stats.kstwo.ppf(1 - alpha, m))
+
+
 def cumulated_periodogram(e, alpha: float = 0.05) -> CumulatedPeriodogram:
     """Cumulated periodogram test (exact Kolmogorov–Smirnov band for Gaussian white noise)."""
     e = _vector(e)
@@ -216,7 +222,7 @@ def cumulated_periodogram(e, alpha: float = 0.05) -> CumulatedPeriodogram:
         frequency=freq,
         cumulated=c,
         statistic=dist,
-        critical=float(stats.kstwo.ppf(1 - alpha, m)),
+        critical=_ks_critical(alpha, m),
         p_value=float(stats.kstwo.sf(dist, m)),
         alpha=alpha,
     )

@@ -239,7 +239,8 @@ def check_validity(
     tau = np.asarray(tau, dtype=float)
     A = _state_matrix(model, result.params) if np.all(np.isfinite(values)) else None
     nodes = list(model.network.nodes)
-    pos = result.bound_position()
+    with np.errstate(invalid="ignore", divide="ignore"):  # a non-physical value: nan position
+        pos = result.bound_position()
     bounds = result.bounds
     for n in result.free:
         x = pos.get(n, float("nan"))

@@ -1,0 +1,183 @@
+"""Validity verdict (bounds, physics, time constants, intervals, convergence), multistart view."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from jaxbox.data import Dataset
+from jaxbox.fit import StartReport, fit
+from jaxbox.models import get_model
+from jaxbox.simulate import simulate
+from jaxbox.validate import (
+    analyse_residuals,
+    check_validity,
+    multistart_view,
+    time_constants,
+    uncertainty,
+)
+
+N = 200
+STEP = 3600.0
+TRUTH = {"C_zon": 5e6, "R_wal": 0.01, "gA": 2.0, "T_zon0": 20.0}
+FREE = ("C_zon", "R_wal", "gA", "T_zon0")
+
+
+def _data(seed=7, sigma=0.1):
+    rng = np.random.default_rng(0)
+    t = np.arange(N) * STEP
+    day = 2 * np.pi * t / 86400.0
+    u = {
+        "T_amb": 8.0 + 5.0 * np.sin(day - 2.0) + rng.normal(0, 0.5, N),
+        "Q_hea": 1500.0 * (rng.random(N) > 0.5),
+        "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)),
+    }
+    clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(N)})
+    y = simulate("Zon", TRUTH, clean).y[:, 0]
+    return clean.with_columns(T_zon=y + np.random.default_rng(seed).normal(0, sigma, N))
+
+
+def _start(factor=1.1):
+    return np.asarray([[TRUTH[n] * factor for n in FREE]])
+
+
+@pytest.fixture(scope="module")
+def good():
+    return fit("Zon", _data(), starts=_start())
+
+
+def test_a_good_fit_is_valid(good):
+    v = check_validity(good)
+    assert v.valid and bool(v)
+    assert v.reasons == ()
+    assert v.time_constants == pytest.approx([TRUTH["R_wal"] * TRUTH["C_zon"]], rel=0.05)
+    d = v.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["valid"] is True and d["reasons"] == []
+
+
+def test_parameter_driven_onto_its_bound_is_flagged():
+    res = fit("Zon", _data(), starts=_start(0.4), bounds={"gA": (0.0, 1.0)})
+    assert res.params["gA"] == pytest.approx(1.0, abs=1e-3)
+    v = check_validity(res)
+    assert not v.valid
+    assert v.flagged("at_bound") == ("gA",)
+    (reason,) = [r for r in v.reasons if "gA" in r]
+    assert "upper bound" in reason
+
+
+def test_initial_temperature_pinned_at_its_bound():
+    res = fit(
+        "Zon", _data(), starts=np.asarray([[5e6, 0.01, 2.0, 27.0]]), bounds={"T_zon0": (25.0, 37.0)}
+    )
+    v = check_validity(res)
+    assert not v.valid
+    assert "T_zon0" in v.flagged("at_bound")
+    (reason,) = [r for r in v.reasons if "T_zon0" in r]
+    assert "initial temperature" in reason and "lower bound" in reason and "narrow" in reason
+
+
+def test_non_physical_values_and_time_constants(good):
+    absurd = dataclasses.replace(good, params={**good.params, "C_zon": 1e12, "R_wal": 1e3})
+    v = check_validity(absurd, check_intervals=False)
+    assert not v.valid
+    assert set(v.flagged("non_physical")) == {"C_zon", "R_wal"}
+    assert any(f.kind == "time_constant" for f in v.flags)  # τ = 1e15 s, far beyond years
+    assert any("years" in r for r in v.reasons)
+    negative = dataclasses.replace(good, params={**good.params, "R_wal": -0.01})
+    v = check_validity(negative, check_intervals=False)
+    assert "R_wal" in v.flagged("non_physical")
+    assert any("does not decay" in r for r in v.reasons)
+
+
+def test_custom_limits(good):
+    v = check_validity(good, limits={"C_zon": (1e7, 1e8)}, check_intervals=False)
+    assert v.flagged("non_physical") == ("C_zon",)
+
+
+def test_fast_time_constant_is_a_warning(good):
+    fast = dataclasses.replace(good, params={**good.params, "C_zon": 2e4})  # τ = 200 s < 1 h
+    v = check_validity(fast, check_intervals=False)
+    assert v.valid
+    assert any("shorter than the sampling step" in w for w in v.warnings)
+
+
+def test_unconverged_optimum_is_invalid(good):
+    st = good.starts
+    report = dataclasses.replace(st, status=("max_steps",))
+    res = dataclasses.replace(good, starts=report, converged=False)
+    v = check_validity(res, check_intervals=False)
+    assert not v.valid and any("step cap" in r for r in v.reasons)
+    failed = dataclasses.replace(
+        good, starts=dataclasses.replace(st, status=("nonfinite",)), cost=float("nan")
+    )
+    v = check_validity(failed)
+    assert not v.valid and v.flags[0].kind == "failed"
+
+
+def test_wide_intervals_are_flagged(good):
+    unc = uncertainty(good)
+    v = check_validity(good, unc, max_rel_ci=1e-4)
+    assert not v.valid
+    assert set(v.flagged("wide_interval")) == {"C_zon", "R_wal", "gA"}
+    assert check_validity(good, unc, max_rel_ci=10.0).valid
+
+
+def test_non_white_residuals_are_a_warning(good):
+    rng = np.random.default_rng(1)
+    e = np.cumsum(rng.standard_normal(N))
+    v = check_validity(good, residuals=analyse_residuals(e, output_names=["T_zon"]))
+    assert v.valid and any("not white" in w for w in v.warnings)
+
+
+def test_time_constants_of_two_states():
+    model = get_model("ZonWal")
+    p = {"C_zon": 2e6, "C_wal": 3e7, "R_wal": 0.01, "gA": 2.0, "T_zon0": 20.0, "T_wal0": 15.0}
+    tau, lam = time_constants(model, p)
+    g = 1 / (0.5 * p["R_wal"])
+    A = np.array([[-g / p["C_zon"], g / p["C_zon"]], [g / p["C_wal"], -2 * g / p["C_wal"]]])
+    expected = np.sort(-1 / np.linalg.eigvals(A).real)
+    np.testing.assert_allclose(tau, expected, rtol=1e-10)
+    assert np.all(lam.real < 0)
+
+
+def _with_starts(res, costs, params=None):
+    costs = np.asarray(costs, dtype=float)
+    s = len(costs)
+    p = np.tile(res.starts.params[res.best], (s, 1)) if params is None else params
+    report = StartReport(
+        initial=p * 1.3,
+        params=p,
+        cost=costs,
+        steps=np.full(s, 10),
+        status=("converged",) * (s - 1) + ("nonfinite",),
+    )
+    best = report.best_index()
+    return dataclasses.replace(res, starts=report, best=best, cost=float(costs[best]))
+
+
+def test_multistart_view_groups_optima(good):
+    c0 = good.cost
+    costs = [c0 * 3, c0, c0 * (1 + 1e-6), c0 * 3 * (1 + 1e-7), c0 * 10, c0, float("nan")]
+    res = _with_starts(good, costs)
+    ms = multistart_view(res)
+    assert ms.n_starts == 7 and ms.n_usable == 6
+    assert [o.count for o in ms.optima] == [3, 2, 1]
+    assert ms.n_at_best == 3 and ms.optima[0].cost == pytest.approx(c0)
+    assert ms.fraction_at_best == pytest.approx(0.5)
+    assert ms.miss_probability == pytest.approx(0.5**7)
+    assert "3 of 7 starts" in ms.text()
+    d = ms.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["n_at_best"] == 3 and len(d["optima"]) == 3
+    assert all(v == 0 for v in ms.spread_at_best().values())
+
+
+def test_single_start_at_the_best_cost_warns(good):
+    c0 = good.cost
+    res = _with_starts(good, [c0, 2 * c0, 3 * c0, 4 * c0, float("nan")])
+    ms = multistart_view(res)
+    assert ms.n_at_best == 1 and "too small" in ms.text()
+    v = check_validity(res, check_intervals=False)
+    assert any("only 1 of 5 starts" in w for w in v.warnings)

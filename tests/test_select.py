@@ -1,0 +1,173 @@
+"""GreyBox, Case, initial-guess strategies and forward selection on a short synthetic case."""
+
+import numpy as np
+import pytest
+
+from jaxbox.data import Dataset
+from jaxbox.models import get_model
+from jaxbox.select import (
+    GreyBox,
+    candidate_models,
+    forward_selection,
+    lhs_starts,
+    naming_guess,
+    parent_guess,
+    state_ranges,
+)
+from jaxbox.simulate import simulate_arrays
+
+TRUTH = {
+    "C_zon": 3.0e6,
+    "C_wal": 4.0e7,
+    "R_wal": 0.012,
+    "gA": 2.5,
+    "T_zon0": 26.0,
+    "T_wal0": 19.0,
+}
+
+
+def synthetic(n=240, seed=0, noise=0.02):
+    """ZonWal data (hourly): a two-state truth, so Zon under-fits and ZonWal is right."""
+    model = get_model("ZonWal")
+    t = np.arange(n) * 3600.0
+    rng = np.random.default_rng(seed)
+    day = 2 * np.pi * t / 86400
+    u = {
+        "T_amb": 12 + 6 * np.sin(day - 2) + rng.normal(0, 0.3, n),
+        "Q_hea": 600.0 * (rng.random(n) > 0.5),
+        "I_glo_hor": np.maximum(0, 450 * np.sin(day)),
+    }
+    U = np.stack([u[k] for k in model.inputs], axis=1)
+    y, _ = simulate_arrays(model, TRUTH, t, U)
+    y = np.asarray(y[:, 0]) + noise * rng.normal(size=n)
+    return Dataset.from_arrays(t, {**u, "T_zon": y})
+
+
+@pytest.fixture(scope="module")
+def data():
+    return synthetic()
+
+
+@pytest.fixture(scope="module")
+def selection(data):
+    gb = GreyBox(data, name="synthetic")
+    lines = []
+    sel = forward_selection(gb, ["ZonWal", "Zon"], starts=4, seed=1, progress=lines.append)
+    return sel, lines
+
+
+# -- initial guesses --------------------------------------------------------------------------
+
+
+def test_naming_guess_starts_states_from_the_data(data):
+    g = naming_guess(get_model("ZonWal"), data)
+    assert g.source == "naming"
+    assert g.values["T_zon0"] == pytest.approx(data["T_zon"][0])
+    # the unmeasured wall state starts between the zone and ambient temperatures it links
+    lo, hi = sorted([data["T_zon"][0], data["T_amb"][0]])
+    assert lo <= g.values["T_wal0"] <= hi
+    assert g.values["C_wal"] == get_model("ZonWal").parameter("C_wal").default
+
+
+def test_state_ranges_span_the_linked_temperatures(data):
+    r = state_ranges(get_model("ZonWal"), data)
+    lo, g, hi = r["T_wal0"]
+    assert lo < min(data["T_zon"][0], data["T_amb"][0])
+    assert hi > max(data["T_zon"][0], data["T_amb"][0])
+    assert lo < g < hi
+    lo, g, hi = r["T_zon0"]
+    assert g == pytest.approx(data["T_zon"][0]) and hi - lo == pytest.approx(2.0)
+
+
+def test_parent_guess_inherits_same_named_parameters(data):
+    parent = {"C_zon": 5e6, "R_wal": 0.02, "gA": 3.0, "T_zon0": 25.0}
+    g = parent_guess(get_model("ZonWal"), data, parent, "Zon")
+    assert g.source == "parent" and g.parent == "Zon"
+    assert set(g.inherited) == set(parent)
+    assert g.values["C_zon"] == 5e6 and g.values["R_wal"] == 0.02
+    assert g.values["C_wal"] == get_model("ZonWal").parameter("C_wal").default
+
+
+def test_lhs_starts_sample_states_around_the_data(data):
+    model = get_model("ZonWal")
+    guess = naming_guess(model, data).values
+    names, x0 = lhs_starts(model, data, guess, 16, seed=5)
+    assert x0.shape == (16, len(names))
+    np.testing.assert_allclose(x0[0], [guess[n] for n in names])
+    ranges = state_ranges(model, data)
+    for n in ("T_zon0", "T_wal0"):
+        lo, _, hi = ranges[n]
+        col = x0[:, names.index(n)]
+        assert np.all((col >= lo) & (col <= hi)), n
+    # reproducible for a seed, different for another
+    np.testing.assert_array_equal(x0, lhs_starts(model, data, guess, 16, seed=5)[1])
+    assert not np.array_equal(x0, lhs_starts(model, data, guess, 16, seed=6)[1])
+
+
+def test_manual_guess_and_unknown_names(data):
+    gb = GreyBox(data)
+    case = gb.add_case("Zon", guess={"R_wal": 0.02})
+    assert case.guess.source == "manual" and case.guess.values["R_wal"] == 0.02
+    with pytest.raises(ValueError, match="no parameter"):
+        gb.add_case("Zon", guess={"R_nope": 1.0})
+    with pytest.raises(ValueError, match="parent"):
+        gb.add_case("Zon", guess="parent")
+    assert gb.add_case("Zon").name == "Zon#2"
+
+
+def test_candidate_models_sorted_and_filtered(data):
+    names = [m.name for m in candidate_models(["ZonWal", "Zon"])]
+    assert names == ["Zon", "ZonWal"]
+    fed = [m.name for m in candidate_models("all", data)]
+    assert "Zon" in fed and "ZonWal" in fed
+    assert "ZonWalIntInfWin" not in fed  # the data have no I_e, I_w
+    assert [m.name for m in candidate_models("exp1")][0] == "Zon"
+
+
+# -- forward selection ------------------------------------------------------------------------
+
+
+def test_forward_selection_accepts_the_true_structure(selection):
+    sel, lines = selection
+    gb = sel.greybox
+    assert sel.order[:2] == ("Zon", "ZonWal")
+    assert sel.accepted == "ZonWal"
+    zon, zonwal = gb["Zon"], gb["ZonWal"]
+    assert zonwal.is_valid
+    assert zonwal.se_cross < zon.se_cross
+    assert zonwal.se_auto < zon.se_auto
+    # the child inherited from its parent
+    assert zonwal.guess.source == "parent" and zonwal.parent == "Zon"
+    assert "C_zon" in zonwal.guess.inherited
+    # parameters recovered close to the truth from slightly noisy data
+    assert zonwal.result.params["R_wal"] == pytest.approx(TRUTH["R_wal"], rel=0.05)
+    # progress per model and per batch of starts
+    assert any("[1/2] Zon" in line for line in lines)
+    assert any("4 starts in one batch" in line for line in lines)
+
+
+def test_table_and_plot(selection):
+    sel, _ = selection
+    t = sel.greybox.table()
+    assert list(t.index[:2]) == ["Zon", "ZonWal"]
+    for col in ("n_params", "se_auto", "se_cross", "valid", "reasons", "rmse_auto_T_zon"):
+        assert col in t.columns
+    assert t.loc["Zon", "n_params"] == 4 and t.loc["ZonWal", "n_params"] == 6
+    text = sel.greybox.table_text()
+    assert "ZonWal" in text and "SE cross" in text
+    fig = sel.greybox.plot(accepted=sel.accepted)
+    assert fig.axes[0].get_xlabel() == "number of free parameters"
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def test_case_starts_are_reproducible(selection):
+    sel, _ = selection
+    case = sel.greybox["ZonWal"]
+    np.testing.assert_array_equal(case.start_values(), case.result.starts.initial)
+
+
+def test_selection_needs_validation_data(data):
+    with pytest.raises(ValueError, match="validation"):
+        forward_selection(GreyBox(data, train=(None, None), valid=False), ["Zon"])

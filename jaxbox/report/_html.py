@@ -1,0 +1,206 @@
+"""One self-contained HTML page per GreyBox: data, selection table and figure, accepted model.
+
+Figures are embedded as base64 PNG, so the page is a single file that opens anywhere. For the
+accepted case (or the best valid one) the page shows its parameters with confidence intervals,
+the fit on identification and validation data, residual diagnostics and the validity verdict.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from datetime import datetime
+from pathlib import Path
+
+from .._io import atomic_write_text
+
+__all__ = ["greybox_report", "write_report"]
+
+_CSS = """
+body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
+h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;font-size:.9em;margin:.6em 0}
+th,td{border:1px solid #ddd;padding:.25em .6em;text-align:right;vertical-align:top}
+th{background:#f3f3f3}td.l,th.l{text-align:left}
+tr.accepted{background:#eaf6ea;font-weight:600}tr.invalid td{color:#777}
+img{max-width:100%;display:block;margin:.6em 0}.bad{color:#a00}.ok{color:#070}
+.small{font-size:.85em;color:#555}
+"""
+
+
+def _png(fig, dpi: int = 90) -> str:
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    data = base64.b64encode(buf.getvalue()).decode("ascii")
+    return f'<img alt="figure" src="data:image/png;base64,{data}">'
+
+
+def _e(x) -> str:
+    return html.escape(str(x))
+
+
+def _num(x, fmt: str = ".3f") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    return format(x, fmt)
+
+
+def _data_section(gb) -> list[str]:
+    d = gb.data
+    out = [
+        "<h2>Data</h2>",
+        f"<p>{len(d)} samples every {d.step / 60:g} min from {_e(d.start)} to {_e(d.end)}; "
+        f"columns: {_e(', '.join(d.columns))}.</p>",
+        f"<p>Identification {_e(gb.train[0])} … {_e(gb.train[1])}"
+        + (
+            f"; validation {_e(gb.valid_period[0])} … {_e(gb.valid_period[1])}.</p>"
+            if gb.valid_period
+            else "; no validation data.</p>"
+        ),
+    ]
+    try:
+        names = [c for c in d.columns if c.startswith(("T_", "Q_hea", "I_glo"))] or None
+        out.append(_png(d.plot(names)))
+    except Exception as err:  # a figure must not cost the report
+        out.append(f"<p class=bad>data plot failed: {_e(err)}</p>")
+    return out
+
+
+def _table_section(gb, accepted) -> list[str]:
+    rows = [
+        "<h2>Model selection</h2>",
+        "<table><tr><th class=l>case</th><th class=l>model</th><th>#params</th>"
+        "<th class=l>guess</th><th>RMSE auto [K]</th><th>RMSE cross [K]</th>"
+        "<th>SE auto [K]</th><th>SE cross [K]</th><th>valid</th><th class=l>reasons / notes</th>"
+        "</tr>",
+    ]
+    for c in gb.cases.values():
+        if not c.done:
+            continue
+        v = c.validation
+        ra = ", ".join(_num(x) for x in v.rmse_auto.values())
+        rc = ", ".join(_num(x) for x in (v.rmse_cross or {}).values()) or "–"
+        cls = "accepted" if c.name == accepted else ("" if c.is_valid else "invalid")
+        why = "<br>".join(_e(r) for r in (*c.reasons, *c.notes)) or "–"
+        rows.append(
+            f"<tr class='{cls}'><td class=l>{_e(c.name)}</td><td class=l>{_e(c.model.name)}</td>"
+            f"<td>{c.n_params}</td><td class=l>{_e(c.row()['guess'])}</td><td>{ra}</td>"
+            f"<td>{rc}</td><td>{_num(c.se_auto)}</td><td>{_num(c.se_cross)}</td>"
+            f"<td class={'ok' if c.is_valid else 'bad'}>{'yes' if c.is_valid else 'no'}</td>"
+            f"<td class=l>{why}</td></tr>"
+        )
+    rows.append("</table>")
+    rows.append(_png(gb.plot(accepted=accepted)))
+    return rows
+
+
+def _accepted_section(case, selection) -> list[str]:
+    from ..validate import (
+        fit_report,
+        plot_autocorrelation,
+        plot_confidence_intervals,
+        plot_fit,
+        plot_residuals,
+        plot_residuals_vs_inputs,
+        uncertainty,
+    )
+
+    r, v = case.result, case.validation
+    out = [f"<h2>Accepted model: {_e(case.name)}</h2>", f"<p>{_e(case.model.description)}</p>"]
+    if selection is not None:
+        out.append(f"<p class=small>{_e(selection.stopped)}.</p>")
+    try:
+        unc = uncertainty(r)
+    except ValueError:
+        unc = None
+    doc = fit_report(r, case.valid, validation=v, uncertainty=unc)
+    out.append(
+        "<table><tr><th class=l>parameter</th><th>value</th><th class=l>unit</th>"
+        "<th>std</th><th>95 % interval</th><th>±%</th><th>bounds</th><th class=l>note</th></tr>"
+    )
+    for n, p in doc["params"].items():
+        ci = p["ci95"]
+        note = "fixed" if not p["free"] else ("AT BOUND" if p["at_bound"] else "")
+        out.append(
+            f"<tr><td class=l>{_e(n)}</td><td>{_num(p['value'], '.4g')}</td>"
+            f"<td class=l>{_e(p['unit'])}</td><td>{_num(p['std'], '.3g')}</td>"
+            f"<td>{'–' if ci is None else f'{ci[0]:.4g} … {ci[1]:.4g}'}</td>"
+            f"<td>{_num(None if p['rel_ci'] is None else 100 * p['rel_ci'], '.3g')}</td>"
+            f"<td>{p['lower']:.3g} … {p['upper']:.3g}</td><td class=l>{note}</td></tr>"
+        )
+    out.append("</table>")
+    verdict = "valid" if doc["valid"] else "NOT valid"
+    out.append(f"<p><b>Verdict: {verdict}.</b></p>")
+    if doc["reasons"]:
+        out.append("<ul>" + "".join(f"<li>{_e(x)}</li>" for x in doc["reasons"]) + "</ul>")
+    if doc["warnings"]:
+        out.append(
+            "<p>Warnings:</p><ul>" + "".join(f"<li>{_e(x)}</li>" for x in doc["warnings"]) + "</ul>"
+        )
+    tc = ", ".join(f"{t:.3g} h" for t in doc["time_constants_h"])
+    out.append(f"<p>Time constants: {tc}.</p>")
+    out.append("<h3>Fit on identification and validation data</h3>")
+    figures = [
+        lambda: plot_fit(v),
+        lambda: plot_residuals(v),
+        lambda: plot_residuals_vs_inputs(v),
+        lambda: plot_autocorrelation(
+            v.residual_analysis("auto"), title=f"{case.name}: identification residuals"
+        ),
+    ]
+    if v.residuals_cross is not None:
+        figures.append(
+            lambda: plot_autocorrelation(
+                v.residual_analysis("cross"), title=f"{case.name}: validation residuals"
+            )
+        )
+    if unc is not None:
+        figures.append(lambda: plot_confidence_intervals(unc))
+    for make in figures:
+        try:
+            out.append(_png(make()))
+        except Exception as err:  # one failing figure must not cost the report
+            out.append(f"<p class=bad>figure failed: {_e(err)}</p>")
+    return out
+
+
+def greybox_report(gb, selection=None, *, title: str | None = None) -> str:
+    """The HTML page (a string) of a :class:`~jaxbox.select.GreyBox`.
+
+    Args:
+        gb: the GreyBox (its run cases are tabulated and plotted).
+        selection: a :class:`~jaxbox.select.Selection` naming the accepted case; without it
+            the best valid case is shown.
+        title: page title (default from the GreyBox's name).
+    """
+    accepted = None
+    if selection is not None:
+        accepted = selection.accepted
+    else:
+        best = gb.best()
+        accepted = None if best is None else best.name
+    title = title or f"jaxbox report: {gb.name}"
+    parts = [
+        "<!DOCTYPE html><html lang=en><head><meta charset=utf-8>",
+        f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{_e(title)}</h1>",
+        f"<p class=small>Generated {datetime.now():%Y-%m-%d %H:%M} by jaxbox.</p>",
+    ]
+    parts += _data_section(gb)
+    parts += _table_section(gb, accepted)
+    if accepted is not None:
+        parts += _accepted_section(gb.cases[accepted], selection)
+    else:
+        parts.append("<h2>Accepted model</h2><p class=bad>No valid model.</p>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_report(gb, path, selection=None, **kw) -> Path:
+    """Write :func:`greybox_report` to ``path`` atomically; returns the path."""
+    return atomic_write_text(Path(path), greybox_report(gb, selection, **kw))

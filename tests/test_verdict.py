@@ -181,3 +181,11 @@ def test_single_start_at_the_best_cost_warns(good):
     assert ms.n_at_best == 1 and "too small" in ms.text()
     v = check_validity(res, check_intervals=False)
     assert any("only 1 of 5 starts" in w for w in v.warnings)
+
+
+def test_no_degrees_of_freedom_is_reported(good):
+    short = dataclasses.replace(good, data=good.data.slice(end=good.data.index[3]))
+    with pytest.raises(ValueError, match="degrees of freedom"):
+        uncertainty(short)
+    v = check_validity(short)
+    assert not v.valid and any("degrees of freedom" in r for r in v.reasons)

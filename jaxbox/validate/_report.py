@@ -88,7 +88,10 @@ def fit_report(
     if validation is None:
         validation = validate(result, valid)
     if uncertainty is None:
-        uncertainty = _uncertainty(result, include_initial_states=include_initial_states)
+        try:
+            uncertainty = _uncertainty(result, include_initial_states=include_initial_states)
+        except ValueError:  # no degrees of freedom: the verdict says so
+            uncertainty = None
     res_auto = validation.residual_analysis("auto")
     res_cross = (
         validation.residual_analysis("cross") if validation.residuals_cross is not None else None
@@ -109,7 +112,7 @@ def fit_report(
         prediction = {"error": str(err)}
 
     table = result.params_table()
-    unc = uncertainty.table()
+    unc = {} if uncertainty is None else uncertainty.table()
     params = {}
     for n, row in table.items():
         u = unc.get(n)
@@ -134,14 +137,16 @@ def fit_report(
         "rms_error": math.sqrt(result.cost) if result.cost >= 0 else None,
         "converged": result.converged,
         "params": params,
-        "correlation": uncertainty.correlation_dict(),
-        "identifiability": {
+        "correlation": {} if uncertainty is None else uncertainty.correlation_dict(),
+        "identifiability": None
+        if uncertainty is None
+        else {
             "condition": uncertainty.condition,
             "collinearity": uncertainty.collinearity,
             "non_identifiable": [c.to_dict() for c in uncertainty.combinations],
         },
-        "sigma": math.sqrt(uncertainty.sigma2),
-        "dof": uncertainty.dof,
+        "sigma": None if uncertainty is None else math.sqrt(uncertainty.sigma2),
+        "dof": None if uncertainty is None else uncertainty.dof,
         "residuals": {
             "auto": res_auto.to_dict(),
             "cross": None if res_cross is None else res_cross.to_dict(),
@@ -197,7 +202,10 @@ def save_plots(
     if validation is None:
         validation = validate(result, valid)
     if uncertainty is None:
-        uncertainty = _uncertainty(result)
+        try:
+            uncertainty = _uncertainty(result)
+        except ValueError:  # no degrees of freedom: no interval plot
+            uncertainty = None
     analysis = validation.residual_analysis("auto")
     figures = {
         "fit": _plots.plot_fit(validation),
@@ -207,9 +215,10 @@ def save_plots(
             analysis, title=f"{result.model.name}: identification residuals"
         ),
         "cross_correlation": _plots.plot_cross_correlation(analysis),
-        "confidence_intervals": _plots.plot_confidence_intervals(uncertainty),
         "multistart": _plots.plot_multistart(result),
     }
+    if uncertainty is not None:
+        figures["confidence_intervals"] = _plots.plot_confidence_intervals(uncertainty)
     if validation.residuals_cross is not None:
         figures["autocorrelation_validation"] = _plots.plot_autocorrelation(
             validation.residual_analysis("cross"),

@@ -48,7 +48,8 @@ class Flag:
 
     Attributes:
         kind: ``failed``, ``not_converged``, ``at_bound``, ``non_physical``, ``time_constant``,
-            ``not_identifiable``, ``poorly_identifiable``, ``wide_interval`` (invalidating) or
+            ``not_identifiable``, ``poorly_identifiable``, ``wide_interval``, ``no_intervals``
+            (invalidating) or
             ``fast_dynamics``, ``multistart``, ``residuals`` (warnings).
         parameters: the parameters concerned (may be empty).
         message: the reason in words.
@@ -326,11 +327,14 @@ def check_validity(
         )
 
     # -- intervals and identifiability ---------------------------------------------------------
-    if check_intervals and not any(f.kind == "failed" for f in flags):
-        if uncertainty is None:
-            from ._uncertainty import uncertainty as _uncertainty
+    if check_intervals and uncertainty is None and not any(f.kind == "failed" for f in flags):
+        from ._uncertainty import uncertainty as _uncertainty
 
+        try:
             uncertainty = _uncertainty(result)
+        except ValueError as err:  # no degrees of freedom left
+            flags.append(Flag("no_intervals", (), f"no confidence intervals: {err}"))
+    if check_intervals and uncertainty is not None:
         for c in uncertainty.combinations:
             kind = "not_identifiable" if c.singular else "poorly_identifiable"
             flags.append(Flag(kind, c.parameters, c.text))

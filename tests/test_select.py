@@ -171,3 +171,38 @@ def test_case_starts_are_reproducible(selection):
 def test_selection_needs_validation_data(data):
     with pytest.raises(ValueError, match="validation"):
         forward_selection(GreyBox(data, train=(None, None), valid=False), ["Zon"])
+
+
+def test_select_command_json(data, tmp_path, capsys):
+    import argparse
+    import json
+
+    from jaxbox.cli._select import add_select_arguments, select_command
+
+    csv = tmp_path / "house.csv"
+    data.frame.reset_index().to_csv(csv, index=False)
+    parser = argparse.ArgumentParser()
+    add_select_arguments(parser)
+    args = parser.parse_args(
+        [
+            str(csv),
+            "--models",
+            "Zon,ZonWal",
+            "--starts",
+            "4",
+            "--seed",
+            "1",
+            "--json",
+            "--out",
+            str(tmp_path / "o"),
+        ]
+    )
+    assert select_command(args) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""  # quiet with --json
+    doc = json.loads(captured.out)
+    assert [row["case"] for row in doc["table"]][:2] == ["Zon", "ZonWal"]
+    assert doc["accepted"] == "ZonWal"
+    assert doc["fit"]["model"] == "ZonWal" and "rmse_cross" in doc["fit"]
+    assert (tmp_path / "o" / "report.html").exists()
+    assert (tmp_path / "o" / "greybox" / "greybox.json").exists()

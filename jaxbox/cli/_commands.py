@@ -8,9 +8,34 @@ import time
 from datetime import datetime
 from pathlib import Path
 
-from .._io import atomic_write_json, to_jsonable
+from .._io import to_jsonable
 
-__all__ = ["run", "UsageError"]
+__all__ = ["run", "UsageError", "add_data_arguments"]
+
+DATA_HELP = (
+    "CSV file with a 'time' column and canonical columns (T_zon, T_amb, Q_hea, I_glo_hor, …), "
+    "or a bundled dataset: twinhouse_exp1:N2, twinhouse_exp1:O5 (add @10min for 10-minute data)"
+)
+
+
+def add_data_arguments(p) -> None:
+    """DATA and the options that read and split it (shared by ``fit`` and ``select``)."""
+    p.add_argument("data", metavar="DATA", help=DATA_HELP)
+    p.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="CANONICAL=COLUMN",
+        help="take canonical signal CANONICAL from your column COLUMN (repeatable)",
+    )
+    p.add_argument("--time", metavar="COLUMN", help="name of the time column (default: time)")
+    p.add_argument(
+        "--resample", metavar="RULE", help="resample first, e.g. 1h (mean, right-closed)"
+    )
+    p.add_argument(
+        "--train", metavar="START..END", help="identification period (default: first half)"
+    )
+    p.add_argument("--validate", metavar="START..END", help="validation period (default: the rest)")
 
 
 class UsageError(ValueError):
@@ -18,7 +43,10 @@ class UsageError(ValueError):
 
 
 def run(args) -> int:
-    return {"models": _models, "fit": _fit, "demo": _demo}[args.command](args)
+    from ._select import demo_command, select_command
+
+    commands = {"models": _models, "fit": _fit, "select": select_command, "demo": demo_command}
+    return commands[args.command](args)
 
 
 def _print_json(obj) -> None:
@@ -250,10 +278,8 @@ def _data_info(spec, ident, valid) -> dict:
     }
 
 
-# ---- demo ----
-
-
 def _out_dir(out: str | None) -> Path:
+    """The output folder: ``out``, or a fresh ``jaxbox-out-<date>-<time>`` folder."""
     if out:
         path = Path(out)
     else:
@@ -265,53 +291,3 @@ def _out_dir(out: str | None) -> Path:
             path = Path(f"jaxbox-out-{stamp}-{n}")
     path.mkdir(parents=True, exist_ok=True)
     return path
-
-
-def _demo(args) -> int:
-    from ..datasets import CITATION
-    from ..fit import fit
-    from ..models import get_model
-    from ..validate import validate
-
-    out = _out_dir(args.out)
-    spec = f"twinhouse_exp1:{args.house}"
-    data = load_data(spec)
-    ident, valid = data.split()
-    _progress(
-        f"jaxbox demo: twin house {args.house} (IEA EBC Annex 58, Holzkirchen 2013), "
-        f"{len(data)} hourly samples; identification {ident.start} .. {ident.end}, "
-        f"validation {valid.start} .. {valid.end}",
-        args,
-    )
-    rows, docs = [], {}
-    for name in ("Zon", "ZonWal"):
-        model = get_model(name)
-        _progress(
-            f"  fitting {name} ({len(model.parameters)} parameters, {args.starts} starts)", args
-        )
-        t0 = time.perf_counter()
-        result = fit(model, ident, starts=args.starts)
-        t1 = time.perf_counter()
-        validation = validate(result, valid)
-        timing = {**result.timing, "total_fit_s": t1 - t0}
-        docs[name] = fit_json(
-            result, validation, timing=timing, data_info=_data_info(spec, ident, valid)
-        )
-        rows.append((name, len(result.free), validation, result))
-    atomic_write_json(out / "demo.json", {"dataset": spec, "fits": docs})
-    if args.json:
-        _print_json({"dataset": spec, "out": str(out), "fits": docs})
-        return 0
-    print()
-    print(f"{'model':<10} {'#par':>4} {'RMSE ident [K]':>15} {'RMSE valid [K]':>15}  starts")
-    for name, npar, v, r in rows:
-        (ra,), (rc,) = v.rmse_auto.values(), v.rmse_cross.values()
-        print(f"{name:<10} {npar:>4} {ra:>15.3f} {rc:>15.3f}  {r.starts.status_summary()}")
-    best = min(rows, key=lambda row: row[2].se_cross)
-    print()
-    print(f"best on validation data: {best[0]}")
-    print(best[3].summary())
-    print()
-    print(f"results written to {out}/demo.json")
-    print(f"data: {CITATION}")
-    return 0

@@ -17,16 +17,15 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
 
   jaxbox models                      list the model library
   jaxbox fit DATA --model NAME       fit one model, cross-validate, print the estimate
-  jaxbox demo                        fit the bundled twin-house data end to end
+  jaxbox select DATA                 forward selection from simple to complex models
+  jaxbox demo                        forward selection on the bundled twin-house data + report
 """
-
-_DATA_HELP = (
-    "CSV file with a 'time' column and canonical columns (T_zon, T_amb, Q_hea, I_glo_hor, …), "
-    "or a bundled dataset: twinhouse_exp1:N2, twinhouse_exp1:O5 (add @10min for 10-minute data)"
-)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from ._commands import add_data_arguments
+    from ._select import add_demo_arguments, add_select_arguments
+
     parser = argparse.ArgumentParser(
         prog="jaxbox",
         description=_DESCRIPTION,
@@ -39,23 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
     p = sub.add_parser("fit", help="fit a model to data and cross-validate it")
-    p.add_argument("data", metavar="DATA", help=_DATA_HELP)
+    add_data_arguments(p)
     p.add_argument("--model", "-m", required=True, help="library model name (see `jaxbox models`)")
-    p.add_argument(
-        "--map",
-        action="append",
-        default=[],
-        metavar="CANONICAL=COLUMN",
-        help="take canonical signal CANONICAL from your column COLUMN (repeatable)",
-    )
-    p.add_argument("--time", metavar="COLUMN", help="name of the time column (default: time)")
-    p.add_argument(
-        "--resample", metavar="RULE", help="resample first, e.g. 1h (mean, right-closed)"
-    )
-    p.add_argument(
-        "--train", metavar="START..END", help="identification period (default: 1st half)"
-    )
-    p.add_argument("--validate", metavar="START..END", help="validation period (default: the rest)")
     p.add_argument("--starts", type=int, default=16, help="number of starts (default 16)")
     p.add_argument("--seed", type=int, default=0, help="seed of the Latin hypercube (default 0)")
     p.add_argument(
@@ -69,13 +53,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--plots", metavar="DIR", help="write the validation plots (PNG) into DIR")
 
-    p = sub.add_parser("demo", help="fit the bundled twin-house data and summarise")
-    p.add_argument(
-        "--out", metavar="DIR", help="output folder (default: a fresh jaxbox-out-* folder)"
+    p = sub.add_parser("select", help="forward selection over candidate models")
+    add_select_arguments(p)
+
+    p = sub.add_parser(
+        "demo", help="forward selection on the bundled twin-house data, with an HTML report"
     )
-    p.add_argument("--house", choices=("N2", "O5"), default="N2")
-    p.add_argument("--starts", type=int, default=16)
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    add_demo_arguments(p)
     return parser
 
 

@@ -17,6 +17,7 @@ from ._commands import (
     _out_dir,
     _pairs,
     _period,
+    add_data_arguments,
     fit_json,
     load_data,
     split_periods,
@@ -24,15 +25,10 @@ from ._commands import (
 
 __all__ = ["select_command", "demo_command", "add_select_arguments", "add_demo_arguments"]
 
-_DATA_HELP = (
-    "CSV file with a 'time' column and canonical columns (T_zon, T_amb, Q_hea, I_glo_hor, …), "
-    "or a bundled dataset: twinhouse_exp1:N2, twinhouse_exp1:O5 (add @10min for 10-minute data)"
-)
-
 
 def add_select_arguments(p) -> None:
     """Declare the arguments of ``jaxbox select`` on an argparse (sub)parser."""
-    p.add_argument("data", metavar="DATA", help=_DATA_HELP)
+    add_data_arguments(p)
     p.add_argument(
         "--models",
         default="all",
@@ -40,19 +36,6 @@ def add_select_arguments(p) -> None:
         help="candidate models: comma-separated names, a library family (exp1, …) or 'all' "
         "(every library model the data can feed; default)",
     )
-    p.add_argument(
-        "--map",
-        action="append",
-        default=[],
-        metavar="CANONICAL=COLUMN",
-        help="take canonical signal CANONICAL from your column COLUMN (repeatable)",
-    )
-    p.add_argument("--time", metavar="COLUMN", help="name of the time column (default: time)")
-    p.add_argument("--resample", metavar="RULE", help="resample first, e.g. 1h")
-    p.add_argument(
-        "--train", metavar="START..END", help="identification period (default: 1st half)"
-    )
-    p.add_argument("--validate", metavar="START..END", help="validation period (default: the rest)")
     _common(p)
     p.add_argument("--out", metavar="DIR", help="save the GreyBox, the table and a report in DIR")
 

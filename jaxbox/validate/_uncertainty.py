@@ -363,7 +363,8 @@ def uncertainty(
         :class:`Uncertainty`.
 
     Raises:
-        ValueError: fewer output samples than free parameters (no degrees of freedom left).
+        ValueError: fewer output samples than free parameters (no degrees of freedom left), or
+            an optimum that is not finite.
     """
     from ..fit import problem_arrays
 
@@ -373,7 +374,14 @@ def uncertainty(
     units = tuple(specs[n].unit for n in free)
     theta = np.asarray([result.params[n] for n in free], dtype=float)
     _, _, y, _ = problem_arrays(problem, result.data)
+    if not np.all(np.isfinite(theta)):
+        raise ValueError("the fit has no finite optimum; there is nothing to attach intervals to")
     ysim, J = sensitivities(result)
+    if not (np.all(np.isfinite(ysim)) and np.all(np.isfinite(J))):
+        raise ValueError(
+            "the simulation or its sensitivities are not finite at the optimum; the parameters "
+            "are not usable"
+        )
 
     q = np.asarray(problem.weights, dtype=float)
     rows = q > 0

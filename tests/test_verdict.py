@@ -67,6 +67,17 @@ def test_parameter_driven_onto_its_bound_is_flagged():
     assert "upper bound" in reason
 
 
+def test_near_a_bound_but_significantly_away_from_it_is_a_warning():
+    """gA = 2 with bounds [0, 250]: within 1 % of the lower bound, yet its interval excludes 0."""
+    res = fit("Zon", _data(sigma=0.02), starts=_start(), bounds={"gA": (0.0, 250.0)})
+    assert res.bound_position()["gA"] < 0.01
+    v = check_validity(res)
+    assert v.valid, v.reasons
+    assert any("gA" in w and "excludes the bound" in w for w in v.warnings)
+    # without intervals the same position counts against the model
+    assert not check_validity(res, check_intervals=False).valid
+
+
 def test_initial_temperature_pinned_at_its_bound():
     res = fit(
         "Zon", _data(), starts=np.asarray([[5e6, 0.01, 2.0, 27.0]]), bounds={"T_zon0": (25.0, 37.0)}

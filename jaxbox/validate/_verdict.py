@@ -7,7 +7,8 @@ reasonable. Every failed check adds a flag with a readable reason naming the par
 * ``failed`` / ``not_converged`` — the best start did not return a finite, converged optimum;
 * ``at_bound`` — a free parameter ended at or near one of its bounds (position in the bounds, in
   the transform's own scale, within ``bound_tol`` of 0 or 1): the optimum is cut by the bounds;
-  an initial temperature there gets its own advice (narrow the bounds from physics);
+  an initial temperature there gets its own advice (narrow the bounds from physics); a parameter
+  only *near* a bound (not at it) whose confidence interval excludes the bound is a warning;
 * ``non_physical`` — a value outside broad physical limits (``limits``: non-positive or absurd
   resistances and capacities, negative apertures…);
 * ``time_constant`` — a time constant ``τ = −1/Re λ`` of the state matrix outside
@@ -243,6 +244,7 @@ def check_validity(
     with np.errstate(invalid="ignore", divide="ignore"):  # a non-physical value: nan position
         pos = result.bound_position()
     bounds = result.bounds
+    near: dict[str, tuple[int, float]] = {}  # "near" (not "at") a bound: flag index, bound
     for n in result.free:
         x = pos.get(n, float("nan"))
         if not np.isfinite(x):
@@ -270,6 +272,8 @@ def check_validity(
                     f"{_fmt(b, unit)}: the bounds cut the optimum; the model structure does not "
                     "suit the data, or the bound is too tight"
                 )
+                if on == "near":
+                    near[n] = (len(flags), b)
             flags.append(Flag("at_bound", (n,), msg))
 
     # -- physical values ---------------------------------------------------------------------
@@ -339,6 +343,19 @@ def check_validity(
             kind = "not_identifiable" if c.singular else "poorly_identifiable"
             flags.append(Flag(kind, c.parameters, c.text))
         pct = round(100 * uncertainty.level)
+        # near (not at) a bound but significantly away from it: a warning, not a reason
+        for n, (k, b) in near.items():
+            if n not in uncertainty.names:
+                continue
+            lo, hi = uncertainty.ci95[uncertainty.names.index(n)]
+            if np.isfinite(lo) and np.isfinite(hi) and not lo <= b <= hi:
+                f = flags[k]
+                flags[k] = dataclasses.replace(
+                    f,
+                    message=f"{f.message} (its {pct} % interval [{lo:.4g}, {hi:.4g}] excludes "
+                    "the bound, so the estimate stands)",
+                    severe=False,
+                )
         for i, n in enumerate(uncertainty.names):
             r = uncertainty.rel_ci[i]
             if np.isfinite(uncertainty.std[i]) and r > max_rel_ci:

@@ -68,7 +68,13 @@ def test_fit_json_shape(csv_file, capsys):
     assert doc["model"] == "Zon"
     assert set(doc["params"]) == {"C_zon", "R_wal", "gA", "T_zon0"}
     for row in doc["params"].values():
-        assert {"value", "lower", "upper", "at_bound"} <= set(row)
+        assert {"value", "lower", "upper", "at_bound", "std", "ci95", "rel_ci"} <= set(row)
+    lo, hi = doc["params"]["R_wal"]["ci95"]
+    assert lo < doc["params"]["R_wal"]["value"] < hi
+    assert doc["params"]["T_zon0"]["std"] is None  # no interval for initial states by default
+    assert isinstance(doc["valid"], bool) and isinstance(doc["reasons"], list)
+    assert {"auto", "cross"} <= set(doc["residuals"])
+    assert "correlation" in doc
     assert doc["params"]["R_wal"]["value"] == pytest.approx(0.01, rel=1e-3)
     # the CSV comes from an explicit-Euler reference (60 s steps): close, not exact
     assert doc["params"]["C_zon"]["value"] == pytest.approx(5e6, rel=5e-3)

@@ -173,20 +173,20 @@ def _ts(x):
 # ---- fit ----
 
 
-def fit_json(result, validation, *, timing, data_info) -> dict:
-    """The JSON document of one fit (schema documented in the README)."""
+def fit_json(result, validation, *, timing, data_info, valid=None) -> dict:
+    """The JSON document of one fit (schema in the README).
+
+    The estimate with its uncertainty, residual analysis and validity verdict come from
+    :func:`jaxbox.validate.fit_report`; this adds the multistart counts, timings and data.
+    """
+    from ..validate import fit_report
+
+    doc = fit_report(result, valid, validation=validation)
     starts = result.starts
     status = list(starts.status)
-    return {
-        "model": result.model.name,
-        "params": result.params_table(),
-        "rmse_auto": validation.rmse_auto,
-        "rmse_cross": validation.rmse_cross,
-        "se_auto": validation.se_auto,
-        "se_cross": validation.se_cross,
-        "cost": result.cost,
-        "converged": result.converged,
-        "starts": {
+    doc.update(
+        model=result.model.name,
+        starts={
             "n": starts.n,
             "converged": status.count("converged"),
             "max_steps": status.count("max_steps"),
@@ -194,10 +194,11 @@ def fit_json(result, validation, *, timing, data_info) -> dict:
             "at_best": starts.n_at_best(),
             "best": result.best,
         },
-        "simulator": result.problem.simulator,
-        "timing": timing,
-        "data": data_info,
-    }
+        simulator=result.problem.simulator,
+        timing=timing,
+        data=data_info,
+    )
+    return doc
 
 
 def _fit(args) -> int:
@@ -235,7 +236,7 @@ def _fit(args) -> int:
     t2 = time.perf_counter()
     timing = {**result.timing, "total_fit_s": t1 - t0, "validate_s": t2 - t1}
     info = _data_info(args.data, ident, valid)
-    doc = fit_json(result, validation, timing=timing, data_info=info)
+    doc = fit_json(result, validation, timing=timing, data_info=info, valid=valid)
     if args.plots:
         doc["plots"] = _plots(result, valid, validation, args.plots)
     if args.json:
@@ -243,6 +244,11 @@ def _fit(args) -> int:
     else:
         print(result.summary())
         print(_rmse_line(validation))
+        print("valid model" if doc["valid"] else "NOT a valid model:")
+        for reason in doc["reasons"]:
+            print(f"  - {reason}")
+        for warning in doc.get("warnings", []):
+            print(f"  (warning) {warning}")
         print(
             f"timing: compile {timing['compile_s']:.2f} s, fit {timing['fit_s']:.3f} s, "
             f"validation {timing['validate_s']:.2f} s"

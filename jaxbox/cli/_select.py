@@ -135,6 +135,7 @@ def _document(gb, sel, spec, ident, valid) -> dict:
             c.validation,
             timing={**c.result.timing, **c.timing},
             data_info=_data_info(spec, ident, valid),
+            valid=c.valid,
         )
     return doc
 

@@ -60,8 +60,22 @@ def test_models_json(capsys):
     assert set(zon) >= {"name", "states", "inputs", "outputs", "parameters"}
 
 
-def test_fit_json_shape(csv_file, capsys):
-    code = main(["fit", str(csv_file), "--model", "Zon", "--starts", "4", "--json", *MAP])
+def test_fit_json_shape(csv_file, capsys, tmp_path):
+    plots = tmp_path / "plots"
+    code = main(
+        [
+            "fit",
+            str(csv_file),
+            "--model",
+            "Zon",
+            "--starts",
+            "4",
+            "--json",
+            *MAP,
+            "--plots",
+            str(plots),
+        ]
+    )
     out = capsys.readouterr()
     assert code == 0, out.err
     doc = json.loads(out.out)
@@ -85,6 +99,9 @@ def test_fit_json_shape(csv_file, capsys):
     assert doc["starts"]["converged"] + doc["starts"]["failed"] + doc["starts"]["max_steps"] == 4
     assert {"compile_s", "fit_s"} <= set(doc["timing"])
     assert doc["data"]["n_train"] == 120 and doc["data"]["n_validate"] == 120
+    pngs = sorted(p.name for p in plots.glob("*.png"))
+    assert "fit.png" in pngs and "residuals.png" in pngs and len(doc["plots"]) == len(pngs)
+    assert all((plots / n).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for n in pngs)
 
 
 def test_fit_with_periods_fix_and_bounds(csv_file, capsys):

@@ -278,10 +278,9 @@ def test_hessian_choices_reach_the_same_solution(synthetic_pair) -> None:
     assert col.history[-1]["hessian"] == "exact"
 
 
+@pytest.mark.parametrize("synthetic_pair", ["Zon"], indirect=True)
 def test_quadrature_objective(synthetic_pair) -> None:
     name, data, theta, lm, col = synthetic_pair
-    if name != "Zon":
-        pytest.skip("one model is enough")
     quad = collocation_fit(name, data, objective="quadrature")
     assert quad.success, quad.message
     assert quad.settings["objective"] == "quadrature"

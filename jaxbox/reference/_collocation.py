@@ -455,12 +455,88 @@ def collocation_fit(
     problem = make_problem(
         model, data, free=free, fixed=fixed, bounds=bounds, guess=guess, weights=weights
     )
+    tx = _transcribe(problem, data, n_c, subdivide, objective)
+    grid, args, sparsity, fns = tx.grid, tx.args, tx.sparsity, tx.fns
+    settings = {
+        "n_c": n_c,
+        "subdivide": subdivide,
+        "objective": objective,
+        "hessian": hessian,
+        "max_iterations": max_iterations,
+        "ctol": ctol,
+        "ftol": ftol,
+    }
+    stats = {
+        "n_elements": grid.n_elements,
+        "n_variables": sparsity.n_x + len(problem.free),
+        "n_constraints": sparsity.n_c,
+        "n_residuals": sparsity.n_r,
+        "nnz_constraint_jacobian": len(sparsity.g_rows) + sparsity.n_c * len(problem.free),
+        "n_evaluations": 0,
+        "n_rejected": 0,
+        "n_second_order_corrections": 0,
+    }
+    history: list[dict] = []
+    w = np.concatenate([np.zeros(sparsity.n_x), tx.z0])
+    status, message, iterations = "failed", "", 0
+    t_setup = None
+    try:
+        w = _initial_point(tx)
+        jargs = _jargs(args)
+        # compile (or fetch) every function before the clock of the solve starts
+        jw = jnp.asarray(w)
+        jax.block_until_ready(fns["evaluate"](jw, jargs))
+        if hessian != "gauss-newton":
+            n_free = len(problem.free)
+            dirs = jnp.zeros((n_free + 1, w.size))
+            jax.block_until_ready(fns["hvp"](jw, jnp.zeros(sparsity.n_c), dirs, jargs))
+        t_setup = time.perf_counter()
+        w, iterations, status, message = _sqp(
+            fns, w, jargs, sparsity, len(problem.free), hessian, max_iterations, ctol, ftol,
+            stats, history,
+        )  # fmt: skip
+    except _Failure as err:
+        status, message = err.status, err.message
+    except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError) as err:
+        status, message = "failed", f"the SQP solve stopped: {type(err).__name__}: {err}"
+    t_end = time.perf_counter()
+    if t_setup is None:
+        t_setup = t_end
+    return _result(
+        problem, data, grid, args, fns, w, sparsity, status, message, iterations, stats,
+        history, settings,
+        {"setup_s": t_setup - t_start, "solve_s": t_end - t_setup, "total_s": t_end - t_start},
+        tx.y, tx.sqrt_w, tx.u,
+    )  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class _Transcription:
+    """The NLP of one problem and dataset: grid, data on the grid, sparsity, compiled functions.
+
+    ``args`` holds the numpy arguments of the compiled functions; ``args["sx"]`` (the state
+    scales) is set by :func:`_initial_point`.
+    """
+
+    problem: Problem
+    grid: _Grid
+    args: dict
+    sparsity: _Sparsity
+    fns: dict
+    z0: np.ndarray
+    ue: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    sqrt_w: np.ndarray
+
+
+def _transcribe(problem: Problem, data, n_c: int, subdivide: int, objective: str):
+    model = problem.model
     t, u, y, sqrt_w = problem_arrays(problem, data)
     n, n_out = model.n_states, len(model.outputs)
     grid = _grid(t, n_c, subdivide, n)
     rad = radau_iia(n_c)
     tr = problem.transform
-    fns = _functions(problem, n_c)
     z0 = tr.to_internal(np.asarray([problem.guess_dict[p] for p in problem.free]))
     u_nodes = grid.interp(u)
     uc = u_nodes[: grid.n_elements * (n_c + 1)].reshape(grid.n_elements, n_c + 1, -1)[:, 1:]
@@ -491,71 +567,39 @@ def collocation_fit(
         "y_obj": y_obj,
         "w_obj": np.asarray(w_obj, dtype=float),
     }
-    sparsity = _sparsity(grid, rows, n_out)
-    settings = {
-        "n_c": n_c,
-        "subdivide": subdivide,
-        "objective": objective,
-        "hessian": hessian,
-        "max_iterations": max_iterations,
-        "ctol": ctol,
-        "ftol": ftol,
-    }
-    stats = {
-        "n_elements": grid.n_elements,
-        "n_variables": sparsity.n_x + len(problem.free),
-        "n_constraints": sparsity.n_c,
-        "n_residuals": sparsity.n_r,
-        "nnz_constraint_jacobian": len(sparsity.g_rows) + sparsity.n_c * len(problem.free),
-        "n_evaluations": 0,
-        "n_rejected": 0,
-        "n_second_order_corrections": 0,
-    }
-    history: list[dict] = []
-    w = np.concatenate([np.zeros(sparsity.n_x), z0])
-    status, message, iterations = "failed", "", 0
-    t_setup = None
-    try:
-        A, B, _, _, x0 = (np.asarray(a) for a in fns["matrices"](jnp.asarray(z0), _jargs(args)))
-        xe = _simulate_elements(A, B, x0, ue, grid.h)
-        if not np.all(np.isfinite(xe)):
-            raise _Failure(
-                "nonfinite",
-                "the simulation with the initial parameters is not finite; check the guess and "
-                "the fixed values (capacities and resistances must be positive)",
-            )
-        elem = np.minimum(np.arange(grid.n_nodes) // (n_c + 1), grid.n_elements - 1)
-        tau_node = np.concatenate([np.tile(rad.tau, grid.n_elements), [1.0]])
-        x_nodes0 = xe[elem] + tau_node[:, None] * (xe[elem + 1] - xe[elem])
-        sx = np.maximum(np.max(np.abs(x_nodes0), axis=0), 1.0)
-        args["sx"] = sx
-        w[: sparsity.n_x] = (x_nodes0 / sx).ravel()
-        jargs = _jargs(args)
-        # compile (or fetch) every function before the clock of the solve starts
-        jw = jnp.asarray(w)
-        jax.block_until_ready(fns["evaluate"](jw, jargs))
-        if hessian != "gauss-newton":
-            n_free = len(problem.free)
-            dirs = jnp.zeros((n_free + 1, w.size))
-            jax.block_until_ready(fns["hvp"](jw, jnp.zeros(sparsity.n_c), dirs, jargs))
-        t_setup = time.perf_counter()
-        w, iterations, status, message = _sqp(
-            fns, w, jargs, sparsity, len(problem.free), hessian, max_iterations, ctol, ftol,
-            stats, history,
-        )  # fmt: skip
-    except _Failure as err:
-        status, message = err.status, err.message
-    except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError) as err:
-        status, message = "failed", f"the SQP solve stopped: {type(err).__name__}: {err}"
-    t_end = time.perf_counter()
-    if t_setup is None:
-        t_setup = t_end
-    return _result(
-        problem, data, grid, args, fns, w, sparsity, status, message, iterations, stats,
-        history, settings,
-        {"setup_s": t_setup - t_start, "solve_s": t_end - t_setup, "total_s": t_end - t_start},
-        y, sqrt_w, u,
-    )  # fmt: skip
+    return _Transcription(
+        problem=problem,
+        grid=grid,
+        args=args,
+        sparsity=_sparsity(grid, rows, n_out),
+        fns=_functions(problem, n_c),
+        z0=z0,
+        ue=ue,
+        u=u,
+        y=y,
+        sqrt_w=sqrt_w,
+    )
+
+
+def _initial_point(tx: _Transcription) -> np.ndarray:
+    """Scaled variables from an exact simulation with the initial parameters (sets the state
+    scales in ``tx.args``)."""
+    grid, n_c = tx.grid, tx.grid.n_c
+    jargs = _jargs(tx.args)
+    A, B, _, _, x0 = (np.asarray(a) for a in tx.fns["matrices"](jnp.asarray(tx.z0), jargs))
+    xe = _simulate_elements(A, B, x0, tx.ue, grid.h)
+    if not np.all(np.isfinite(xe)):
+        raise _Failure(
+            "nonfinite",
+            "the simulation with the initial parameters is not finite; check the guess and "
+            "the fixed values (capacities and resistances must be positive)",
+        )
+    elem = np.minimum(np.arange(grid.n_nodes) // (n_c + 1), grid.n_elements - 1)
+    tau = np.concatenate([np.tile(radau_iia(n_c).tau, grid.n_elements), [1.0]])
+    x_nodes0 = xe[elem] + tau[:, None] * (xe[elem + 1] - xe[elem])
+    sx = np.maximum(np.max(np.abs(x_nodes0), axis=0), 1.0)
+    tx.args["sx"] = sx
+    return np.concatenate([(x_nodes0 / sx).ravel(), tx.z0])
 
 
 def _simulate_elements(A, B, x0, ue, h) -> np.ndarray:

@@ -7,6 +7,7 @@ differences of an independent implementation where one exists.
 
 from __future__ import annotations
 
+import importlib
 import types
 
 import diffrax
@@ -161,6 +162,12 @@ def problem(data):
     return make_problem(get_model("ZonWal"), data, guess=ZONWAL)
 
 
+@pytest.fixture(scope="module")
+def residual_fns(problem):
+    """The residuals of the problem and their forward-mode Jacobian, compiled once."""
+    return jax.jit(problem.residuals), jax.jit(jax.jacfwd(problem.residuals))
+
+
 def _args(problem, data, z):
     t, u, y, sqrt_w = problem_arrays(problem, data)
     tr = problem.transform
@@ -168,12 +175,12 @@ def _args(problem, data, z):
     return tuple(jnp.asarray(a) for a in (fixed, t, u, y, sqrt_w, tr.lower, tr.upper, tr.scale))
 
 
-def test_residual_jacobian(problem, data) -> None:
+def test_residual_jacobian(problem, data, residual_fns) -> None:
     """The Jacobian of the Levenberg–Marquardt residuals in the internal coordinates."""
     z = jnp.asarray(problem.transform.to_internal([ZONWAL[n] for n in problem.free]))
     args = _args(problem, data, z)
-    res = jax.jit(problem.residuals)
-    J = np.asarray(jax.jit(jax.jacfwd(problem.residuals))(z, args))
+    res, jac = residual_fns
+    J = np.asarray(jac(z, args))
     fd = np.empty_like(J)
     for i in range(len(z)):
         dz = np.zeros(len(z))
@@ -258,3 +265,105 @@ def test_collocation_derivatives(data, objective: str) -> None:
     for d, hd in zip(dirs, Hd, strict=True):
         fd = (gradient(w + 1e-5 * d) - gradient(w - 1e-5 * d)) / 2e-5
         np.testing.assert_allclose(hd, fd, rtol=1e-6, atol=1e-8 * np.abs(fd).max())
+
+
+# ---- the symmetric (RC) discretisation and the normal equations of the fit ---------------------
+
+_exact = importlib.import_module("jaxbox.simulate._exact")
+_rc = getattr(_exact, "discretize_foh_rc", None)
+needs_rc = pytest.mark.skipif(_rc is None, reason="no discretize_foh_rc in jaxbox.simulate")
+needs_normal_equations = pytest.mark.skipif(
+    not hasattr(make_problem.__globals__["Problem"], "normal_equations"),
+    reason="Problem has no normal_equations",
+)
+
+
+def _rc_inputs(s):
+    model = get_model("ZonWal")
+    theta = relative_theta(s, X0)
+    A, B, _, _ = model.state_space(theta)
+    return A, B, jnp.stack([theta["C_zon"], theta["C_wal"]])
+
+
+@needs_rc
+def test_rc_discretisation_values_and_derivatives() -> None:
+    """Closed-form (Daleckii–Krein) derivatives of the eigendecomposition route, against finite
+    differences and against autodiff of the Van Loan matrix exponential."""
+    from jaxbox.simulate import discretize_foh
+
+    def rc(s):
+        A, B, caps = _rc_inputs(s)
+        return _rc(A, B, caps, 3600.0)
+
+    def van_loan(s):
+        A, B, _ = _rc_inputs(s)
+        return discretize_foh(A, B, 3600.0)
+
+    for a, b in zip(jax.jit(rc)(S0), jax.jit(van_loan)(S0), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * float(jnp.abs(b).max()))
+    check_grads(jax.jit(rc), (S0,), order=1, modes=("fwd", "rev"))
+    jac = jax.jit(lambda s: (jax.jacfwd(rc)(s), jax.jacfwd(van_loan)(s)))
+    for a, b in zip(*jac(S0), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * float(jnp.abs(b).max()))
+
+
+_CLOSE_B = jnp.asarray([[1e-4, 2e-4], [3e-4, 1e-4]])
+
+
+def _close_A(v):
+    a = 1e-4 * v
+    return jnp.asarray([[-a[0], a[2]], [a[2], -a[1]]])
+
+
+@jax.jit
+def _close_rc(v):
+    return _rc(_close_A(v), _CLOSE_B, jnp.ones(2), 3600.0)
+
+
+@jax.jit
+def _close_jacobians(v):
+    from jaxbox.simulate import discretize_foh
+
+    rc = jax.jacfwd(lambda vv: _rc(_close_A(vv), _CLOSE_B, jnp.ones(2), 3600.0))(v)
+    van_loan = jax.jacfwd(lambda vv: discretize_foh(_close_A(vv), _CLOSE_B, 3600.0))(v)
+    return rc, van_loan
+
+
+@needs_rc
+@pytest.mark.parametrize("gap", [0.0, 1e-9, 1e-6, 1e-3])
+def test_rc_discretisation_with_close_eigenvalues(gap: float) -> None:
+    """Two nodes with (nearly) equal time constants: the divided differences of the JVP switch
+    to derivatives at the midpoint."""
+    v0 = jnp.asarray([1.0, 1.0 + gap, 0.0])
+    check_grads(_close_rc, (v0,), order=1, modes=("fwd", "rev"), eps=1e-6)
+    rc, van_loan = _close_jacobians(v0)
+    for a, b in zip(rc, van_loan, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-10)
+
+
+@needs_normal_equations
+def test_normal_equations_of_the_fit(problem, data, residual_fns) -> None:
+    """Cost, ``Jᵀr`` and ``JᵀJ`` of the fit's Levenberg–Marquardt step (state and sensitivities
+    propagated together, chunk by chunk) against autodiff of the residuals (checked against
+    central differences above), for a batch of two parameter sets."""
+    z1 = problem.transform.to_internal([ZONWAL[n] for n in problem.free])
+    Z = jnp.asarray(np.stack([z1, z1 + 0.05 * np.arange(len(z1))]))
+    t, u, y, sqrt_w = problem_arrays(problem, data)
+    tr = problem.transform
+    fixed = np.asarray([v for _, v in problem.fixed], dtype=float)
+    B = Z.shape[0]
+    members = tuple(
+        jnp.asarray(np.broadcast_to(a, (B,) + np.shape(a)))
+        for a in (fixed, tr.lower, tr.upper, tr.scale, data.step)
+    )
+    w = np.broadcast_to(sqrt_w, y.shape)
+    shared = tuple(jnp.asarray(a)[:, None] for a in (t, u, y, w))
+    # chunks of 7 samples: 48 is not a multiple, so the padding of the last chunk is exercised
+    cost, g, H = jax.jit(problem.normal_equations, static_argnums=3)(Z, members, shared, 7)
+    args = _args(problem, data, Z[0])
+    for b in range(B):
+        r = np.asarray(residual_fns[0](Z[b], args))
+        J = np.asarray(residual_fns[1](Z[b], args))
+        np.testing.assert_allclose(cost[b], r @ r, rtol=1e-10)
+        np.testing.assert_allclose(g[b], J.T @ r, rtol=1e-7, atol=1e-10 * np.abs(J.T @ r).max())
+        np.testing.assert_allclose(H[b], J.T @ J, rtol=1e-8, atol=1e-12 * np.abs(J.T @ J).max())

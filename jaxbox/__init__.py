@@ -1,16 +1,20 @@
 """jaxbox: grey-box RC thermal models of buildings, identified and validated with JAX.
 
-Data → models → simulate → fit → validate. Call :func:`enable_x64` once after import (the
-command line does it for you): every computation runs in float64.
+Data → models → simulate → fit → validate → select → report. Call :func:`enable_x64` once after
+import (the command line does it for you): every computation runs in float64.
 """
 
 from . import data as data
 from . import datasets as datasets
 from . import models as models
+from . import reference as reference
+from . import report as report
+from . import select as select
+from . import validate as validate
 from ._x64 import PrecisionError as PrecisionError
 from ._x64 import enable_x64 as enable_x64
-from .data import Dataset as Dataset
 from .data import DataError as DataError
+from .data import Dataset as Dataset
 from .data import load as load
 from .fit import FitError as FitError
 from .fit import FitResult as FitResult
@@ -21,6 +25,8 @@ from .models import RCModel as RCModel
 from .models import RCNetwork as RCNetwork
 from .models import get_model as get_model
 from .models import list_models as list_models
+from .select import GreyBox as GreyBox
+from .select import forward_selection as forward_selection
 from .simulate import Simulation as Simulation
 from .simulate import simulate as simulate
 

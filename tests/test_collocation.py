@@ -290,6 +290,21 @@ def test_quadrature_objective(synthetic_pair) -> None:
         assert quad.params[k] == pytest.approx(col.params[k], rel=0.05)
 
 
+@pytest.mark.parametrize("synthetic_pair", ["Zon"], indirect=True)
+def test_estimates_converge_to_the_shooting_estimates(synthetic_pair) -> None:
+    """Implicit Euler (one point) has a visible discretisation bias; it shrinks with the element
+    length at the method's order (1), and stays within the cost bound at every refinement."""
+    name, data, theta, lm, col = synthetic_pair
+    coarse = collocation_fit(name, data, n_c=1)
+    fine = collocation_fit(name, data, n_c=1, subdivide=4)
+    for k in ("C_zon", "R_wal", "gA"):
+        e1 = abs(coarse.params[k] / lm.params[k] - 1)
+        e4 = abs(fine.params[k] / lm.params[k] - 1)
+        assert 1e-4 < e1 and 2.5 < e1 / e4 < 6, (k, e1, e4)
+    for res in (coarse, fine):
+        _check_agreement(lm, res, data, rtol=np.inf, atol_T=np.inf)
+
+
 # ---- a problem it cannot solve ends with a status ------------------------------------------------
 
 

@@ -11,6 +11,8 @@ from ._problem import make_problem as make_problem
 from ._problem import problem_arrays as problem_arrays
 from ._result import FitResult as FitResult
 from ._result import StartReport as StartReport
+from ._sensitivity import FitSensitivity as FitSensitivity
+from ._sensitivity import fit_sensitivity as fit_sensitivity
 from ._starts import latin_hypercube as latin_hypercube
 from ._transforms import Transform as Transform
 from ._transforms import make_transform as make_transform

@@ -60,6 +60,12 @@ Models: ``BM_Ti`` (the structure of ``Zon``), ``BM_TiTe``, ``BM_TiTh``, ``BM_TiT
 gains on the envelope ``BM_TiTeAe``, ``BM_TiTeThAe``, ``BM_TiTmTeAe``, ``BM_TiTeThRiaAe``,
 ``BM_TiTmTeThAe``, ``BM_TiTeThTsAe``, ``BM_TiTmTeThTsAe``. Where the heater Th exists, Q_hea enters
 it; otherwise Q_hea enters the interior. With the sensor Ts, ``T_zon`` is measured on it.
+
+Identifiability: in output-error estimation the models with both Th and Ts (``BM_TiTeThTs``,
+``BM_TiTmTeThTs`` and their ``Ae`` variants) have one combination of ``C_zon``, ``C_hea``,
+``C_sen``, ``R_hea`` and ``R_sen`` that the measured ``T_zon`` does not determine: the interior
+node is hidden between two dead-end branches. Fix one of them (e.g. ``fixed={"C_sen": 1e5}``)
+to identify the others.
 """
 
 from __future__ import annotations

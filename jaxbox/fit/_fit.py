@@ -1,15 +1,38 @@
 """Batched multistart Levenberg–Marquardt: every start of a problem in one compiled call.
 
-The solve for all starts is ``jax.vmap`` of ``optimistix.least_squares`` (``throw=False``, so one
-failing start does not stop the batch), jitted and compiled ahead of time once per problem
-*structure* — model structure, free/fixed split, transform kinds, simulator, solver settings and
-array shapes. Data, bounds, fixed values and starts are arguments, so a second dataset of the same
+All starts (and, through :func:`solve_jobs`, several datasets of the same length and model
+variants of the same shape) form one batch that a single compiled ``lax.while_loop`` iterates;
+a start that has terminated is frozen while the others go on, so each start's result does not
+depend on the batch it ran in. The solve is compiled ahead of time once per problem *structure*
+— model structure, free/fixed split, transform kinds, simulator, solver settings and array
+shapes. Data, bounds, fixed values and starts are arguments, so a second dataset of the same
 length, new bounds or new starts reuse the compiled executable (``compile_s == 0``).
 
-The default simulator is the exact first-order-hold discretisation: for a linear model it has no
-discretisation error, costs one small matrix exponential and a scan per residual evaluation, and
-its forward-mode Jacobian is cheap. ``simulator="diffrax"`` fits through Kvaerno5 with one
-fixed step per sample (or ``sim_options={"substeps": k}``) in forward mode.
+One iteration
+-------------
+With the exact simulator each iteration evaluates, for every start at once, the cost ``Σ r²``,
+the gradient ``g = Jᵀr`` and the Gram matrix ``H = JᵀJ`` of the weighted residuals in one pass
+over the data: the discrete matrices come from a symmetric eigendecomposition (their derivatives
+in closed form), and the sensitivities of the state to the ``p`` coordinates travel with the state
+as an ``n × p`` matrix (:func:`~jaxbox.simulate._exact.normal_equations`). The Jacobian is never
+stored, so memory does not grow with the length of the data. ``simulator="diffrax"`` builds ``J``
+with ``jax.jacfwd`` through Kvaerno5 at fixed steps instead.
+
+The step
+--------
+Levenberg–Marquardt in the form of Moré (1978): the coordinates are scaled by the running maximum
+of the column norms of ``J`` (so the method does not depend on how each coordinate is scaled),
+the damped normal equations ``(Hₛ + λI) δₛ = −gₛ`` are solved by Cholesky, and λ follows the
+gain ratio ``ρ`` (actual over predicted reduction) as in Nielsen (1999). A trial with ``ρ > 10⁻⁴``
+is accepted.
+
+Termination (per start)
+-----------------------
+* ``converged``: an accepted step whose actual and predicted reductions of the cost are both at
+  most ``rtol · cost + atol`` (the ``ftol`` test of MINPACK), or a damping that grows beyond
+  10¹⁶ without any reduction (the cost cannot be reduced at machine precision);
+* ``max_steps``: the iteration cap, counting rejected trials;
+* ``nonfinite``: the start itself cannot be evaluated.
 """
 
 from __future__ import annotations
@@ -20,7 +43,7 @@ from collections.abc import Mapping, Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
+from jax import lax
 
 from .._x64 import require_x64
 from ..models import get_model
@@ -28,16 +51,18 @@ from ._problem import FitError, Problem, make_problem, problem_arrays
 from ._result import FitResult, StartReport
 from ._starts import latin_hypercube
 
-__all__ = ["fit", "solve_starts", "compile_cache_info", "clear_compile_cache"]
+__all__ = ["fit", "solve_starts", "solve_jobs", "compile_cache_info", "clear_compile_cache"]
 
 _CACHE: dict = {}
 _STATS = {"compiles": 0, "hits": 0}
 
-_CODES = {
-    "successful": "converged",
-    "nonlinear_max_steps_reached": "max_steps",
-    "max_steps_reached": "max_steps",
-}
+#: termination codes of the batched solve
+CONVERGED, MAX_STEPS, NONFINITE, RUNNING = 0, 1, 2, -1
+_STATUS = {CONVERGED: "converged", MAX_STEPS: "max_steps", NONFINITE: "nonfinite"}
+
+_LAMBDA0 = 1e-2
+_LAMBDA_MAX = 1e16
+_ACCEPT = 1e-4
 
 
 def compile_cache_info() -> dict:
@@ -50,80 +75,356 @@ def clear_compile_cache() -> None:
     _STATS.update(compiles=0, hits=0)
 
 
-def _structure_key(problem: Problem, shapes, max_steps, rtol, atol):
+# ---- the solver ----------------------------------------------------------------------------------
+
+
+#: step control (read when a solve is compiled, part of the compile key): Moré's scaling by the
+#: running maximum of the column norms, the first damping, and a cap on the largest change of an
+#: internal coordinate per step, which keeps a far start from leaping into a saturated corner of
+#: the bounds.
+_OPTIONS = {"scaling": "more", "lambda0": _LAMBDA0, "step_cap": 2.0}
+
+
+def default_slots(n_starts: int) -> int:
+    """Starts iterated together: enough to use the vector units, few enough that a start that
+    has terminated soon hands its slot to the next one instead of idling."""
+    return int(min(n_starts, max(16, min(128, n_starts // 8))))
+
+
+def levenberg_marquardt(
+    lin,
+    z0,
+    *,
+    max_steps: int,
+    rtol: float,
+    atol: float,
+    start_counts: Sequence[int] | None = None,
+    slot_counts: Sequence[int] | None = None,
+):
+    """Batched Levenberg–Marquardt on ``cost(z) = Σ r(z)²`` from starts ``z0`` [S, p].
+
+    The starts go through a fixed number of *slots* (``slot_counts`` per group of consecutive
+    starts, ``start_counts``): each iteration advances every slot by one trial; a slot whose start
+    has terminated takes the next start of its group, so the batch stays busy until the queue is
+    empty. ``lin(z [B, p], idx [B]) -> (cost [B], g [B, p], H [B, p, p])`` with ``g = Jᵀr``,
+    ``H = JᵀJ`` evaluates the slots, ``idx`` naming the start each slot holds. Traceable (call it
+    under ``jax.jit``). Returns ``(z [S, p], cost [S], code [S], steps [S])``.
+    """
+    n_starts, p = z0.shape
+    dtype = z0.dtype
+    start_counts = tuple(start_counts or (n_starts,))
+    slot_counts = tuple(slot_counts or (n_starts,))
+    n_groups = len(start_counts)
+    batch = sum(slot_counts)
+    group = np.repeat(np.arange(n_groups), slot_counts)
+    first = np.concatenate([[0], np.cumsum(start_counts)[:-1]])
+    slot_first = np.concatenate([[0], np.cumsum(slot_counts)[:-1]])
+    end = jnp.asarray(first + np.asarray(start_counts))
+    idx0 = np.asarray(first[group] + np.arange(batch) - slot_first[group])
+    eye = jnp.eye(p, dtype=dtype)
+    bcast = lambda m, a: m.reshape((batch,) + (1,) * (a.ndim - 1))  # noqa: E731
+    where = lambda m, a, b: jnp.where(bcast(m, a), a, b)  # noqa: E731
+
+    def finite(*arrays):
+        ok = jnp.ones((batch,), bool)
+        for a in arrays:
+            ok = ok & jnp.all(jnp.isfinite(a.reshape(batch, -1)), axis=1)
+        return ok
+
+    def guarded_diag(H, fallback):
+        diag = jnp.sqrt(jnp.diagonal(H, axis1=1, axis2=2))
+        return jnp.where(jnp.isfinite(diag) & (diag > 0), diag, fallback)
+
+    rounds = -(-np.asarray(start_counts) // np.asarray(slot_counts))
+    cap = int((max_steps + 1) * rounds.max() + 1)
+    state = dict(
+        idx=jnp.asarray(idx0, jnp.int32),
+        z=z0[idx0],
+        cost=jnp.zeros((batch,), dtype),
+        g=jnp.zeros((batch, p), dtype),
+        H=jnp.broadcast_to(eye, (batch, p, p)),
+        d=jnp.ones((batch, p), dtype),
+        lam=jnp.full((batch,), _OPTIONS["lambda0"], dtype),
+        nu=jnp.full((batch,), 2.0, dtype),
+        steps=jnp.zeros((batch,), jnp.int32),
+        fresh=jnp.ones((batch,), bool),
+        live=jnp.ones((batch,), bool),
+        nxt=jnp.asarray(first + np.asarray(slot_counts), jnp.int32),
+        out_z=jnp.full((n_starts, p), jnp.nan, dtype),
+        out_cost=jnp.full((n_starts,), jnp.nan, dtype),
+        out_code=jnp.full((n_starts,), MAX_STEPS, jnp.int32),
+        out_steps=jnp.zeros((n_starts,), jnp.int32),
+        it=jnp.asarray(0, jnp.int32),
+    )
+
+    def cond(s):
+        return (s["it"] < cap) & jnp.any(s["live"])
+
+    def body(s):
+        z, cost, g, H, d, lam, nu = (s[k] for k in ("z", "cost", "g", "H", "d", "lam", "nu"))
+        fresh, live = s["fresh"], s["live"]
+        # the damped Gauss–Newton step in coordinates scaled by d (a fresh start: no step)
+        M = H / (d[:, :, None] * d[:, None, :]) + lam[:, None, None] * eye
+        L = jnp.linalg.cholesky(M)
+        step_s = -jax.scipy.linalg.cho_solve((L, True), (g / d)[..., None])[..., 0]
+        step = step_s / d
+        if _OPTIONS["step_cap"]:
+            big = jnp.max(jnp.abs(step), axis=-1)
+            step = step * jnp.minimum(1.0, _OPTIONS["step_cap"] / big)[:, None]
+        step = where(fresh, jnp.zeros_like(step), step)
+        pred = -(2.0 * jnp.sum(g * step, -1) + jnp.einsum("bi,bij,bj->b", step, H, step))
+        zt = z + step
+        ct, gt, Ht = lin(zt, s["idx"])
+        actual = cost - ct
+        ok_t = finite(zt, ct, gt, Ht)
+        ok = ok_t & (pred > 0) & (actual > _ACCEPT * pred)
+        rho = jnp.where(ok, actual / jnp.where(pred > 0, pred, 1.0), 0.0)
+        running = live & ~fresh
+        accept = (live & fresh & ok_t) | (running & ok)
+        # damping (Nielsen) and scaling
+        lam_new = jnp.where(
+            ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), lam * nu
+        )
+        nu_new = jnp.where(ok, 2.0, 2.0 * nu)
+        lam_new = jnp.where(fresh, _OPTIONS["lambda0"], lam_new)
+        nu_new = jnp.where(fresh, 2.0, nu_new)
+        if _OPTIONS["scaling"] == "more":
+            d_new = jnp.maximum(d, guarded_diag(Ht, 0.0))
+        else:
+            d_new = guarded_diag(Ht, d)
+        d_new = jnp.where(fresh[:, None], guarded_diag(Ht, 1.0), d_new)
+        # termination
+        tol = rtol * cost + atol
+        small = ok & (actual <= tol) & (pred <= tol)
+        stalled = lam_new > _LAMBDA_MAX
+        steps = s["steps"] + running.astype(jnp.int32)
+        converged = running & (small | stalled)
+        nonfinite = live & fresh & ~ok_t
+        capped = running & ~converged & (steps >= max_steps)
+        finished = converged | nonfinite | capped
+        code = jnp.where(converged, CONVERGED, jnp.where(nonfinite, NONFINITE, MAX_STEPS))
+        z = where(accept, zt, z)
+        cost = where(accept, ct, cost)
+        g = where(accept, gt, g)
+        H = where(accept, Ht, H)
+        d = where(accept, d_new, d)
+        lam = where(live, lam_new, lam)
+        nu = where(live, nu_new, nu)
+        # results of the finished starts
+        target = jnp.where(finished, s["idx"], n_starts)  # out of range: dropped
+        out_z = s["out_z"].at[target].set(jnp.where(nonfinite[:, None], zt, z), mode="drop")
+        out_cost = s["out_cost"].at[target].set(jnp.where(nonfinite, ct, cost), mode="drop")
+        out_code = s["out_code"].at[target].set(code, mode="drop")
+        out_steps = s["out_steps"].at[target].set(steps, mode="drop")
+        # the freed slots take the next starts of their group
+        onehot = (group[:, None] == np.arange(n_groups)[None, :]) & finished[:, None]
+        rank = jnp.cumsum(onehot, axis=0)[jnp.arange(batch), group] - 1
+        new_idx = s["nxt"][group] + rank
+        load = finished & (new_idx < end[group])
+        nxt = jnp.minimum(s["nxt"] + jnp.sum(onehot, axis=0), end).astype(jnp.int32)
+        idx = jnp.where(load, new_idx, s["idx"]).astype(jnp.int32)
+        z = where(load, z0[jnp.where(load, new_idx, 0)], z)
+        steps = jnp.where(load, 0, steps).astype(jnp.int32)
+        return dict(
+            idx=idx,
+            z=z,
+            cost=cost,
+            g=g,
+            H=H,
+            d=d,
+            lam=lam,
+            nu=nu,
+            steps=steps,
+            fresh=load,
+            live=jnp.where(finished, load, live),
+            nxt=nxt,
+            out_z=out_z,
+            out_cost=out_cost,
+            out_code=out_code,
+            out_steps=out_steps,
+            it=s["it"] + 1,
+        )
+
+    s = lax.while_loop(cond, body, state)
+    return s["out_z"], s["out_cost"], s["out_code"], s["out_steps"]
+
+
+# ---- jobs: (problem, starts, data) sharing one compiled solve ------------------------------------
+
+
+def _problem_key(problem: Problem) -> tuple:
     return (
         problem.model.structure,
         problem.free,
         tuple(n for n, _ in problem.fixed),
         problem.transform.kinds,
+        problem.transform.style,
         problem.simulator,
         problem.sim_options,
-        max_steps,
-        rtol,
-        atol,
-        shapes,
     )
 
 
-def _build_batched(problem: Problem, max_steps: int, rtol: float, atol: float):
-    solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+def _groups(problems: Sequence[Problem], counts: Sequence[int]):
+    """Consecutive members of the same structure: ((problem, count), …)."""
+    out: list[list] = []
+    for prob, c in zip(problems, counts, strict=True):
+        if out and _problem_key(out[-1][0]) == _problem_key(prob):
+            out[-1][1] += c
+        else:
+            out.append([prob, c])
+    return tuple((p, c) for p, c in out)
 
-    def one(z0, args):
-        sol = optx.least_squares(
-            problem.residuals, solver, z0, args=args, max_steps=max_steps, throw=False
+
+def _build(groups, slot_counts, max_steps: int, rtol: float, atol: float):
+    exact = all(p.simulator == "exact" for p, _ in groups)
+    if not exact and len(groups) > 1:
+        raise FitError("model variants can only be batched with the exact simulator")
+    if len({p.output_states for p, _ in groups}) > 1:
+        raise FitError("model variants batched together must measure the same states")
+    from ..simulate._exact import normal_equations
+
+    def solve(z0, fixed, lo, hi, sc, dt, t, u, y, w):
+        per_member = u.shape[1] != 1
+
+        def lin(Z, idx):
+            members = tuple(a[idx] for a in (fixed, lo, hi, sc, dt))
+            data = tuple(a[:, idx] if per_member else a for a in (t, u, y, w))
+            if not exact:
+                return groups[0][0].normal_equations(Z, members, data)
+            prim, tang, start = [], [], 0
+            for (prob, _), count in zip(groups, slot_counts, strict=True):
+                sl = slice(start, start + count)
+                start += count
+                args = (Z[sl],) + tuple(a[sl] for a in members)
+                prim.append(jax.vmap(prob.matrices)(*args))
+                tang.append(jax.vmap(jax.jacfwd(prob.matrices))(*args))
+            cat = lambda parts: tuple(  # noqa: E731
+                jnp.concatenate(x, axis=0) if len(x) > 1 else x[0] for x in zip(*parts, strict=True)
+            )
+            _, uu, yy, ww = data
+            return normal_equations(cat(prim), cat(tang), groups[0][0].output_states, uu, yy, ww)
+
+        return levenberg_marquardt(
+            lin,
+            z0,
+            max_steps=max_steps,
+            rtol=rtol,
+            atol=atol,
+            start_counts=tuple(c for _, c in groups),
+            slot_counts=slot_counts,
         )
-        r = problem.residuals(sol.value, args)
-        return sol.value, sol.result._value, sol.stats["num_steps"], jnp.sum(r * r)
 
-    def batched(z0s, fixed_values, t, u, y, sqrt_w, lo, hi, sc):
-        args = (fixed_values, t, u, y, sqrt_w, lo, hi, sc)
-        return jax.vmap(one, in_axes=(0, None))(z0s, args)
-
-    return jax.jit(batched)
+    return jax.jit(solve)
 
 
-def solve_starts(
-    problem: Problem,
-    starts: np.ndarray,
-    arrays,
+def solve_jobs(
+    jobs: Sequence[tuple[Problem, np.ndarray, tuple]],
     *,
-    max_steps: int = 200,
-    rtol: float = 1e-8,
-    atol: float = 1e-8,
-):
-    """Run LM from every start (physical values [S, p]) in one compiled, vmapped call.
+    max_steps: int = 100,
+    rtol: float = 1e-6,
+    atol: float = 1e-16,
+    slots: int | None = None,
+) -> dict:
+    """Run Levenberg–Marquardt for several jobs in one compiled, batched call.
 
-    Returns a dict with ``z``, ``p`` [S, p], ``code`` [S] (optimistix result index), ``steps``,
-    ``cost`` [S], ``compile_s`` and ``fit_s``.
+    A job is ``(problem, starts [S, p] physical, arrays)`` with ``arrays`` from
+    :func:`~jaxbox.fit.problem_arrays`. Every job must have the same number of free parameters,
+    samples, states, inputs and outputs; jobs may differ in data (buildings, windows), bounds,
+    fixed values and, with the exact simulator, in model structure (variants of the same shape).
+    A single job shares its data across its starts.
+
+    Returns a dict with per member (all starts of all jobs, in order): ``job`` [B], ``z``, ``p``
+    [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s].
     """
-    t, u, y, sqrt_w = arrays
-    tr = problem.transform
-    z0 = tr.to_internal(starts)
-    # a start that is not finite is passed through: it fails inside the batch and is reported
-    z0 = np.where(np.isfinite(np.asarray(starts, float)), z0, np.nan)
-    fixed_values = np.asarray([v for _, v in problem.fixed], dtype=float)
-    args = (z0, fixed_values, t, u, y, sqrt_w, tr.lower, tr.upper, tr.scale)
-    args = tuple(jnp.asarray(a, dtype=float) for a in args)
-    shapes = tuple(a.shape for a in args)
-    key = _structure_key(problem, shapes, max_steps, rtol, atol)
+    if not jobs:
+        raise FitError("no job to solve")
+    problems, z0s, counts, members, datas = [], [], [], [], []
+    for prob, starts, arrays in jobs:
+        starts = np.atleast_2d(np.asarray(starts, dtype=float))
+        tr = prob.transform
+        z0 = tr.to_internal(starts)
+        # a start that is not finite is passed through: it fails inside the batch and is reported
+        z0 = np.where(np.isfinite(starts), z0, np.nan)
+        s = len(z0)
+        t, u, y, sqrt_w = arrays
+        fixed = np.asarray([v for _, v in prob.fixed], dtype=float)
+        members.append(
+            (
+                np.broadcast_to(fixed, (s, len(fixed))),
+                np.broadcast_to(tr.lower, (s, len(tr.lower))),
+                np.broadcast_to(tr.upper, (s, len(tr.upper))),
+                np.broadcast_to(tr.scale, (s, len(tr.scale))),
+                np.full((s,), float(t[1] - t[0])),
+            )
+        )
+        w = np.broadcast_to(np.asarray(sqrt_w, dtype=float), np.shape(y))
+        datas.append((np.asarray(t, float), np.asarray(u, float), np.asarray(y, float), w))
+        problems.append(prob)
+        z0s.append(z0)
+        counts.append(s)
+    shapes = {(np.shape(z)[1], *(np.shape(a) for a in d)) for z, d in zip(z0s, datas, strict=True)}
+    if len(shapes) > 1:
+        raise FitError(
+            "jobs batched together need the same number of free parameters and data of the same "
+            f"shape (samples, inputs, outputs); got {sorted(shapes)}"
+        )
+    z0 = np.concatenate(z0s, axis=0)
+    member_arrays = tuple(np.concatenate(parts, axis=0) for parts in zip(*members, strict=True))
+    if len(jobs) == 1:
+        data = tuple(a[:, None] for a in datas[0])  # shared by every start: [N, 1, …]
+    else:
+        data = tuple(
+            np.concatenate(
+                [np.repeat(d[k][:, None], c, axis=1) for d, c in zip(datas, counts, strict=True)],
+                axis=1,
+            )
+            for k in range(4)
+        )
+    args = tuple(jnp.asarray(a, dtype=float) for a in (z0, *member_arrays, *data))
+    groups = _groups(problems, counts)
+    n_slots = default_slots(len(z0)) if slots is None else max(1, int(slots))
+    slot_counts = tuple(min(c, max(1, round(n_slots * c / len(z0)))) for _, c in groups)
+    key = (
+        tuple((_problem_key(p), c) for p, c in groups),
+        slot_counts,
+        tuple(sorted(_OPTIONS.items())),
+        tuple(a.shape for a in args),
+        max_steps,
+        rtol,
+        atol,
+    )
     compile_s = 0.0
     compiled = _CACHE.get(key)
     if compiled is None:
         t0 = time.perf_counter()
-        compiled = _build_batched(problem, max_steps, rtol, atol).lower(*args).compile()
+        compiled = _build(groups, slot_counts, max_steps, rtol, atol).lower(*args).compile()
         compile_s = time.perf_counter() - t0
         _CACHE[key] = compiled
         _STATS["compiles"] += 1
     else:
         _STATS["hits"] += 1
     t0 = time.perf_counter()
-    z, code, steps, cost = jax.block_until_ready(compiled(*args))
+    z, cost, code, steps = jax.block_until_ready(compiled(*args))
     fit_s = time.perf_counter() - t0
     z = np.asarray(z)
-    p = np.asarray(tr.to_physical(jnp.asarray(z)))
+    p_parts, start = [], 0
+    for prob, c in zip(problems, counts, strict=True):
+        sl = slice(start, start + c)
+        p_parts.append(
+            np.asarray(
+                prob.transform.to_physical(
+                    jnp.asarray(z[sl]),
+                    member_arrays[1][sl],
+                    member_arrays[2][sl],
+                    member_arrays[3][sl],
+                )
+            )
+        )
+        start += c
     return {
+        "job": np.repeat(np.arange(len(jobs)), counts),
         "z": z,
-        "p": p,
+        "p": np.concatenate(p_parts, axis=0),
         "code": np.asarray(code),
         "steps": np.asarray(steps),
         "cost": np.asarray(cost),
@@ -132,11 +433,68 @@ def solve_starts(
     }
 
 
+def solve_starts(
+    problem: Problem,
+    starts: np.ndarray,
+    arrays,
+    *,
+    max_steps: int = 100,
+    rtol: float = 1e-6,
+    atol: float = 1e-16,
+    slots: int | None = None,
+):
+    """Run LM from every start (physical values [S, p]) in one compiled, batched call.
+
+    Returns a dict with ``z``, ``p`` [S, p], ``code`` [S] (0 converged, 1 step cap,
+    2 non-finite), ``steps``, ``cost`` [S], ``compile_s`` and ``fit_s``.
+    """
+    out = solve_jobs(
+        [(problem, starts, arrays)], max_steps=max_steps, rtol=rtol, atol=atol, slots=slots
+    )
+    out.pop("job")
+    return out
+
+
 def _status(code: int, cost: float, p: np.ndarray) -> str:
     if not (np.isfinite(cost) and np.all(np.isfinite(p))):
         return "nonfinite"
-    key = list(optx.RESULTS._name_to_item)[int(code)]
-    return _CODES.get(key, f"failed ({key})")
+    return _STATUS.get(int(code), f"failed (code {int(code)})")
+
+
+def make_starts(problem: Problem, starts, seed, concentration) -> np.ndarray:
+    """The guess plus ``starts − 1`` Latin-hypercube samples, or explicit starts checked."""
+    g = np.asarray([problem.guess_dict[n] for n in problem.free])
+    if isinstance(starts, int | np.integer):
+        if starts < 1:
+            raise FitError(f"starts must be at least 1, got {starts}")
+        x0s = g[None, :]
+        if starts > 1:
+            lhs = latin_hypercube(problem.transform, g, starts - 1, seed, concentration)
+            x0s = np.concatenate([x0s, lhs], axis=0)
+        return x0s
+    x0s = np.atleast_2d(np.asarray(starts, dtype=float))
+    if x0s.shape[1] != len(problem.free):
+        raise FitError(
+            "explicit starts must have one column per free parameter "
+            f"({', '.join(problem.free)}), got shape {x0s.shape}"
+        )
+    return x0s
+
+
+def result_from(problem, data, x0s, out, sl, settings, timing) -> FitResult:
+    """A :class:`FitResult` from the members ``sl`` of a :func:`solve_jobs` output."""
+    p, cost, code, steps = out["p"][sl], out["cost"][sl], out["code"][sl], out["steps"][sl]
+    status = [_status(c, k, q) for c, k, q in zip(code, cost, p, strict=True)]
+    report = StartReport(initial=x0s, params=p, cost=cost, steps=steps, status=tuple(status))
+    best = report.best_index()
+    if best is None:
+        raise FitError(
+            f"all {len(status)} starts failed for model {problem.model.name} "
+            f"({report.status_summary()}); check the data and bounds, or add starts"
+        )
+    return FitResult.from_best(
+        problem=problem, data=data, report=report, best=best, timing=timing, settings=settings
+    )
 
 
 def fit(
@@ -152,10 +510,11 @@ def fit(
     weights: Mapping[str, float] | Sequence[float] | None = None,
     simulator: str = "exact",
     sim_options: Mapping | None = None,
-    max_steps: int = 200,
-    rtol: float = 1e-8,
-    atol: float = 1e-8,
+    max_steps: int = 100,
+    rtol: float = 1e-6,
+    atol: float = 1e-16,
     concentration: float = 4.0,
+    slots: int | None = None,
 ) -> FitResult:
     """Estimate the parameters of ``model`` from ``data`` by output-error least squares.
 
@@ -174,10 +533,12 @@ def fit(
         weights: output weights q_j (per output name or in ``model.outputs`` order).
         simulator: ``"exact"`` (default, exact for linear models) or ``"diffrax"``.
         sim_options: diffrax options, e.g. ``{"substeps": 2}``.
-        max_steps: Levenberg–Marquardt iteration cap per start.
-        rtol, atol: Levenberg–Marquardt termination tolerances (on the unbounded coordinates
-            and the cost).
+        max_steps: Levenberg–Marquardt iteration cap per start (rejected trials count).
+        rtol, atol: a start has converged when an accepted step reduced the cost, and the
+            linear model predicted it to reduce, by at most ``rtol · cost + atol`` [K²].
         concentration: spread of the Latin hypercube around the guess (0: uniform).
+        slots: starts iterated together (default :func:`default_slots`); a start that has
+            terminated hands its slot to the next. Results do not depend on it.
 
     Returns:
         :class:`FitResult` with the best start's parameters, every start's outcome and timings.
@@ -199,41 +560,16 @@ def fit(
         sim_options=sim_options,
     )
     arrays = problem_arrays(problem, data)
-    g = np.asarray([problem.guess_dict[n] for n in problem.free])
-    if isinstance(starts, int | np.integer):
-        if starts < 1:
-            raise FitError(f"starts must be at least 1, got {starts}")
-        x0s = g[None, :]
-        if starts > 1:
-            lhs = latin_hypercube(problem.transform, g, starts - 1, seed, concentration)
-            x0s = np.concatenate([x0s, lhs], axis=0)
-    else:
-        x0s = np.atleast_2d(np.asarray(starts, dtype=float))
-        if x0s.shape[1] != len(problem.free):
-            raise FitError(
-                "explicit starts must have one column per free parameter "
-                f"({', '.join(problem.free)}), got shape {x0s.shape}"
-            )
-    out = solve_starts(problem, x0s, arrays, max_steps=max_steps, rtol=rtol, atol=atol)
-    status = [_status(c, k, p) for c, k, p in zip(out["code"], out["cost"], out["p"], strict=True)]
-    report = StartReport(
-        initial=x0s,
-        params=out["p"],
-        cost=out["cost"],
-        steps=out["steps"],
-        status=tuple(status),
+    x0s = make_starts(problem, starts, seed, concentration)
+    out = solve_jobs(
+        [(problem, x0s, arrays)], max_steps=max_steps, rtol=rtol, atol=atol, slots=slots
     )
-    best = report.best_index()
-    if best is None:
-        raise FitError(
-            f"all {len(status)} starts failed for model {model.name} "
-            f"({report.status_summary()}); check the data and bounds, or add starts"
-        )
-    return FitResult.from_best(
-        problem=problem,
-        data=data,
-        report=report,
-        best=best,
+    return result_from(
+        problem,
+        data,
+        x0s,
+        out,
+        slice(None),
+        settings={"max_steps": max_steps, "rtol": rtol, "atol": atol, "seed": seed, "slots": slots},
         timing={"compile_s": out["compile_s"], "fit_s": out["fit_s"]},
-        settings={"max_steps": max_steps, "rtol": rtol, "atol": atol, "seed": seed},
     )

@@ -41,6 +41,7 @@ class Transform:
     lower: np.ndarray
     upper: np.ndarray
     scale: np.ndarray
+    style: str = "logistic"
 
     def kind_names(self) -> list[str]:
         return [KINDS[k] for k in self.kinds]
@@ -51,19 +52,21 @@ class Transform:
         hi = self.upper if upper is None else upper
         s = self.scale if scale is None else scale
         kinds = np.asarray(self.kinds)
-        sig = jax.nn.sigmoid(z)  # stable value and derivative for any z
+        sig = _squash(self.style, z)
         out = []
+        lo, hi, s = (jnp.asarray(a, dtype=z.dtype) for a in (lo, hi, s))
         for i, k in enumerate(kinds):
             zi, si = z[..., i], sig[..., i]
+            loi, hii, sci = lo[..., i], hi[..., i], s[..., i]
             if k == _LOG:
-                llo, lhi = jnp.log(lo[i]), jnp.log(hi[i])
+                llo, lhi = jnp.log(loi), jnp.log(hii)
                 out.append(jnp.exp(llo + (lhi - llo) * si))
             elif k == _LIN:
-                out.append(lo[i] + (hi[i] - lo[i]) * si)
+                out.append(loi + (hii - loi) * si)
             elif k == _LOWER:
-                out.append(lo[i] + s[i] * jnp.exp(zi))
+                out.append(loi + sci * jnp.exp(zi))
             else:
-                out.append(s[i] * zi)
+                out.append(sci * zi)
         return jnp.stack(out, axis=-1)
 
     def to_internal(self, p):
@@ -75,11 +78,9 @@ class Transform:
             pi = p[..., i]
             if k == _LOG:
                 f = (np.log(pi) - np.log(lo)) / (np.log(hi) - np.log(lo))
-                f = np.clip(f, _EDGE, 1 - _EDGE)
-                z[..., i] = np.log(f) - np.log1p(-f)
+                z[..., i] = _unsquash(self.style, f)
             elif k == _LIN:
-                f = np.clip((pi - lo) / (hi - lo), _EDGE, 1 - _EDGE)
-                z[..., i] = np.log(f) - np.log1p(-f)
+                z[..., i] = _unsquash(self.style, (pi - lo) / (hi - lo))
             elif k == _LOWER:
                 z[..., i] = np.log(np.maximum(pi - lo, _EDGE * s) / s)
             else:
@@ -104,6 +105,40 @@ class Transform:
         return out
 
 
+STYLES = ("logistic", "algebraic", "sine", "unbounded")
+
+
+def _squash(style, z):
+    """Position in the bounds, 0 … 1, from the internal coordinate (slope 1/4 at the centre)."""
+    if style == "logistic":
+        return jax.nn.sigmoid(z)  # stable value and derivative for any z
+    if style == "algebraic":
+        h = 0.5 * z
+        return 0.5 * (1.0 + h / jnp.sqrt(1.0 + h * h))
+    if style == "sine":
+        return 0.5 * (1.0 + jnp.sin(0.5 * z))
+    if style == "unbounded":
+        return 0.5 + 0.25 * z
+    raise ValueError(f"unknown transform style {style!r}; choose one of {STYLES}")
+
+
+def _unsquash(style, f):
+    if style == "unbounded":
+        return 4.0 * (np.asarray(f) - 0.5)
+    f = np.clip(f, _EDGE, 1 - _EDGE)
+    if style == "logistic":
+        return np.log(f) - np.log1p(-f)
+    if style == "algebraic":
+        c = 2.0 * f - 1.0
+        return 2.0 * c / np.sqrt(1.0 - c * c)
+    if style == "sine":
+        return 2.0 * np.arcsin(2.0 * f - 1.0)
+    raise ValueError(f"unknown transform style {style!r}; choose one of {STYLES}")
+
+
+DEFAULT_STYLE = {"style": "logistic"}
+
+
 def make_transform(names, lower, upper, guess) -> Transform:
     """Choose a transform per parameter from its bounds; ``guess`` sets scales for open bounds."""
     lower = np.asarray(lower, dtype=float)
@@ -122,4 +157,6 @@ def make_transform(names, lower, upper, guess) -> Transform:
         else:
             kinds.append(_FREE)
             scale.append(max(abs(g), 1.0))
-    return Transform(tuple(names), tuple(kinds), lower, upper, np.asarray(scale))
+    return Transform(
+        tuple(names), tuple(kinds), lower, upper, np.asarray(scale), DEFAULT_STYLE["style"]
+    )

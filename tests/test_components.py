@@ -1,8 +1,6 @@
 """Components: what each one adds, multi-zone numbering, parameter specs, declaration errors, and
 a model declared from components in a few lines, registered, and recovered from its own data."""
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -379,15 +377,6 @@ def test_user_model_recovers_its_parameters():
     model = _user_model().build()
     data = _user_data(model)
     names = model.param_names
-    # identifiable: the sensitivities at the truth have full rank
-    U = data.array(list(model.inputs))
-
-    def out(p):
-        return simulate_arrays(model, dict(zip(names, p, strict=True)), data.t, U)[0].ravel()
-
-    J = np.asarray(jax.jit(jax.jacfwd(out))(jnp.asarray([TRUTH[n] for n in names])))
-    s = np.linalg.svd(J / np.linalg.norm(J, axis=0), compute_uv=False)
-    assert s[-1] / s[0] > 1e-4
     rng = np.random.default_rng(2)
     starts = []
     for _ in range(3):

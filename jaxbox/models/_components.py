@@ -15,22 +15,22 @@ functions or fluently with :meth:`RCNetwork.add`::
     net = c.window(net, "I_s", name="s")   # gA_s on the south facade irradiance
     model = net.build()
 
-==================== ================================= ==========================================
-component            parameters [unit]                 physical meaning
-==================== ================================= ==========================================
-:func:`zone`         ``C_zon`` [J/K], ``T_zon0`` [°C]  zone air (and fast furniture), measured
-:func:`wall`         ``R_wal`` [K/W], ``C_wal`` [J/K]  envelope between zone and ambient
-:func:`internal_mass` ``C_int`` [J/K], ``R_int`` [K/W] floors, inner walls linked to the zone air
-:func:`infiltration` ``R_inf`` [K/W]                   air exchange zone–ambient, parallel to wall
-:func:`boundary`     ``R_bou`` [K/W] (+ ``C_bou``)      exchange with a measured temperature
-:func:`ground`       ``R_gro`` [K/W] (+ ``T_gro0``)     exchange with the ground
-:func:`embedded`     ``C_emb`` [J/K], ``R_emb`` [K/W]  floor heating or concrete core
-:func:`window`       ``gA_<name>`` [m²] (+ ``fra_sol``) solar gains through glazing
-:func:`heating`      (+ ``fra_rad`` [-])               heating power ``Q_hea`` [W]
-:func:`electric_gains` ``fra_ele`` [-]                 internal gains ``fra_ele · P_ele`` [W]
-:func:`sensor`       ``C_sen`` [J/K], ``R_sen`` [K/W]  a sensor with its own time constant
-:func:`zone_coupling` ``R_bou`` [K/W] (+ ``C_bou``)     two zones sharing a wall or floor
-==================== ================================= ==========================================
+====================== ====================================== ======================================
+component              parameters [unit]                      physical meaning
+====================== ====================================== ======================================
+:func:`zone`           ``C_zon`` [J/K], ``T_zon0`` [°C]       zone air (and light content), measured
+:func:`wall`           ``R_wal`` [K/W], ``C_wal`` [J/K]       envelope between zone and ambient
+:func:`internal_mass`  ``C_int`` [J/K], ``R_int`` [K/W]       floors, inner walls linked to the air
+:func:`infiltration`   ``R_inf`` [K/W]                        air exchange, parallel to the envelope
+:func:`boundary`       ``R_bou`` [K/W] (+ ``C_bou`` [J/K])    exchange with a measured temperature
+:func:`ground`         ``R_gro`` [K/W] (+ ``T_gro0`` [°C])    exchange with the ground
+:func:`embedded`       ``C_emb`` [J/K], ``R_emb`` [K/W]       floor heating or concrete core
+:func:`window`         ``gA_<name>`` [m²] (+ ``fra_sol`` [-]) solar gains through glazing
+:func:`heating`        (+ ``fra_rad`` [-])                    heating power ``Q_hea`` [W]
+:func:`electric_gains` ``fra_ele`` [-]                        internal gains ``fra_ele · P_ele`` [W]
+:func:`sensor`         ``C_sen`` [J/K], ``R_sen`` [K/W]       a sensor with its own time constant
+:func:`zone_coupling`  ``R_bou`` [K/W] (+ ``C_bou`` [J/K])    two zones sharing a wall or floor
+====================== ====================================== ======================================
 
 Multi-zone: name zones ``zon1``, ``zon2``… The digits of a zone's name are appended to every
 name a component derives from it: ``wall(net, zone="zon1")`` adds ``R_wal1`` and ``C_wal1``,

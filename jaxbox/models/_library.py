@@ -39,21 +39,21 @@ R_bou–C_bou–R_bou between them (+ T_bou0).
 dynamics of buildings*, Energy and Buildings 43:1511–1522, as used with CTSM-R, named ``BM_`` +
 their name. Their states and parameters in our names:
 
-============================ =============================== ==================================
-Bacher & Madsen              jaxbox                          component
-============================ =============================== ==================================
-Ti, Ci (interior)            T_zon, C_zon                    :func:`~components.zone`
-Te, Ce (envelope)            T_wal, C_wal                    :func:`~components.wall`
-Rie, Rea                     fra_wal·R_wal, (1−fra_wal)·R_wal  ``wall(position="fra_wal")``
-Ria (models without Te)      R_wal                           ``wall(capacity=False)``
-Ria (models with Te, "Ria")  R_inf                           :func:`~components.infiltration`
-Th, Ch, Rih (heater)         T_hea, C_hea, R_hea             ``embedded(name="hea")``
-Ts, Cs, Ris (sensor)         T_sen, C_sen, R_sen (measured)  :func:`~components.sensor`
-Tm, Cm, Rim (interior medium) T_int, C_int, R_int            :func:`~components.internal_mass`
-Aw (solar on interior)       gA                              :func:`~components.window`
-Ae (solar on envelope)       gA_wal                          ``window(zone="wal", name="wal")``
-Φh, Φs, Ta                   Q_hea, I_glo_hor, T_amb         inputs
-============================ =============================== ==================================
+============================= ================================ ==================================
+Bacher & Madsen               jaxbox                           component
+============================= ================================ ==================================
+Ti, Ci (interior)             T_zon, C_zon                     :func:`~components.zone`
+Te, Ce (envelope)             T_wal, C_wal                     :func:`~components.wall`
+Rie, Rea                      fra_wal·R_wal, (1−fra_wal)·R_wal ``wall(position="fra_wal")``
+Ria (models without Te)       R_wal                            ``wall(capacity=False)``
+Ria (with Te: the Ria models) R_inf                            :func:`~components.infiltration`
+Th, Ch, Rih (heater)          T_hea, C_hea, R_hea              ``embedded(name="hea")``
+Ts, Cs, Ris (sensor)          T_sen, C_sen, R_sen (measured)   :func:`~components.sensor`
+Tm, Cm, Rim (interior medium) T_int, C_int, R_int              :func:`~components.internal_mass`
+Aw (solar on the interior)    gA                               :func:`~components.window`
+Ae (solar on the envelope)    gA_wal                           ``window(zone="wal", name="wal")``
+Φh, Φs, Ta                    Q_hea, I_glo_hor, T_amb          inputs
+============================= ================================ ==================================
 
 Models: ``BM_Ti`` (the structure of ``Zon``), ``BM_TiTe``, ``BM_TiTh``, ``BM_TiTeTh``,
 ``BM_TiTmTe``, ``BM_TiTeThRia``, ``BM_TiTmTeTh``, ``BM_TiTeThTs``, ``BM_TiTmTeThTs``, and with solar

@@ -15,7 +15,7 @@ the gradient ``g = Jᵀr`` and the Gram matrix ``H = JᵀJ`` of the weighted res
 over the data: the discrete matrices come from a symmetric eigendecomposition (their derivatives
 in closed form), and the sensitivities of the state to the ``p`` coordinates travel with the state
 as an ``n × p`` matrix (:func:`~jaxbox.simulate._exact.normal_equations`). The Jacobian is never
-stored, so memory does not grow with the length of the data. ``simulator="diffrax"`` builds ``J``
+stored: the tangents are held one chunk of samples at a time. ``simulator="diffrax"`` builds ``J``
 with ``jax.jacfwd`` through Kvaerno5 at fixed steps instead.
 
 The step
@@ -334,7 +334,9 @@ def solve_jobs(
     A single job shares its data across its starts.
 
     Returns a dict with per member (all starts of all jobs, in order): ``job`` [B], ``z``, ``p``
-    [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s].
+    [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s] and
+    ``memory_bytes``, the compiled solve's arguments, outputs and scratch memory (-1 if the
+    backend does not report it).
     """
     if not jobs:
         raise FitError("no job to solve")
@@ -403,6 +405,11 @@ def solve_jobs(
         _STATS["compiles"] += 1
     else:
         _STATS["hits"] += 1
+    try:
+        mem = compiled.memory_analysis()
+        memory = int(mem.temp_size_in_bytes + mem.argument_size_in_bytes + mem.output_size_in_bytes)
+    except Exception:  # not every backend reports it
+        memory = -1
     t0 = time.perf_counter()
     z, cost, code, steps = jax.block_until_ready(compiled(*args))
     fit_s = time.perf_counter() - t0
@@ -430,6 +437,7 @@ def solve_jobs(
         "cost": np.asarray(cost),
         "compile_s": compile_s,
         "fit_s": fit_s,
+        "memory_bytes": memory,
     }
 
 

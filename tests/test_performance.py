@@ -1,0 +1,181 @@
+"""Performance properties that can be asserted without timing anything.
+
+Compilation is reused across datasets of the same shape; a start's result does not depend on the
+batch it ran in; a long series fits with memory bounded by the chunk of sensitivities; the
+parallel-in-time simulation agrees with the sequential one. Speed itself lives in
+``benchmarks/``.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxbox.data import Dataset
+from jaxbox.fit import compile_cache_info, fit, make_problem, problem_arrays
+from jaxbox.fit._fit import solve_jobs, solve_starts
+from jaxbox.fit._problem import rc_matrices
+from jaxbox.models import get_model, list_models
+from jaxbox.simulate import discretize_foh, simulate_arrays
+from jaxbox.simulate._exact import discretize_foh_rc, simulate_exact
+from jaxbox.simulate._parallel import linear_recurrence, simulate_parallel
+
+TRUTH = {"C_zon": 3.0e6, "C_wal": 4.0e7, "R_wal": 0.012, "gA": 2.5, "T_zon0": 26.0, "T_wal0": 19.0}
+
+
+def _synthetic(n, seed=0, noise=0.02, step=3600.0, truth=TRUTH):
+    model = get_model("ZonWal")
+    t = np.arange(n) * step
+    rng = np.random.default_rng(seed)
+    day = 2 * np.pi * t / 86400
+    u = {
+        "T_amb": 12 + 6 * np.sin(day - 2) + rng.normal(0, 0.3, n),
+        "Q_hea": 600.0 * (rng.random(n) > 0.5),
+        "I_glo_hor": np.maximum(0, 450 * np.sin(day)),
+    }
+    U = np.stack([u[k] for k in model.inputs], axis=1)
+    y = np.asarray(simulate_arrays(model, truth, t, U)[0][:, 0]) + noise * rng.normal(size=n)
+    return Dataset.from_arrays(t, {**u, "T_zon": y})
+
+
+@pytest.fixture(scope="module")
+def two_datasets():
+    return _synthetic(200, seed=1), _synthetic(200, seed=2, truth=TRUTH | {"R_wal": 0.02})
+
+
+def test_same_shape_reuses_the_compiled_solve(two_datasets):
+    a, b = two_datasets
+    fit("ZonWal", a, starts=6, seed=1)
+    before = compile_cache_info()
+    r = fit("ZonWal", b, starts=6, seed=4, bounds={"R_wal": (1e-4, 1.0)})
+    after = compile_cache_info()
+    assert after["compiles"] == before["compiles"]
+    assert after["hits"] == before["hits"] + 1
+    assert r.timing["compile_s"] == 0.0
+    assert r.params["R_wal"] == pytest.approx(0.02, rel=0.05)
+
+
+def test_a_start_does_not_depend_on_its_batch(two_datasets):
+    data = two_datasets[0]
+    problem = make_problem(get_model("ZonWal"), data)
+    arrays = problem_arrays(problem, data)
+    r = fit("ZonWal", data, starts=12, seed=0)
+    x0s = r.starts.initial
+    batched = {s: solve_starts(problem, x0s, arrays, slots=s) for s in (12, 4)}
+    for s, out in batched.items():
+        np.testing.assert_allclose(out["p"], r.starts.params, rtol=1e-9, err_msg=f"slots={s}")
+        np.testing.assert_array_equal(out["steps"], r.starts.steps)
+    for i in range(0, 12, 5):
+        alone = solve_starts(problem, x0s[i : i + 1], arrays)
+        np.testing.assert_allclose(alone["p"][0], r.starts.params[i], rtol=1e-7)
+        assert alone["cost"][0] == pytest.approx(r.starts.cost[i], rel=1e-9)
+        assert alone["steps"][0] == r.starts.steps[i]
+
+
+def test_datasets_batched_together_match_separate_fits(two_datasets):
+    jobs = []
+    for data in two_datasets:
+        problem = make_problem(get_model("ZonWal"), data)
+        x0 = np.asarray([[problem.guess_dict[n] for n in problem.free]])
+        jobs.append(
+            (
+                problem,
+                np.repeat(x0, 3, axis=0) * [[1.0], [1.3], [0.8]],
+                problem_arrays(problem, data),
+            )
+        )
+    together = solve_jobs(jobs)
+    np.testing.assert_array_equal(together["job"], [0, 0, 0, 1, 1, 1])
+    for j, job in enumerate(jobs):
+        alone = solve_jobs([job])
+        sl = together["job"] == j
+        np.testing.assert_allclose(together["p"][sl], alone["p"], rtol=1e-7)
+        np.testing.assert_allclose(together["cost"][sl], alone["cost"], rtol=1e-9)
+
+
+def test_long_series_memory_is_bounded():
+    """20,000 samples (a scaled-down year of 10-minute data): the solve's memory stays a few bytes
+    per sample, no Jacobian or reverse-mode tape of the series is kept."""
+    truth = TRUTH | {"T_zon0": 20.0, "T_wal0": 15.0}
+    short, long = (_synthetic(n, seed=3, step=600.0, truth=truth) for n in (2_000, 20_000))
+    mem = {}
+    for data in (short, long):
+        problem = make_problem(get_model("ZonWal"), data)
+        x0 = np.asarray([[problem.guess_dict[n] for n in problem.free]])
+        out = solve_starts(problem, x0, problem_arrays(problem, data))
+        mem[len(data)] = out["memory_bytes"]
+        p = dict(zip(problem.free, out["p"][0], strict=True))
+        assert out["code"][0] == 0
+        assert p["R_wal"] == pytest.approx(truth["R_wal"], rel=0.02)
+    if mem[20_000] < 0:
+        pytest.skip("the backend reports no memory analysis")
+    # the data (4 columns) plus chunked sensitivities: well under 2 kB a sample
+    assert mem[20_000] < 2_000 * 20_000
+    assert mem[20_000] < 12 * mem[2_000]
+
+
+@pytest.mark.parametrize("n", [2, 7, 481])
+def test_parallel_and_sequential_simulation_agree(n):
+    model = get_model("ZonWalIntInfWinBouC")
+    theta = model.defaults()
+    A, B, C, D = model.state_space(theta)
+    x0 = model.initial_state(theta)
+    rng = np.random.default_rng(0)
+    u = jnp.asarray(rng.normal(size=(n, len(model.inputs))) * [5, 5, 400, 150, 150] + 15)
+    ys, xs = simulate_exact(A, B, C, D, x0, u, 3600.0)
+    yp, xp = simulate_parallel(A, B, C, D, x0, u, 3600.0)
+    np.testing.assert_allclose(xp, xs, rtol=1e-12, atol=1e-10)
+    np.testing.assert_allclose(yp, ys, rtol=1e-12, atol=1e-10)
+
+
+def test_linear_recurrence_carries_trailing_axes():
+    rng = np.random.default_rng(1)
+    Phi = jnp.asarray(0.3 * rng.normal(size=(3, 3)))
+    d = jnp.asarray(rng.normal(size=(50, 3, 4)))
+    x0 = jnp.asarray(rng.normal(size=(3, 4)))
+    xs = [x0]
+    for k in range(50):
+        xs.append(Phi @ xs[-1] + d[k])
+    np.testing.assert_allclose(linear_recurrence(Phi, d, x0), jnp.stack(xs), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", list_models())
+def test_rc_route_matches_the_model_and_the_block_exponential(name):
+    """The fit assembles A, B by incidence matrices and discretises through eigh: same numbers as
+    ``state_space`` and the Van Loan exponential for every library model."""
+    model = get_model(name)
+    rng = np.random.default_rng(7)
+    theta = {k: v * (1 + 0.3 * rng.random()) for k, v in model.defaults().items()}
+    A, B, caps, held = rc_matrices(model, theta)
+    A0, B0, _, _ = model.state_space(theta)
+    np.testing.assert_allclose(A, A0, rtol=1e-13, atol=1e-20)
+    np.testing.assert_allclose(B, B0, rtol=1e-13, atol=1e-20)
+    for dt in (600.0, 3600.0):
+        for got, ref in zip(
+            discretize_foh_rc(A, B, caps, dt, held), discretize_foh(A0, B0, dt), strict=True
+        ):
+            scale = float(jnp.max(jnp.abs(ref)))
+            np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * scale)
+
+
+def test_rc_discretisation_is_cheap_to_differentiate_under_vmap():
+    """The eigh route differentiates through a custom JVP: its forward Jacobian matches the one
+    through the block-matrix exponential."""
+    model = get_model("ZonWalIntInfWinBouC")
+    names = model.param_names
+
+    def disc(route):
+        def f(p):
+            theta = dict(zip(names, p, strict=True))
+            A, B, caps, held = rc_matrices(model, theta)
+            if route == "rc":
+                return discretize_foh_rc(A, B, caps, 3600.0, held)
+            return discretize_foh(A, B, 3600.0)
+
+        return f
+
+    p = jnp.asarray([model.defaults()[n] for n in names])
+    J_rc = jax.jacfwd(disc("rc"))(p)
+    J_vl = jax.jacfwd(disc("vanloan"))(p)
+    for a, b in zip(J_rc, J_vl, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-9 * float(jnp.max(jnp.abs(b))))

@@ -529,3 +529,41 @@ def test_exp1_hierarchy_on_twin_house_data():
         parent = result.params
     assert all(b < a for a, b in zip(rmse, rmse[1:], strict=False)), rmse
     assert rmse[-1] < 0.2 * rmse[0], rmse
+
+
+# ---- several datasets in one batched fit ---------------------------------------------------------
+
+
+def test_fit_many_fits_same_shaped_datasets_in_one_call():
+    from jaxbox.fit import FitError, compile_cache_info
+    from jaxbox.fit._batch import fit_many
+
+    model = get_model("ZonWalIntInf")
+    truths = {
+        "A": {p: TRUTH[p] for p in model.param_names},
+        "B": {
+            p: TRUTH[p] * (1.3 if p.startswith(("R_", "C_")) else 1.0) for p in model.param_names
+        },
+    }
+    data = {k: synthetic(model, th, seed=i) for i, (k, th) in enumerate(truths.items())}
+    x0 = starts_away(model, model.param_names, truths["A"])
+    before = compile_cache_info()["compiles"]
+    results = fit_many(model, data, starts=x0, max_steps=500)
+    assert compile_cache_info()["compiles"] - before <= 1
+    assert list(results) == ["A", "B"]
+    for k, r in results.items():
+        assert r.timing["batch"] == 2 and r.data is data[k]
+        assert r.converged
+        for p in model.param_names:
+            assert r.params[p] == pytest.approx(truths[k][p], rel=1e-4), (k, p)
+    # the same as fitting one by one
+    alone = fit(model, data["B"], starts=x0, max_steps=500)
+    for p in model.param_names:
+        assert alone.params[p] == pytest.approx(results["B"].params[p], rel=1e-6), p
+    as_list = fit_many(model, list(data.values()), starts=x0, max_steps=500)
+    assert [r.params for r in as_list] == [r.params for r in results.values()]
+    short = data["A"].slice(end=data["A"].index[100])
+    with pytest.raises(FitError, match="same length"):
+        fit_many(model, [data["A"], short])
+    with pytest.raises(FitError, match="at least one dataset"):
+        fit_many(model, [])

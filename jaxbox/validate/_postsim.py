@@ -126,6 +126,23 @@ def _contiguous(ident, valid) -> None:
         )
 
 
+def joined_arrays(result, valid=None):
+    """Inputs u [N, m] and outputs y [N, p] of the identification data followed by the
+    validation data (checked to follow directly), and the number of identification samples."""
+    model = result.model
+    ident = result.data
+    names_in, names_out = list(model.inputs), list(model.outputs)
+    u = ident.array(names_in)
+    y = ident.array(names_out)
+    n_id = len(u)
+    if valid is not None:
+        valid.require(names_in + names_out, what=f"model {model.name}")
+        _contiguous(ident, valid)
+        u = np.concatenate([u, valid.array(names_in)])
+        y = np.concatenate([y, valid.array(names_out)])
+    return u, y, n_id
+
+
 def validate(
     result,
     valid=None,
@@ -150,14 +167,7 @@ def validate(
     model = result.model
     ident = result.data
     names_in, names_out = list(model.inputs), list(model.outputs)
-    u = ident.array(names_in)
-    y = ident.array(names_out)
-    n_id = len(u)
-    if valid is not None:
-        valid.require(names_in + names_out, what=f"model {model.name}")
-        _contiguous(ident, valid)
-        u = np.concatenate([u, valid.array(names_in)])
-        y = np.concatenate([y, valid.array(names_out)])
+    u, y, n_id = joined_arrays(result, valid)
     t = np.arange(len(u)) * ident.step
     opts = {"rtol": rtol, "atol": atol} if method == "diffrax" else {}
     ysim, xs = _simulate(model, result.params, t, u, method, tuple(sorted(opts.items())))

@@ -136,20 +136,13 @@ def prediction_performance(
     """
     import jax.numpy as jnp
 
-    from ._postsim import _contiguous
+    from ._postsim import joined_arrays
 
     require_x64()
     model = result.model
     ident = result.data
-    names_in, names_out = list(model.inputs), list(model.outputs)
-    u = ident.array(names_in)
-    y = ident.array(names_out)
-    n_id = len(u)
-    if valid is not None:
-        valid.require(names_in + names_out, what=f"model {model.name}")
-        _contiguous(ident, valid)
-        u = np.concatenate([u, valid.array(names_in)])
-        y = np.concatenate([y, valid.array(names_out)])
+    names_out = list(model.outputs)
+    u, y, n_id = joined_arrays(result, valid)
     n_all = len(u)
     ks = np.asarray(sorted(set(DEFAULT_HORIZONS if horizons is None else horizons)), dtype=int)
     shortest = min(n_id, n_all - n_id) if valid is not None else n_id

@@ -12,27 +12,14 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
+from .._io import to_jsonable
 
 __all__ = ["fit_report", "save_plots", "jsonable"]
 
 
 def jsonable(obj):
     """A copy of ``obj`` with numpy scalars/arrays as Python values and nan/inf as ``None``."""
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return jsonable(obj.tolist())
-    if isinstance(obj, bool | np.bool_):
-        return bool(obj)
-    if isinstance(obj, int | np.integer):
-        return int(obj)
-    if isinstance(obj, float | np.floating):
-        x = float(obj)
-        return x if math.isfinite(x) else None
-    return obj
+    return to_jsonable(obj)
 
 
 def _valid_dataset(validation):

@@ -19,6 +19,7 @@ from .data import load as load
 from .fit import FitError as FitError
 from .fit import FitResult as FitResult
 from .fit import fit as fit
+from .fit import fit_many as fit_many
 from .models import ModelError as ModelError
 from .models import Parameter as Parameter
 from .models import RCModel as RCModel

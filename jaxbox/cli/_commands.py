@@ -63,14 +63,15 @@ def _progress(msg: str, args) -> None:
 
 
 def _models(args) -> int:
-    from ..models import library_models
+    from ..models import describe_models, library_models, model_families
 
     models = library_models()
     if args.json:
-        _print_json({"models": [m.describe() for m in models]})
+        _print_json({"models": describe_models()})
         return 0
     for m in models:
-        print(f"{m.name}: {m.description}")
+        fam = ", ".join(model_families(m.name))
+        print(f"{m.name}{f' [{fam}]' if fam else ''}: {m.description}")
         print(f"  states:  {', '.join(m.states)}")
         print(f"  inputs:  {', '.join(m.inputs)}")
         print(f"  outputs: {', '.join(m.outputs)}")

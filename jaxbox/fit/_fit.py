@@ -79,7 +79,7 @@ def clear_compile_cache() -> None:
 
 
 #: step control (read when a solve is compiled, part of the compile key): Moré's scaling by the
-#: running maximum of the column norms, the first damping, and a cap on the largest change of an
+#: running maximum of the column norms, the first damping, and a cap on the change of each
 #: internal coordinate per step, which keeps a far start from leaping into a saturated corner of
 #: the bounds.
 _OPTIONS = {"scaling": "more", "lambda0": _LAMBDA0, "step_cap": 2.0}
@@ -169,8 +169,10 @@ def levenberg_marquardt(
         step_s = -jax.scipy.linalg.cho_solve((L, True), (g / d)[..., None])[..., 0]
         step = step_s / d
         if _OPTIONS["step_cap"]:
-            big = jnp.max(jnp.abs(step), axis=-1)
-            step = step * jnp.minimum(1.0, _OPTIONS["step_cap"] / big)[:, None]
+            # per coordinate: a saturated coordinate (a parameter resting on a bound, whose
+            # scaled step is huge) must not shrink the steps of all the others
+            limit = _OPTIONS["step_cap"]
+            step = jnp.clip(step, -limit, limit)
         step = where(fresh, jnp.zeros_like(step), step)
         pred = -(2.0 * jnp.sum(g * step, -1) + jnp.einsum("bi,bij,bj->b", step, H, step))
         zt = z + step

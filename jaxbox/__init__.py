@@ -11,6 +11,7 @@ from . import reference as reference
 from . import report as report
 from . import select as select
 from . import validate as validate
+from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._x64 import PrecisionError as PrecisionError
 from ._x64 import enable_x64 as enable_x64
 from .data import DataError as DataError
@@ -19,6 +20,7 @@ from .data import load as load
 from .fit import FitError as FitError
 from .fit import FitResult as FitResult
 from .fit import fit as fit
+from .fit import fit_batch as fit_batch
 from .fit import fit_many as fit_many
 from .models import ModelError as ModelError
 from .models import Parameter as Parameter
@@ -28,6 +30,7 @@ from .models import get_model as get_model
 from .models import list_models as list_models
 from .select import GreyBox as GreyBox
 from .select import forward_selection as forward_selection
+from .select import forward_selection_many as forward_selection_many
 from .simulate import Simulation as Simulation
 from .simulate import simulate as simulate
 

@@ -152,3 +152,49 @@ def test_bad_input_exits_2_with_one_line(csv_file, capsys, args, words):
     assert len(lines) == 1 and lines[0].startswith("error: ")
     assert words in lines[0]
     assert "Traceback" not in err
+
+
+def test_fit_several_files_in_one_batch(csv_file, capsys, tmp_path):
+    """Two buildings of the same length: one compiled call, each result the one fitted alone."""
+    frame = pd.read_csv(csv_file)
+    frame["indoor"] += 0.05 * np.random.default_rng(1).standard_normal(len(frame))
+    second = tmp_path / "building.csv"  # the same file name in another folder
+    frame.to_csv(second, index=False)
+    plots = tmp_path / "plots"
+    common = ["--model", "Zon", "--starts", "3", "--json", *MAP]
+    code = main(["fit", str(csv_file), str(second), *common, "--plots", str(plots)])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    doc = json.loads(out.out)
+    assert doc["model"] == "Zon" and len(doc["fits"]) == 2
+    assert [f["data"]["source"] for f in doc["fits"]] == [str(csv_file), str(second)]
+    assert all(f["timing"]["batch"] == 2 for f in doc["fits"])
+    # plots of each building in a folder of its own, even with the same file name
+    assert sorted(p.name for p in plots.iterdir()) == ["1-building", "2-building"]
+    for f, path in zip(doc["fits"], (csv_file, second), strict=True):
+        assert main(["fit", str(path), *common]) == 0
+        alone = json.loads(capsys.readouterr().out)
+        assert f["se_auto"] == pytest.approx(alone["se_auto"], rel=1e-9)
+        assert f["params"]["R_wal"]["value"] == pytest.approx(
+            alone["params"]["R_wal"]["value"], rel=1e-7
+        )
+    assert main(["fit", str(csv_file), str(csv_file), *common]) == 2
+    assert "the same DATA is given twice" in capsys.readouterr().err
+
+
+def test_command_line_keeps_a_persistent_compilation_cache(tmp_path):
+    """A second process reuses the first one's compiled solve from the cache folder."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "JAXBOX_CACHE": "1", "JAXBOX_CACHE_DIR": str(tmp_path / "cache")}
+    cmd = [sys.executable, "-m", "jaxbox", "fit", "twinhouse_exp1:N2", "--model", "Zon"]
+    cmd += ["--starts", "2", "--json"]
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert any((tmp_path / "cache").iterdir())
+    env["JAXBOX_CACHE_DIR"] = str(tmp_path / "unwritable" / "x")
+    (tmp_path / "unwritable").write_text("a file where a folder should be")
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr  # the cache is a convenience, never an error

@@ -201,3 +201,33 @@ def test_same_shaped_model_variants_in_one_call(two_datasets):
         np.testing.assert_allclose(together["cost"][sl], alone["cost"], rtol=1e-8)
         # a sloppy direction (an internal mass the data hardly sees) amplifies round-off
         np.testing.assert_allclose(together["p"][sl], alone["p"], rtol=1e-4)
+
+
+def test_fit_batch_groups_by_shape_and_reports_failures(two_datasets):
+    """Requests of one shape share a compiled call, another length gets its own; a request that
+    cannot be set up is returned as its error while the others are solved."""
+    from jaxbox.fit import FitError, fit_batch
+
+    a, b = two_datasets
+    short = _synthetic(120, seed=5)
+    requests = [
+        {"model": "ZonWal", "data": a, "starts": 3, "seed": 2},
+        {"model": "ZonWal", "data": short, "starts": 2},
+        {"model": "ZonWal", "data": b, "starts": 3, "seed": 2, "bounds": {"R_wal": (1e-4, 1.0)}},
+        {"model": "ZonWal", "data": a, "free": ["C_zon", "no_such_parameter"]},
+    ]
+    out = fit_batch(requests, errors="return")
+    assert isinstance(out[3], FitError) and "no_such_parameter" in str(out[3])
+    assert [r.timing["batch"] for r in out[:3]] == [2, 1, 2]
+    for req, res in zip(requests[:3], out[:3], strict=True):
+        alone = fit(
+            req["model"],
+            req["data"],
+            **{k: v for k, v in req.items() if k not in ("model", "data")},
+        )
+        assert res.cost == pytest.approx(alone.cost, rel=1e-9)
+        np.testing.assert_allclose(res.starts.params, alone.starts.params, rtol=1e-7)
+    with pytest.raises(FitError, match="no_such_parameter"):
+        fit_batch(requests)
+    with pytest.raises(FitError, match="unknown fit argument"):
+        fit_batch([{"model": "ZonWal", "data": a, "start": 3}])

@@ -146,6 +146,31 @@ def test_forward_selection_accepts_the_true_structure(selection):
     assert any("4 starts in one batch" in line for line in lines)
 
 
+def test_lockstep_selection_on_two_buildings_matches_one_by_one(selection, data):
+    """Two buildings climb together, each step's fits in one batch; each climbs as it would
+    alone (same cases, same optima)."""
+    from jaxbox.select import forward_selection_many
+
+    sel, _ = selection
+    boxes = [GreyBox(data, name="a"), GreyBox(synthetic(seed=4), name="b")]
+    lines = []
+    sels = forward_selection_many(boxes, ["ZonWal", "Zon"], starts=4, seed=1, progress=lines.append)
+    assert [s.greybox for s in sels] == boxes
+    assert sels[0].order == sel.order and sels[0].accepted == sel.accepted
+    for name in sel.order:
+        alone, together = sel.greybox[name], boxes[0][name]
+        assert together.timing["batch"] == 2
+        assert together.result.cost == pytest.approx(alone.result.cost, rel=1e-9)
+        np.testing.assert_allclose(
+            together.result.starts.params, alone.result.starts.params, rtol=1e-7
+        )
+    assert sels[1].accepted == "ZonWal"
+    assert boxes[1]["ZonWal"].result.params["R_wal"] == pytest.approx(TRUTH["R_wal"], rel=0.05)
+    assert any(line.startswith("b: ") for line in lines)
+    with pytest.raises(ValueError, match="at least one"):
+        forward_selection_many([], ["Zon"])
+
+
 def test_table_and_plot(selection):
     sel, _ = selection
     t = sel.greybox.table()
@@ -206,3 +231,24 @@ def test_select_command_json(data, tmp_path, capsys):
     assert doc["fit"]["model"] == "ZonWal" and "rmse_cross" in doc["fit"]
     assert (tmp_path / "o" / "report.html").exists()
     assert (tmp_path / "o" / "greybox" / "greybox.json").exists()
+
+
+def test_select_command_on_two_buildings(data, tmp_path, capsys):
+    import json
+
+    from jaxbox.cli._main import main
+
+    paths = []
+    for name, d in (("a", data), ("b", synthetic(seed=4))):
+        paths.append(tmp_path / f"{name}.csv")
+        d.frame.reset_index().to_csv(paths[-1], index=False)
+    out = tmp_path / "o"
+    args = ["select", *map(str, paths), "--models", "Zon,ZonWal", "--starts", "4", "--seed", "1"]
+    assert main([*args, "--json", "--out", str(out)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [b["dataset"] for b in doc["buildings"]] == [str(p) for p in paths]
+    assert [b["accepted"] for b in doc["buildings"]] == ["ZonWal", "ZonWal"]
+    assert all(row["timing"]["batch"] == 2 for b in doc["buildings"] for row in b["table"])
+    for name in ("a", "b"):
+        assert (out / name / "report.html").exists()
+        assert (out / name / "greybox" / "greybox.json").exists()

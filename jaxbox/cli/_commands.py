@@ -5,12 +5,13 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Sequence
 from datetime import datetime
 from pathlib import Path
 
 from .._io import to_jsonable
 
-__all__ = ["run", "UsageError", "add_data_arguments"]
+__all__ = ["run", "UsageError", "add_data_arguments", "load_all"]
 
 DATA_HELP = (
     "CSV file with a 'time' column and canonical columns (T_zon, T_amb, Q_hea, I_glo_hor, …), "
@@ -20,7 +21,12 @@ DATA_HELP = (
 
 def add_data_arguments(p) -> None:
     """DATA and the options that read and split it (shared by ``fit`` and ``select``)."""
-    p.add_argument("data", metavar="DATA", help=DATA_HELP)
+    p.add_argument(
+        "data",
+        metavar="DATA",
+        nargs="+",
+        help=DATA_HELP + "; several DATA of the same length are fitted together in one batch",
+    )
     p.add_argument(
         "--map",
         action="append",
@@ -202,47 +208,90 @@ def fit_json(result, validation, *, timing, data_info, valid=None) -> dict:
     return doc
 
 
+def load_all(args):
+    """Every DATA of the command line: ``[(spec, data, ident, valid), …]``."""
+    columns = _pairs(args.map, "--map", "T_zon=living_temp")
+    train, validate = _period(args.train, "--train"), _period(args.validate, "--validate")
+    out = []
+    for spec in args.data:
+        data = load_data(spec, columns=columns, time_column=args.time, resample=args.resample)
+        ident, valid = split_periods(data, train, validate)
+        out.append((spec, data, ident, valid))
+    if len({spec for spec, *_ in out}) < len(out):
+        raise UsageError("the same DATA is given twice; give each dataset once")
+    return out
+
+
 def _fit(args) -> int:
-    from ..fit import fit
+    from ..fit import fit_batch
     from ..models import get_model
     from ..validate import validate
 
-    columns = _pairs(args.map, "--map", "T_zon=living_temp")
     fixed = _floats(args.fix, "--fix", "gA=2.5")
     bounds = _bounds(args.bounds)
     model = get_model(args.model)
-    data = load_data(args.data, columns=columns, time_column=args.time, resample=args.resample)
-    ident, valid = split_periods(
-        data, _period(args.train, "--train"), _period(args.validate, "--validate")
-    )
-    ident.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
-    _progress(
-        f"fitting {model.name} on {len(ident)} samples ({ident.start} .. {ident.end}) "
-        f"from {args.starts} starts …",
-        args,
-    )
+    sets = load_all(args)
+    for spec, _, ident, _ in sets:
+        what = f"model {model.name}" + (f" on {spec}" if len(sets) > 1 else "")
+        ident.require(list(model.inputs) + list(model.outputs), what=what)
+    if args.starts < 1:
+        raise UsageError(f"--starts must be at least 1, got {args.starts}")
+    lengths = {len(ident) for _, _, ident, _ in sets}
+    for spec, _, ident, _ in sets:
+        _progress(
+            f"fitting {model.name} on {spec}: {len(ident)} samples ({ident.start} .. {ident.end}) "
+            f"from {args.starts} starts …",
+            args,
+        )
+    if len(sets) > 1 and len(lengths) > 1:
+        _progress(
+            "identification periods of different lengths: each length is fitted in a batch "
+            "of its own",
+            args,
+        )
+    request = {
+        "model": model,
+        "fixed": fixed,
+        "bounds": bounds,
+        "starts": args.starts,
+        "seed": args.seed,
+        "simulator": args.simulator,
+        "max_steps": args.max_steps,
+    }
     t0 = time.perf_counter()
-    result = fit(
-        model,
-        ident,
-        fixed=fixed,
-        bounds=bounds,
-        starts=args.starts,
-        seed=args.seed,
-        simulator=args.simulator,
-        max_steps=args.max_steps,
-    )
+    results = fit_batch([{**request, "data": ident} for _, _, ident, _ in sets])
     t1 = time.perf_counter()
-    validation = validate(result, valid)
-    t2 = time.perf_counter()
-    timing = {**result.timing, "total_fit_s": t1 - t0, "validate_s": t2 - t1}
-    info = _data_info(args.data, ident, valid)
-    doc = fit_json(result, validation, timing=timing, data_info=info, valid=valid)
-    if args.plots:
-        doc["plots"] = _plots(result, valid, validation, args.plots)
+    docs = []
+    for (spec, _, ident, valid), result in zip(sets, results, strict=True):
+        t2 = time.perf_counter()
+        validation = validate(result, valid)
+        timing = {
+            **result.timing,
+            "total_fit_s": t1 - t0,
+            "validate_s": time.perf_counter() - t2,
+        }
+        doc = fit_json(
+            result,
+            validation,
+            timing=timing,
+            data_info=_data_info(spec, ident, valid),
+            valid=valid,
+        )
+        if args.plots:
+            folder = Path(args.plots)
+            if len(sets) > 1:
+                folder = folder / _slug(spec, args.data)
+            doc["plots"] = _plots(result, valid, validation, folder)
+        docs.append((doc, result, validation))
     if args.json:
-        _print_json(doc)
-    else:
+        if len(docs) == 1:
+            _print_json(docs[0][0])
+        else:
+            _print_json({"model": model.name, "fits": [d for d, _, _ in docs]})
+        return 0
+    for (spec, *_), (doc, result, validation) in zip(sets, docs, strict=True):
+        if len(docs) > 1:
+            print(f"== {spec}")
         print(result.summary())
         print(_rmse_line(validation))
         print("valid model" if doc["valid"] else "NOT a valid model:")
@@ -250,11 +299,29 @@ def _fit(args) -> int:
             print(f"  - {reason}")
         for warning in doc.get("warnings", []):
             print(f"  (warning) {warning}")
+        timing = doc["timing"]
+        batch = f" (one batch of {timing['batch']} datasets)" if timing.get("batch", 1) > 1 else ""
         print(
-            f"timing: compile {timing['compile_s']:.2f} s, fit {timing['fit_s']:.3f} s, "
+            f"timing: compile {timing['compile_s']:.2f} s, fit {timing['fit_s']:.3f} s{batch}, "
             f"validation {timing['validate_s']:.2f} s"
         )
+        if len(docs) > 1:
+            print()
     return 0
+
+
+def _slug(spec: str, specs: Sequence[str] = ()) -> str:
+    """A folder name for a DATA argument, unique among ``specs`` (the numbered position is
+    prefixed when two files share a name)."""
+
+    def name(x: str) -> str:
+        base = Path(x).stem if not x.startswith("twinhouse_exp1") else x
+        return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in base) or "data"
+
+    slug = name(spec)
+    if [name(x) for x in specs].count(slug) > 1:
+        slug = f"{list(specs).index(spec) + 1}-{slug}"
+    return slug
 
 
 def _plots(result, valid, validation, directory) -> list[str]:

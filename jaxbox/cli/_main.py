@@ -1,5 +1,8 @@
 """The ``jaxbox`` command: argument parsing, error handling and dispatch.
 
+Compiled solves are kept in JAX's persistent compilation cache between runs (see
+:func:`jaxbox.enable_compilation_cache`; ``JAXBOX_CACHE=0`` turns it off).
+
 Exit codes: 0 success; 2 bad input (one line ``error: …`` on stderr, no traceback); 1 an
 unexpected internal error (set ``JAXBOX_DEBUG=1`` for the traceback).
 """
@@ -79,6 +82,20 @@ def _bad_input_errors() -> tuple[type[BaseException], ...]:
     return (DataError, FitError, ModelError, ValidationError, UsageError, FileNotFoundError)
 
 
+def _compilation_cache() -> None:
+    """Reuse compiled solves across runs (JAX's persistent cache in ``$JAXBOX_CACHE_DIR`` or
+    ``~/.cache/jaxbox/jax``); ``JAXBOX_CACHE=0`` turns it off. A folder that cannot be
+    written only costs the reuse."""
+    if os.environ.get("JAXBOX_CACHE", "1").strip().lower() in ("0", "no", "off", "false"):
+        return
+    from .._cache import enable_compilation_cache
+
+    try:
+        enable_compilation_cache()
+    except OSError:
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``jaxbox`` console script; returns the exit code."""
     parser = build_parser()
@@ -89,6 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     from .. import enable_x64
 
     enable_x64()
+    _compilation_cache()
     try:
         from ._commands import run
 

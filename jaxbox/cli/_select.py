@@ -15,12 +15,11 @@ from ._commands import (
     UsageError,
     _data_info,
     _out_dir,
-    _pairs,
-    _period,
+    _slug,
     add_data_arguments,
     fit_json,
+    load_all,
     load_data,
-    split_periods,
 )
 
 __all__ = ["select_command", "demo_command", "add_select_arguments", "add_demo_arguments"]
@@ -86,19 +85,24 @@ def _candidates(text: str):
     return names
 
 
-def _run_selection(data, ident, valid, spec, args, candidates):
-    from ..select import GreyBox, forward_selection
+def _run_selection(sets, args, candidates):
+    """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
+    lock-step, each step's fits batched over the buildings."""
+    from ..select import GreyBox, forward_selection_many
 
-    gb = GreyBox(
-        data,
-        train=(str(ident.start), str(ident.end)),
-        valid=(str(valid.start), str(valid.end)),
-        name=spec,
-    )
     if args.starts < 1:
         raise UsageError(f"--starts must be at least 1, got {args.starts}")
-    sel = forward_selection(
-        gb,
+    boxes = [
+        GreyBox(
+            data,
+            train=(str(ident.start), str(ident.end)),
+            valid=(str(valid.start), str(valid.end)),
+            name=spec,
+        )
+        for spec, data, ident, valid in sets
+    ]
+    selections = forward_selection_many(
+        boxes,
         candidates,
         starts=args.starts,
         seed=args.seed,
@@ -107,7 +111,7 @@ def _run_selection(data, ident, valid, spec, args, candidates):
         max_steps=args.max_steps,
         progress=_say(args),
     )
-    return gb, sel
+    return list(zip(boxes, selections, strict=True))
 
 
 def _document(gb, sel, spec, ident, valid) -> dict:
@@ -164,27 +168,36 @@ def _print_table(gb, sel) -> None:
 
 
 def select_command(args) -> int:
-    """``jaxbox select DATA``: forward selection; ``--json`` prints the table and the
-    accepted model's fit document."""
+    """``jaxbox select DATA…``: forward selection; ``--json`` prints the table and the
+    accepted model's fit document (with several DATA: ``{"buildings": [document, …]}``)."""
 
-    columns = _pairs(args.map, "--map", "T_zon=living_temp")
-    data = load_data(args.data, columns=columns, time_column=args.time, resample=args.resample)
-    ident, valid = split_periods(
-        data, _period(args.train, "--train"), _period(args.validate, "--validate")
-    )
-    data = data.slice(ident.start, valid.end)
+    sets = [
+        (spec, data.slice(ident.start, valid.end), ident, valid)
+        for spec, data, ident, valid in load_all(args)
+    ]
     candidates = _candidates(args.models)
     t0 = time.perf_counter()
-    gb, sel = _run_selection(data, ident, valid, args.data, args, candidates)
-    doc = _document(gb, sel, args.data, ident, valid)
-    doc["elapsed_s"] = time.perf_counter() - t0
-    if args.out:
-        doc["files"] = _write_outputs(gb, sel, doc, _out_dir(args.out))
+    outcomes = _run_selection(sets, args, candidates)
+    elapsed = time.perf_counter() - t0
+    docs = []
+    out = _out_dir(args.out) if args.out else None
+    for (spec, _, ident, valid), (gb, sel) in zip(sets, outcomes, strict=True):
+        doc = _document(gb, sel, spec, ident, valid)
+        doc["elapsed_s"] = elapsed
+        if out is not None:
+            folder = out if len(sets) == 1 else out / _slug(spec, args.data)
+            folder.mkdir(parents=True, exist_ok=True)
+            doc["files"] = _write_outputs(gb, sel, doc, folder)
+        docs.append(doc)
     if args.json:
-        print(json.dumps(to_jsonable(doc), indent=2, allow_nan=False))
-    else:
+        body = docs[0] if len(docs) == 1 else {"buildings": docs, "elapsed_s": elapsed}
+        print(json.dumps(to_jsonable(body), indent=2, allow_nan=False))
+        return 0
+    for (gb, sel), doc in zip(outcomes, docs, strict=True):
+        if len(docs) > 1:
+            print(f"\n== {gb.name}")
         _print_table(gb, sel)
-        if args.out:
+        if out is not None:
             print(f"\nreport: {doc['files']['report']}")
     return 0
 
@@ -205,7 +218,7 @@ def demo_command(args) -> int:
         f"validation {valid.start} .. {valid.end}"
     )
     t0 = time.perf_counter()
-    gb, sel = _run_selection(data, ident, valid, spec, args, "exp1")
+    ((gb, sel),) = _run_selection([(spec, data, ident, valid)], args, "exp1")
     doc = _document(gb, sel, spec, ident, valid)
     doc["elapsed_s"] = time.perf_counter() - t0
     doc["files"] = _write_outputs(gb, sel, doc, out)

@@ -15,11 +15,25 @@ import numpy as np
 
 from .._x64 import require_x64
 from ..models import get_model
-from ._fit import make_starts, result_from, solve_jobs
+from ._fit import _problem_key, make_starts, result_from, solve_jobs
 from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
 
-__all__ = ["fit_many"]
+__all__ = ["fit_many", "fit_batch"]
+
+#: the problem arguments of a request (see :func:`fit_batch`), with their defaults
+_PROBLEM = {
+    "free": None,
+    "fixed": None,
+    "bounds": None,
+    "guess": None,
+    "weights": None,
+    "simulator": "exact",
+    "sim_options": None,
+}
+#: the solver settings of a request; requests solved together share them
+_SOLVER = {"max_steps": 100, "rtol": 1e-6, "atol": 1e-16}
+_STARTS = {"starts": 1, "seed": 0, "concentration": 4.0}
 
 
 def fit_many(
@@ -77,33 +91,116 @@ def fit_many(
                 f"has {n} every {step:g} s; batched datasets need the same length and step "
                 "(slice or resample them), or fit them one by one"
             )
-    jobs, problems, x0s = [], [], []
-    for data in items:
-        problem = make_problem(
-            model,
-            data,
-            free=free,
-            fixed=fixed,
-            bounds=bounds,
-            guess=guess,
-            weights=weights,
-            simulator=simulator,
-            sim_options=sim_options,
-        )
-        x0 = make_starts(problem, starts, seed, concentration)
-        jobs.append((problem, x0, problem_arrays(problem, data)))
-        problems.append(problem)
-        x0s.append(x0)
-    out = solve_jobs(jobs, max_steps=max_steps, rtol=rtol, atol=atol, slots=slots)
-    timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(items)}
-    settings = {"max_steps": max_steps, "rtol": rtol, "atol": atol, "seed": seed, "slots": slots}
-    results, first = [], 0
-    for i, (problem, data, x0) in enumerate(zip(problems, items, x0s, strict=True)):
-        sl = slice(first, first + len(x0))
-        first += len(x0)
-        try:
-            results.append(result_from(problem, data, x0, out, sl, settings, timing))
-        except FitError as err:
+    common = {
+        "free": free,
+        "fixed": fixed,
+        "bounds": bounds,
+        "guess": guess,
+        "starts": starts,
+        "seed": seed,
+        "weights": weights,
+        "simulator": simulator,
+        "sim_options": sim_options,
+        "concentration": concentration,
+        "max_steps": max_steps,
+        "rtol": rtol,
+        "atol": atol,
+    }
+    outcomes = fit_batch(
+        [{"model": model, "data": data, **common} for data in items], slots=slots, errors="return"
+    )
+    results = []
+    for i, outcome in enumerate(outcomes):
+        if isinstance(outcome, Exception):
             label = keys[i] if keys is not None else i
-            raise FitError(f"dataset {label!r}: {err}") from None
+            raise FitError(f"dataset {label!r}: {outcome}") from None
+        results.append(outcome)
     return dict(zip(keys, results, strict=True)) if keys is not None else results
+
+
+def fit_batch(
+    requests: Sequence[Mapping], *, slots: int | None = None, errors: str = "raise"
+) -> list[FitResult | FitError]:
+    """Several estimation problems solved together: one compiled call per compatible group.
+
+    A request is a mapping with ``model`` and ``data`` and any of the keyword arguments of
+    :func:`~jaxbox.fit.fit` (``free``, ``fixed``, ``bounds``, ``guess``, ``starts``, ``seed``,
+    ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
+    ``atol``). Requests with the same number of free parameters, data of the same shape and the
+    same solver settings are solved in one batch (with the exact simulator even when their model
+    structures differ; with diffrax only for the same structure); the others in batches of their
+    own. Each result is the one :func:`~jaxbox.fit.fit` would return for its request.
+
+    Args:
+        requests: the problems, in order.
+        slots: starts iterated together in each batch (default: from the batch size).
+        errors: ``"raise"`` (default) raises the first :class:`FitError` (a problem that cannot
+            be set up, or every start of a request failed); ``"return"`` puts it in the
+            request's place in the returned list and solves the others.
+
+    Returns:
+        One :class:`FitResult` (or :class:`FitError`) per request, in order; ``timing`` is that
+        of the request's batch (``batch``: the number of requests in it).
+    """
+    require_x64()
+    if errors not in ("raise", "return"):
+        raise FitError(f"errors must be 'raise' or 'return', got {errors!r}")
+    unknown = sorted(
+        {k for r in requests for k in r} - {"model", "data", *_PROBLEM, *_SOLVER, *_STARTS}
+    )
+    if unknown:
+        raise FitError(f"unknown fit argument(s) in a request: {', '.join(unknown)}")
+    outcomes: list = [None] * len(requests)
+    prepared = []  # (index, problem, data, starts, arrays, solver settings)
+    for i, req in enumerate(requests):
+        try:
+            if "model" not in req or "data" not in req:
+                raise FitError(f"request {i} needs 'model' and 'data'")
+            model, data = get_model(req["model"]), req["data"]
+            problem = make_problem(model, data, **{k: req.get(k, v) for k, v in _PROBLEM.items()})
+            x0 = make_starts(
+                problem,
+                req.get("starts", _STARTS["starts"]),
+                req.get("seed", _STARTS["seed"]),
+                req.get("concentration", _STARTS["concentration"]),
+            )
+            solver = tuple(float(req.get(k, v)) for k, v in _SOLVER.items())
+            prepared.append((i, problem, data, x0, problem_arrays(problem, data), solver))
+        except FitError as err:
+            if errors == "raise":
+                raise
+            outcomes[i] = err
+    groups: dict = {}
+    for item in prepared:
+        _, problem, _, x0, arrays, solver = item
+        shape = (x0.shape[1], *(np.shape(a) for a in arrays))
+        structure = None if problem.simulator == "exact" else _problem_key(problem)
+        groups.setdefault((solver, shape, problem.simulator, structure), []).append(item)
+    for (solver, *_), members in groups.items():
+        max_steps, rtol, atol = int(solver[0]), solver[1], solver[2]
+        out = solve_jobs(
+            [(problem, x0, arrays) for _, problem, _, x0, arrays, _ in members],
+            max_steps=max_steps,
+            rtol=rtol,
+            atol=atol,
+            slots=slots,
+        )
+        timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(members)}
+        first = 0
+        for i, problem, data, x0, _, _ in members:
+            sl = slice(first, first + len(x0))
+            first += len(x0)
+            settings = {
+                "max_steps": max_steps,
+                "rtol": rtol,
+                "atol": atol,
+                "seed": requests[i].get("seed", _STARTS["seed"]),
+                "slots": slots,
+            }
+            try:
+                outcomes[i] = result_from(problem, data, x0, out, sl, settings, dict(timing))
+            except FitError as err:
+                if errors == "raise":
+                    raise
+                outcomes[i] = err
+    return outcomes

@@ -3,8 +3,10 @@
 from ._forward import Selection as Selection
 from ._forward import candidate_models as candidate_models
 from ._forward import forward_selection as forward_selection
+from ._forward import forward_selection_many as forward_selection_many
 from ._greybox import Case as Case
 from ._greybox import GreyBox as GreyBox
+from ._greybox import run_cases as run_cases
 from ._guess import Guess as Guess
 from ._guess import lhs_starts as lhs_starts
 from ._guess import manual_guess as manual_guess

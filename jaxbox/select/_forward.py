@@ -21,10 +21,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..models import RCModel, get_model, list_models
-from ._greybox import Case, GreyBox, Progress, _quiet
+from ._greybox import Case, GreyBox, Progress, _quiet, run_cases
 from ._guess import state_ranges
 
-__all__ = ["Selection", "forward_selection", "candidate_models"]
+__all__ = ["Selection", "forward_selection", "forward_selection_many", "candidate_models"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,7 +96,9 @@ def _pinned_unmeasured_states(case: Case) -> list[str]:
     return [n for n in flagged if case.model.parameter(n).is_initial_state and n not in measured]
 
 
-def _retry_narrowed(gb: GreyBox, case: Case, pinned, say: Progress) -> Case:
+def _narrowed_retry(gb: GreyBox, case: Case, pinned, say: Progress) -> Case:
+    """Declare (not run) a retry of ``case`` with the pinned initial temperatures' bounds
+    narrowed to the span of the temperatures around their states."""
     ranges = state_ranges(case.model, case.ident)
     bounds = dict(case.bounds)
     told = []
@@ -121,7 +123,104 @@ def _retry_narrowed(gb: GreyBox, case: Case, pinned, say: Progress) -> Case:
     retry.parent = case.parent
     retry.notes.append(f"retry of {case.name}: bounds narrowed from the data ({', '.join(told)})")
     case.notes.append(f"initial temperature on its bound; retried as {retry.name}")
-    return retry.run(say)
+    return retry
+
+
+class _Climb:
+    """The forward selection of one GreyBox, one case at a time: :meth:`next_case` declares
+    the case to run next (``None`` once stopped), :meth:`record` takes it back run."""
+
+    def __init__(
+        self, greybox, models, *, starts, seed, margin, patience, inherit, retry, settings, say
+    ) -> None:
+        self.gb, self.models, self.say = greybox, models, say
+        self.starts, self.seed, self.settings = starts, seed, settings
+        self.margin, self.patience, self.inherit, self.retry = margin, patience, inherit, retry
+        self.k, self.best, self.order, self.misses = 0, None, [], 0
+        self.stopped = "every candidate was identified"
+        self.skipped: tuple[str, ...] = ()
+        self.finished = False
+        self.pending: Case | None = None  # a retry to run before the next model
+        self.retried: Case | None = None  # the case that retry replaces
+
+    def next_case(self) -> Case | None:
+        if self.pending is not None:
+            return self.pending
+        if self.finished or self.k >= len(self.models):
+            self.finished = True
+            return None
+        model, gb = self.models[self.k], self.gb
+        self.say(f"[{self.k + 1}/{len(self.models)}] {model.name}")
+        parent = self.best
+        if parent is None and self.order:  # nothing valid yet: the lowest validation error
+            run = [gb.cases[n] for n in self.order if gb.cases[n].done]
+            parent = min(run, key=lambda c: c.se_cross, default=None)
+        kw = {"starts": self.starts, "seed": self.seed, **self.settings}
+        if self.inherit and parent is not None:
+            return gb.add_case(model, guess="parent", parent=parent.name, **kw)
+        return gb.add_case(model, **kw)
+
+    def record(self, case: Case) -> None:
+        self.order.append(case.name)
+        if case is self.pending:  # a retry: it replaces its case if valid or better
+            original, self.pending, self.retried = self.retried, None, None
+            if not (case.done and (case.is_valid or case.se_cross < original.se_cross)):
+                case = original
+        elif case.done and self.retry and not case.is_valid:
+            pinned = _pinned_unmeasured_states(case)
+            if pinned:
+                try:
+                    self.pending = _narrowed_retry(self.gb, case, pinned, self.say)
+                    self.retried = case
+                    return  # judged once the retry has run
+                except ValueError as err:
+                    self.say(f"  retry failed ({err})")
+        self._judge(case)
+
+    def _judge(self, case: Case) -> None:
+        self.k += 1
+        best, margin = self.best, self.margin
+        improved = (
+            case.done
+            and case.is_valid
+            and np.isfinite(case.se_cross)
+            and (best is None or case.se_cross < (1.0 - margin) * best.se_cross)
+        )
+        if improved:
+            self.best, self.misses = case, 0
+            return
+        if best is None:  # nothing valid yet: keep climbing
+            return
+        self.misses += 1
+        if self.misses >= self.patience and self.k < len(self.models):
+            why = "not valid" if not case.is_valid else "did not improve the validation SE"
+            self.stopped = f"stopped after {case.name}: {self.misses} candidate(s) in a row {why}"
+            if margin and case.is_valid:
+                self.stopped += f" by {100 * margin:g} %"
+            self.skipped = tuple(m.name for m in self.models[self.k :])
+            self.finished = True
+
+    def selection(self, elapsed: float) -> Selection:
+        gb, order = self.gb, self.order
+        accepted = gb.best(valid_only=True)
+        if accepted is not None and accepted.name not in set(order):
+            accepted = min(
+                (gb.cases[n] for n in order if gb.cases[n].is_valid),
+                key=lambda c: c.se_cross,
+                default=None,
+            )
+        self.say(
+            f"accepted: {accepted.name if accepted else 'none (no valid model)'}; {self.stopped} "
+            f"({elapsed:.0f} s)"
+        )
+        return Selection(
+            greybox=gb,
+            accepted=None if accepted is None else accepted.name,
+            order=tuple(order),
+            stopped=self.stopped,
+            skipped=self.skipped,
+            elapsed_s=elapsed,
+        )
 
 
 def forward_selection(
@@ -160,89 +259,94 @@ def forward_selection(
     Returns:
         :class:`Selection` (the cases are in ``greybox.cases``).
     """
+    return forward_selection_many(
+        [greybox],
+        candidates,
+        starts=starts,
+        seed=seed,
+        margin=margin,
+        patience=patience,
+        inherit=inherit,
+        retry_bounds=retry_bounds,
+        progress=progress,
+        **settings,
+    )[0]
+
+
+def forward_selection_many(
+    greyboxes: Sequence[GreyBox],
+    candidates: str | Sequence[str | RCModel] = "all",
+    *,
+    starts: int = 8,
+    seed: int | None = 0,
+    margin: float = 0.0,
+    patience: int = 1,
+    inherit: bool = True,
+    retry_bounds: bool = True,
+    progress: Progress | None = None,
+    **settings,
+) -> list[Selection]:
+    """Forward selection on several buildings in lock-step, each step batched over them.
+
+    Each building climbs on its own (its own parents, retries and stop, exactly as
+    :func:`forward_selection` on it alone), but the cases of one step — the same model on every
+    building still climbing — are fitted together: with identification data of the same length,
+    every start of every building in one compiled call (:func:`~jaxbox.select.run_cases`).
+    Arguments as :func:`forward_selection`; the candidates are those every building can feed.
+
+    Returns:
+        One :class:`Selection` per GreyBox, in order (``elapsed_s``: the whole run).
+    """
     say = progress or _quiet
-    if greybox.valid_period is None:
-        raise ValueError("forward selection needs validation data; give the GreyBox valid=…")
+    if not greyboxes:
+        raise ValueError("forward selection needs at least one GreyBox")
+    for gb in greyboxes:
+        if gb.valid_period is None:
+            raise ValueError(
+                f"forward selection needs validation data; give the GreyBox {gb.name!r} valid=…"
+            )
     if not 0.0 <= margin < 1.0:
         raise ValueError(f"margin must be in [0, 1), got {margin}")
     if patience < 1:
         raise ValueError(f"patience must be at least 1, got {patience}")
-    models = candidate_models(candidates, greybox.data)
+    models = candidate_models(candidates, greyboxes[0].data)
+    for gb in greyboxes[1:]:
+        feeds = set(m.name for m in candidate_models(candidates, gb.data))
+        models = [m for m in models if m.name in feeds]
     say(
         f"forward selection over {len(models)} model(s): "
         + ", ".join(f"{m.name} ({len(m.param_names)})" for m in models)
+        + (f", on {len(greyboxes)} buildings in lock-step" if len(greyboxes) > 1 else "")
     )
+    several = len(greyboxes) > 1
+    climbs = [
+        _Climb(
+            gb,
+            models,
+            starts=starts,
+            seed=seed,
+            margin=margin,
+            patience=patience,
+            inherit=inherit,
+            retry=retry_bounds,
+            settings=settings,
+            say=(lambda msg, name=gb.name: say(f"{name}: {msg}")) if several else say,
+        )
+        for gb in greyboxes
+    ]
     t0 = time.perf_counter()
-    best: Case | None = None
-    order: list[str] = []
-    misses = 0
-    stopped = "every candidate was identified"
-    skipped: tuple[str, ...] = ()
-    for k, model in enumerate(models):
-        say(f"[{k + 1}/{len(models)}] {model.name}")
-        parent = best
-        if parent is None and order:  # nothing valid yet: the lowest validation error so far
-            run = [greybox.cases[n] for n in order if greybox.cases[n].done]
-            parent = min(run, key=lambda c: c.se_cross, default=None)
-        if inherit and parent is not None:
-            case = greybox.add_case(
-                model, guess="parent", parent=parent.name, starts=starts, seed=seed, **settings
-            )
-        else:
-            case = greybox.add_case(model, starts=starts, seed=seed, **settings)
-        try:
-            case.run(say)
-        except (ValueError, FloatingPointError) as err:  # FitError, non-finite post-simulation
-            case.notes.append(f"failed: {err}")
-            say(f"  {case.name}: failed ({err})")
-        order.append(case.name)
-        if case.done and retry_bounds and not case.is_valid:
-            pinned = _pinned_unmeasured_states(case)
-            if pinned:
-                try:
-                    retry = _retry_narrowed(greybox, case, pinned, say)
-                    order.append(retry.name)
-                    if retry.is_valid or retry.se_cross < case.se_cross:
-                        case = retry
-                except (ValueError, FloatingPointError) as err:
-                    say(f"  retry failed ({err})")
-        improved = (
-            case.done
-            and case.is_valid
-            and np.isfinite(case.se_cross)
-            and (best is None or case.se_cross < (1.0 - margin) * best.se_cross)
-        )
-        if improved:
-            best, misses = case, 0
-            continue
-        if best is None:  # nothing valid yet: keep climbing
-            continue
-        misses += 1
-        if misses >= patience and k + 1 < len(models):
-            why = "not valid" if not case.is_valid else "did not improve the validation SE"
-            stopped = f"stopped after {case.name}: {misses} candidate(s) in a row {why}" + (
-                f" by {100 * margin:g} %" if margin and case.is_valid else ""
-            )
-            skipped = tuple(m.name for m in models[k + 1 :])
+    while True:
+        step = [(c, c.next_case()) for c in climbs]
+        step = [(c, case) for c, case in step if case is not None]
+        if not step:
             break
-    accepted = greybox.best(valid_only=True)
-    names = set(order)
-    if accepted is not None and accepted.name not in names:
-        accepted = min(
-            (greybox.cases[n] for n in order if greybox.cases[n].is_valid),
-            key=lambda c: c.se_cross,
-            default=None,
+        run_cases(
+            [case for _, case in step],
+            say,
+            catch=True,
+            labels=[f"{c.gb.name}: " if several else "" for c, _ in step],
         )
+        for c, case in step:
+            c.record(case)
     elapsed = time.perf_counter() - t0
-    say(
-        f"accepted: {accepted.name if accepted else 'none (no valid model)'}; {stopped} "
-        f"({elapsed:.0f} s)"
-    )
-    return Selection(
-        greybox=greybox,
-        accepted=None if accepted is None else accepted.name,
-        order=tuple(order),
-        stopped=stopped,
-        skipped=skipped,
-        elapsed_s=elapsed,
-    )
+    return [c.selection(elapsed) for c in climbs]

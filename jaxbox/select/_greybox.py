@@ -20,7 +20,7 @@ import pandas as pd
 from ..models import RCModel, get_model
 from ._guess import Guess, lhs_starts, manual_guess, naming_guess, parent_guess
 
-__all__ = ["Case", "GreyBox", "Progress"]
+__all__ = ["Case", "GreyBox", "Progress", "run_cases"]
 
 Progress = Callable[[str], None]
 
@@ -106,25 +106,28 @@ class Case:
 
     def run(self, progress: Progress | None = None) -> Case:
         """Fit every start in one batched call, post-simulate, and judge validity."""
-        from ..fit import fit
+        return run_cases([self], progress)[0]
+
+    def _request(self) -> dict:
+        """The :func:`jaxbox.fit.fit_batch` request of this case."""
+        opts = {k: v for k, v in self.settings.items() if k in SETTINGS}
+        return {
+            "model": self.model,
+            "data": self.ident,
+            "free": self.free,
+            "fixed": self.fixed or None,
+            "bounds": self.bounds or None,
+            "guess": self._guess_in_bounds(),
+            "starts": self.start_values(),
+            "seed": self.seed,
+            **opts,
+        }
+
+    def _complete(self, result, fit_s: float, say: Progress) -> Case:
+        """Post-simulate a fitted case and judge it."""
         from ..validate import check_validity, uncertainty, validate
 
-        say = progress or _quiet
-        x0 = self.start_values()
-        say(f"  {self.name}: {len(x0)} starts in one batch ({len(x0[0])} free parameters) …")
-        t0 = time.perf_counter()
-        opts = {k: v for k, v in self.settings.items() if k in SETTINGS}
-        self.result = fit(
-            self.model,
-            self.ident,
-            free=self.free,
-            fixed=self.fixed or None,
-            bounds=self.bounds or None,
-            guess=self._guess_in_bounds(),
-            starts=x0,
-            seed=self.seed,
-            **opts,
-        )
+        self.result = result
         t1 = time.perf_counter()
         self.validation = validate(self.result, self.valid)
         t2 = time.perf_counter()
@@ -135,15 +138,17 @@ class Case:
         self.verdict = check_validity(self.result, unc, check_intervals=unc is not None)
         t3 = time.perf_counter()
         self.timing = {
-            "fit_s": t1 - t0,
+            "fit_s": fit_s,
             "compile_s": float(self.result.timing.get("compile_s", 0.0)),
             "validate_s": t2 - t1,
             "verdict_s": t3 - t2,
         }
+        if self.result.timing.get("batch", 1) > 1:
+            self.timing["batch"] = int(self.result.timing["batch"])
         say(
             f"  {self.name}: {self.result.starts.status_summary()}; RMSE auto "
             f"{self.se_auto:.3f} K, cross {_fmt(self.se_cross)} K, "
-            f"{'valid' if self.is_valid else 'not valid'} ({t3 - t0:.1f} s)"
+            f"{'valid' if self.is_valid else 'not valid'} ({fit_s + t3 - t1:.1f} s)"
         )
         return self
 
@@ -222,6 +227,56 @@ class Case:
             else "not run"
         )
         return f"Case({self.name!r}, model={self.model.name!r}, {state})"
+
+
+def run_cases(
+    cases: Sequence[Case],
+    progress: Progress | None = None,
+    *,
+    catch: bool = False,
+    labels: Sequence[str] | None = None,
+) -> list[Case]:
+    """Run several cases together: every start of every case in as few compiled calls as the
+    shapes allow (one, for cases of the same shape — e.g. one model on several buildings).
+
+    Args:
+        cases: cases not run yet (of one or several GreyBoxes).
+        progress: called with one line of text per step.
+        catch: record a case that fails (every start failed, non-finite post-simulation) in its
+            ``notes`` and go on, instead of raising.
+        labels: a prefix per case for the progress lines (e.g. the building).
+
+    Returns:
+        The cases, run (a failed one, with ``catch``, has no result).
+    """
+    from ..fit import FitError, fit_batch
+
+    say = progress or _quiet
+    labels = list(labels) if labels is not None else [""] * len(cases)
+    tell = [(lambda msg, lab=lab: say(f"{lab}{msg}")) if lab else say for lab in labels]
+    requests = []
+    for case, told in zip(cases, tell, strict=True):
+        req = case._request()
+        told(
+            f"  {case.name}: {len(req['starts'])} starts in one batch "
+            f"({len(req['starts'][0])} free parameters) …"
+        )
+        requests.append(req)
+    t0 = time.perf_counter()
+    outcomes = fit_batch(requests, errors="return")
+    fit_s = (time.perf_counter() - t0) / max(1, len(cases))
+    for case, outcome, told in zip(cases, outcomes, tell, strict=True):
+        try:
+            if isinstance(outcome, FitError):
+                raise outcome
+            case._complete(outcome, fit_s, told)
+        except (ValueError, FloatingPointError) as err:  # FitError, non-finite post-simulation
+            if not catch:
+                raise
+            case.result = case.validation = case.verdict = None
+            case.notes.append(f"failed: {err}")
+            told(f"  {case.name}: failed ({err})")
+    return list(cases)
 
 
 def _fmt(x: float) -> str:

@@ -225,6 +225,56 @@ def peers(ident, starts64, which, n_casadi, n_scipy, budget) -> dict:
     return out
 
 
+# ---- the whole experiment-1 hierarchy ------------------------------------------------------------
+
+
+def hierarchy(ident, counts, which, n_casadi, n_scipy, budget) -> dict:
+    """Every experiment-1 model: jaxbox from 1, 64, 1024 starts; the peers from the first
+    starts of the same 64-start set (the richest model is detailed in its own sections)."""
+    import _peers
+
+    out = {}
+    for name in jaxbox.list_models(family="exp1"):
+        model = jaxbox.get_model(name)
+        problem = make_problem(model, ident)
+        row = {"free": len(problem.free), "jaxbox": {}, "peers": {}}
+        for S in counts:
+            _fit.clear_compile_cache()
+            first = jaxbox.fit(model, ident, starts=S, seed=0)
+            fit_s, r = timed_min(
+                lambda S=S, model=model: jaxbox.fit(model, ident, starts=S, seed=0), 2
+            )
+            row["jaxbox"][S] = {
+                "compile_s": first.timing["compile_s"],
+                "fit_s": r.timing["fit_s"],
+                "wall_s": fit_s,
+                "best_cost": float(r.cost),
+                "costs": r.starts.cost.tolist(),
+                "converged": int(r.starts.converged.sum()),
+            }
+            log(
+                f"  {name:<22} jaxbox {S:5d} starts: compile {first.timing['compile_s']:.2f} s, "
+                f"fit {r.timing['fit_s']:.3f} s, best {r.cost:.7g}"
+            )
+        X = make_starts(problem, 64, 0, 4.0)
+        if name != MODEL and "casadi" in which:
+            try:
+                row["peers"]["casadi"] = _peers.casadi_collocation(
+                    problem, ident, X[:n_casadi], budget_s=budget, log=log
+                )
+            except ImportError:
+                log("  casadi not installed (pip install jaxbox[bench]): skipped")
+        if name != MODEL and "scipy" in which:
+            row["peers"]["scipy"] = _peers.scipy_shooting(
+                problem, ident, X[:n_scipy], budget_s=budget, log=log
+            )
+        for v in row["peers"].values():
+            for st in v["starts"]:
+                st["p"] = np.asarray(st["p"]).tolist()
+        out[name] = row
+    return out
+
+
 # ---- diffrax route --------------------------------------------------------------------------------
 
 
@@ -691,6 +741,61 @@ def report(res: dict) -> str:
                     f"1024 starts {1024 * per / 3600:.1f} h."
                 )
         w("")
+    if "hierarchy" in res:
+        w("## The experiment-1 hierarchy")
+        w("")
+        w(
+            "Each model of the reference study's experiment-1 ladder on the same data; jaxbox from "
+            "1, 64 and 1024 starts (compile: first call of the structure for that batch size; "
+            "fit: the compiled solve), the peers from the first starts of the same 64-start set, "
+            "one after the other (the richest model's peers are in the section above). *At best*: "
+            f"starts within {REL:g} (relative) of the best cost any route found for that model."
+        )
+        w("")
+        w(
+            "| model | free | starts | jaxbox compile [s] | jaxbox fit [s] | per start [ms] | "
+            "best cost | at best |"
+        )
+        w("|---|---:|---:|---:|---:|---:|---:|---:|")
+        for name, row in res["hierarchy"].items():
+            peer_costs = [
+                st["cost"]
+                for v in row["peers"].values()
+                for st in v["starts"]
+                if np.isfinite(st["cost"])
+            ]
+            best = min([v["best_cost"] for v in row["jaxbox"].values()] + peer_costs)
+            row["best_any"] = best
+            for S, v in row["jaxbox"].items():
+                at = sum(c <= best * (1 + REL) for c in v["costs"])
+                w(
+                    f"| {name} | {row['free']} | {S} | {v['compile_s']:.2f} | {v['fit_s']:.3f} | "
+                    f"{v['fit_s'] / int(S) * 1e3:.2f} | {v['best_cost']:.7g} | {at} / {S} |"
+                )
+        w("")
+        w(
+            "| model | peer | starts run | set-up [s] | per start [s] | best cost | at best | "
+            "peer ÷ jaxbox per start | jaxbox best on the same starts |"
+        )
+        w("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+        for name, row in res["hierarchy"].items():
+            j64 = row["jaxbox"].get(64) or row["jaxbox"].get("64")
+            if not j64:
+                continue
+            jp = j64["fit_s"] / 64
+            for peer, v in row["peers"].items():
+                st = v["starts"]
+                if not st:
+                    continue
+                k = len(st)
+                per = float(np.mean([x["wall_s"] for x in st]))
+                pc = np.asarray([x["cost"] for x in st])
+                w(
+                    f"| {name} | {peer} | {k} | {v['setup_s']:.1f} | {per:.2f} | "
+                    f"{np.nanmin(pc):.7g} | {int(np.sum(pc <= row['best_any'] * (1 + REL)))} / {k} | "
+                    f"{ratio(per, jp):.0f} | {min(j64['costs'][:k]):.7g} |"
+                )
+        w("")
     if "profile" in res:
         w("## Where the time goes: one evaluation of cost, Jᵀr and JᵀJ")
         w("")
@@ -803,6 +908,10 @@ def main(argv=None):
     ap.add_argument("--casadi-starts", type=int, default=16)
     ap.add_argument("--scipy-starts", type=int, default=1)
     ap.add_argument("--peer-budget", type=float, default=1800.0, help="seconds per peer")
+    ap.add_argument("--hierarchy-casadi-starts", type=int, default=8)
+    ap.add_argument(
+        "--hierarchy-peer-budget", type=float, default=300.0, help="seconds per peer and model"
+    )
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", default=str(HERE / "RESULTS.md"))
     ap.add_argument("--notes", default=str(HERE / "NOTES.md"), help="appended to the report")
@@ -827,6 +936,15 @@ def main(argv=None):
             args.peer_budget,
         )
     if not args.quick:
+        log("the experiment-1 hierarchy")
+        res["hierarchy"] = hierarchy(
+            ident,
+            counts,
+            args.peers.split(",") if args.peers else [],
+            args.hierarchy_casadi_starts,
+            args.scipy_starts,
+            args.hierarchy_peer_budget,
+        )
         log("diffrax route")
         res["diffrax"] = diffrax_route(ident, 2)
         log("long series")

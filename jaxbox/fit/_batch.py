@@ -128,8 +128,8 @@ def fit_batch(
     ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
     ``atol``). Requests with the same number of free parameters, data of the same shape and the
     same solver settings are solved in one batch (with the exact simulator even when their model
-    structures differ; with diffrax only for the same structure); the others in batches of their
-    own. Each result is the one :func:`~jaxbox.fit.fit` would return for its request.
+    structures differ, provided they have as many states and fixed parameters and measure the
+    same states; with diffrax only for the same structure); the others in batches of their own. Each result is the one :func:`~jaxbox.fit.fit` would return for its request.
 
     Args:
         requests: the problems, in order.
@@ -173,7 +173,13 @@ def fit_batch(
     groups: dict = {}
     for item in prepared:
         _, problem, _, x0, arrays, solver = item
-        shape = (x0.shape[1], *(np.shape(a) for a in arrays))
+        shape = (
+            x0.shape[1],
+            len(problem.fixed),
+            len(problem.model.states),
+            tuple(problem.output_states),
+            *(np.shape(a) for a in arrays),
+        )
         structure = None if problem.simulator == "exact" else _problem_key(problem)
         groups.setdefault((solver, shape, problem.simulator, structure), []).append(item)
     for (solver, *_), members in groups.items():

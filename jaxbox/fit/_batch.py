@@ -129,7 +129,8 @@ def fit_batch(
     ``atol``). Requests with the same number of free parameters, data of the same shape and the
     same solver settings are solved in one batch (with the exact simulator even when their model
     structures differ, provided they have as many states and fixed parameters and measure the
-    same states; with diffrax only for the same structure); the others in batches of their own. Each result is the one :func:`~jaxbox.fit.fit` would return for its request.
+    same states; with diffrax only for the same structure); the others in batches of their own.
+    Each result is the one :func:`~jaxbox.fit.fit` would return for its request.
 
     Args:
         requests: the problems, in order.

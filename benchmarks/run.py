@@ -897,6 +897,12 @@ def report(res: dict) -> str:
             "— what remains is tracing and lowering."
         )
         w("")
+    if res.get("failed"):
+        w("## Sections that failed in this run")
+        w("")
+        for key, err in res["failed"].items():
+            w(f"- {key}: {err}")
+        w("")
     w(res.get("notes", ""))
     return "\n".join(L) + "\n"
 
@@ -923,45 +929,57 @@ def main(argv=None):
     counts = (1, 64) if args.quick else (1, 64, 1024)
     log("jaxbox multistart")
     res["jaxbox"] = jaxbox_starts(ident, counts, 2 if args.quick else args.repeats)
-    log("profile")
-    res["profile"] = profile_iteration(ident)
-    if not args.quick and args.peers:
-        log("peers")
-        res["peers"] = peers(
+    starts64 = res["jaxbox"].pop("starts64")
+    partial = HERE / "results.partial.json"
+
+    def section(key, title, fn, *a):
+        """Run one section; a failure is logged and recorded, the others still run."""
+        log(title)
+        try:
+            res[key] = fn(*a)
+        except Exception as err:  # a benchmark section must not lose the others
+            log(f"  {title} failed: {type(err).__name__}: {err}")
+            res.setdefault("failed", {})[key] = f"{type(err).__name__}: {err}"
+        partial.write_text(json.dumps(res, indent=1, default=float))
+
+    section("profile", "profile", profile_iteration, ident)
+    peer_list = [p for p in args.peers.split(",") if p] if args.peers else []
+    if not args.quick and peer_list:
+        section(
+            "peers",
+            "peers",
+            peers,
             ident,
-            res["jaxbox"]["starts64"],
-            args.peers.split(","),
+            starts64,
+            peer_list,
             args.casadi_starts,
             args.scipy_starts,
             args.peer_budget,
         )
     if not args.quick:
-        log("the experiment-1 hierarchy")
-        res["hierarchy"] = hierarchy(
+        section(
+            "hierarchy",
+            "the experiment-1 hierarchy",
+            hierarchy,
             ident,
             counts,
-            args.peers.split(",") if args.peers else [],
+            peer_list,
             args.hierarchy_casadi_starts,
             args.scipy_starts,
             args.hierarchy_peer_budget,
         )
-        log("diffrax route")
-        res["diffrax"] = diffrax_route(ident, 2)
-        log("long series")
-        res["long"] = long_series(52_560, (1, 16))
-        log("parallel in time")
-        res["parallel"] = parallel_in_time(args.repeats)
-        log("buildings")
-        res["buildings"] = buildings(2)
-        log("persistent cache")
-        res["cache"] = persistent_cache()
+        section("diffrax", "diffrax route", diffrax_route, ident, 2)
+        section("long", "long series", long_series, 52_560, (1, 16))
+        section("parallel", "parallel in time", parallel_in_time, args.repeats)
+        section("buildings", "buildings", buildings, 2)
+        section("cache", "persistent cache", persistent_cache)
     res["load_end"] = os.getloadavg()
     res["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     notes = Path(args.notes)
     res["notes"] = notes.read_text() if notes.exists() else ""
-    res["jaxbox"].pop("starts64", None)
-    Path(args.out).write_text(report(res))
     (HERE / "results.json").write_text(json.dumps(res, indent=1, default=float))
+    Path(args.out).write_text(report(res))
+    partial.unlink(missing_ok=True)
     log(f"wrote {args.out}")
 
 

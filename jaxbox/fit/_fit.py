@@ -63,6 +63,8 @@ _STATUS = {CONVERGED: "converged", MAX_STEPS: "max_steps", NONFINITE: "nonfinite
 _LAMBDA0 = 1e-2
 _LAMBDA_MAX = 1e16
 _ACCEPT = 1e-4
+#: a coordinate whose column norm of J is below this fraction of the largest is saturated
+_SATURATED = 1e-8
 
 
 def compile_cache_info() -> dict:
@@ -79,7 +81,7 @@ def clear_compile_cache() -> None:
 
 
 #: step control (read when a solve is compiled, part of the compile key): Moré's scaling by the
-#: running maximum of the column norms, the first damping, and a cap on the change of each
+#: running maximum of the column norms, the first damping, and a cap on the largest change of an
 #: internal coordinate per step, which keeps a far start from leaping into a saturated corner of
 #: the bounds.
 _OPTIONS = {"scaling": "more", "lambda0": _LAMBDA0, "step_cap": 2.0}
@@ -169,10 +171,16 @@ def levenberg_marquardt(
         step_s = -jax.scipy.linalg.cho_solve((L, True), (g / d)[..., None])[..., 0]
         step = step_s / d
         if _OPTIONS["step_cap"]:
-            # per coordinate: a saturated coordinate (a parameter resting on a bound, whose
-            # scaled step is huge) must not shrink the steps of all the others
+            # the step is shortened as a whole (its direction kept) so that no coordinate moves
+            # by more than the cap; a saturated coordinate (a parameter resting on a bound: its
+            # column of J vanishes and its step is huge) is clipped on its own instead, so that
+            # it cannot freeze all the others
             limit = _OPTIONS["step_cap"]
-            step = jnp.clip(step, -limit, limit)
+            col = jnp.sqrt(jnp.clip(jnp.diagonal(H, axis1=1, axis2=2), 0.0))
+            sat = col < _SATURATED * jnp.max(col, axis=-1, keepdims=True)
+            big = jnp.max(jnp.where(sat, 0.0, jnp.abs(step)), axis=-1)
+            shrink = jnp.minimum(1.0, limit / jnp.where(big > 0, big, 1.0))
+            step = jnp.where(sat, jnp.clip(step, -limit, limit), step * shrink[:, None])
         step = where(fresh, jnp.zeros_like(step), step)
         pred = -(2.0 * jnp.sum(g * step, -1) + jnp.einsum("bi,bij,bj->b", step, H, step))
         zt = z + step

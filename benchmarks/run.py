@@ -907,6 +907,18 @@ def report(res: dict) -> str:
     return "\n".join(L) + "\n"
 
 
+def _int_keys(obj):
+    """JSON turns integer keys (start counts, sizes) into strings; turn them back."""
+    if isinstance(obj, dict):
+        return {
+            (int(k) if isinstance(k, str) and k.isdigit() else k): _int_keys(v)
+            for k, v in obj.items()
+        }
+    if isinstance(obj, list):
+        return [_int_keys(v) for v in obj]
+    return obj
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="jaxbox only, 1 and 64 starts")
@@ -921,7 +933,19 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", default=str(HERE / "RESULTS.md"))
     ap.add_argument("--notes", default=str(HERE / "NOTES.md"), help="appended to the report")
+    ap.add_argument(
+        "--report-only",
+        action="store_true",
+        help="rewrite the report from benchmarks/results.json (and NOTES.md) without measuring",
+    )
     args = ap.parse_args(argv)
+    if args.report_only:
+        res = json.loads((HERE / "results.json").read_text())
+        notes = Path(args.notes)
+        res["notes"] = notes.read_text() if notes.exists() else ""
+        Path(args.out).write_text(report(_int_keys(res)))
+        log(f"wrote {args.out}")
+        return
     res = {"argv": " ".join(sys.argv[1:]), "date": time.strftime("%Y-%m-%d %H:%M")}
     log("machine")
     res["machine"] = machine()

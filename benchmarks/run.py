@@ -228,7 +228,7 @@ def peers(ident, starts64, which, n_casadi, n_scipy, budget) -> dict:
 # ---- the whole experiment-1 hierarchy ------------------------------------------------------------
 
 
-def hierarchy(ident, counts, which, n_casadi, n_scipy, budget) -> dict:
+def hierarchy(ident, counts, which, n_casadi, n_scipy, budget, scipy_models=None) -> dict:
     """Every experiment-1 model: jaxbox from 1, 64, 1024 starts; the peers from the first
     starts of the same 64-start set (the richest model is detailed in its own sections)."""
     import _peers
@@ -264,7 +264,7 @@ def hierarchy(ident, counts, which, n_casadi, n_scipy, budget) -> dict:
                 )
             except ImportError:
                 log("  casadi not installed (pip install jaxbox[bench]): skipped")
-        if name != MODEL and "scipy" in which:
+        if name != MODEL and "scipy" in which and (scipy_models is None or name in scipy_models):
             row["peers"]["scipy"] = _peers.scipy_shooting(
                 problem, ident, X[:n_scipy], budget_s=budget, log=log
             )
@@ -907,6 +907,19 @@ def report(res: dict) -> str:
     return "\n".join(L) + "\n"
 
 
+_SECTIONS = (
+    "jaxbox",
+    "profile",
+    "peers",
+    "hierarchy",
+    "diffrax",
+    "long",
+    "parallel",
+    "buildings",
+    "cache",
+)
+
+
 def _int_keys(obj):
     """JSON turns integer keys (start counts, sizes) into strings; turn them back."""
     if isinstance(obj, dict):
@@ -930,6 +943,17 @@ def main(argv=None):
     ap.add_argument(
         "--hierarchy-peer-budget", type=float, default=300.0, help="seconds per peer and model"
     )
+    ap.add_argument(
+        "--hierarchy-scipy-models",
+        default="Zon,ZonWal",
+        help="models of the hierarchy the scipy route runs on ('all', or a comma list; one "
+        "start of a 3-4 state model takes 10+ minutes)",
+    )
+    ap.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the sections of an interrupted run (benchmarks/results.partial.json)",
+    )
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", default=str(HERE / "RESULTS.md"))
     ap.add_argument("--notes", default=str(HERE / "NOTES.md"), help="appended to the report")
@@ -946,18 +970,34 @@ def main(argv=None):
         Path(args.out).write_text(report(_int_keys(res)))
         log(f"wrote {args.out}")
         return
+    partial = HERE / "results.partial.json"
     res = {"argv": " ".join(sys.argv[1:]), "date": time.strftime("%Y-%m-%d %H:%M")}
-    log("machine")
-    res["machine"] = machine()
+    if args.resume and partial.exists():
+        res = _int_keys(json.loads(partial.read_text()))
+        res.setdefault("resumed", []).append(time.strftime("%Y-%m-%d %H:%M"))
+        log(
+            f"resuming the run of {res['date']}: kept {', '.join(k for k in res if k in _SECTIONS)}"
+        )
+    if "machine" not in res:
+        log("machine")
+        res["machine"] = machine()
     ident, _ = twinhouse_exp1("N2").split()
     counts = (1, 64) if args.quick else (1, 64, 1024)
-    log("jaxbox multistart")
-    res["jaxbox"] = jaxbox_starts(ident, counts, 2 if args.quick else args.repeats)
-    starts64 = res["jaxbox"].pop("starts64")
-    partial = HERE / "results.partial.json"
+    if "jaxbox" not in res:
+        log("jaxbox multistart")
+        res["jaxbox"] = jaxbox_starts(ident, counts, 2 if args.quick else args.repeats)
+        res["starts64"] = res["jaxbox"].pop("starts64")
+        partial.write_text(json.dumps(res, indent=1, default=float))
+    if "starts64" not in res:  # the same deterministic Latin hypercube as jaxbox_starts
+        problem = make_problem(jaxbox.get_model(MODEL), ident)
+        res["starts64"] = make_starts(problem, 64, 0, 4.0).tolist()
+    starts64 = res["starts64"]
 
     def section(key, title, fn, *a):
         """Run one section; a failure is logged and recorded, the others still run."""
+        if key in res:
+            return
+        res.get("failed", {}).pop(key, None)
         log(title)
         try:
             res[key] = fn(*a)
@@ -991,6 +1031,9 @@ def main(argv=None):
             args.hierarchy_casadi_starts,
             args.scipy_starts,
             args.hierarchy_peer_budget,
+            None
+            if args.hierarchy_scipy_models == "all"
+            else set(args.hierarchy_scipy_models.split(",")),
         )
         section("diffrax", "diffrax route", diffrax_route, ident, 2)
         section("long", "long series", long_series, 52_560, (1, 16))
@@ -1001,6 +1044,7 @@ def main(argv=None):
     res["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     notes = Path(args.notes)
     res["notes"] = notes.read_text() if notes.exists() else ""
+    res.pop("starts64", None)
     (HERE / "results.json").write_text(json.dumps(res, indent=1, default=float))
     Path(args.out).write_text(report(res))
     partial.unlink(missing_ok=True)

@@ -128,6 +128,16 @@ def test_parallel_and_sequential_simulation_agree(n):
     np.testing.assert_allclose(yp, ys, rtol=1e-12, atol=1e-10)
 
 
+def test_parallel_in_time_through_the_public_api(two_datasets):
+    from jaxbox.simulate import simulate
+
+    data = two_datasets[0]
+    seq = simulate("ZonWal", TRUTH, data)
+    par = simulate("ZonWal", TRUTH, data, method="parallel")
+    np.testing.assert_allclose(par.x, seq.x, rtol=1e-12, atol=1e-10)
+    np.testing.assert_allclose(par.y, seq.y, rtol=1e-12, atol=1e-10)
+
+
 def test_linear_recurrence_carries_trailing_axes():
     rng = np.random.default_rng(1)
     Phi = jnp.asarray(0.3 * rng.normal(size=(3, 3)))

@@ -3,6 +3,7 @@
 from ._diffrax import simulate_diffrax as simulate_diffrax
 from ._exact import discretize_foh as discretize_foh
 from ._exact import simulate_exact as simulate_exact
+from ._parallel import simulate_parallel as simulate_parallel
 from ._simulate import METHODS as METHODS
 from ._simulate import Simulation as Simulation
 from ._simulate import simulate as simulate

@@ -14,10 +14,11 @@ from .._x64 import require_x64
 from ..models import ModelError, RCModel
 from ._diffrax import simulate_diffrax
 from ._exact import simulate_exact
+from ._parallel import simulate_parallel
 
 __all__ = ["Simulation", "simulate", "simulate_arrays", "check_theta", "METHODS"]
 
-METHODS = ("exact", "diffrax")
+METHODS = ("exact", "diffrax", "parallel")
 
 
 class Simulation(NamedTuple):
@@ -71,7 +72,9 @@ def simulate_arrays(
         theta: parameter values (SI), every model parameter.
         t: sample times [s], regular for ``method="exact"``.
         u: inputs [N, m] in ``model.inputs`` order.
-        method: ``"exact"`` (first-order-hold matrix exponential) or ``"diffrax"``.
+        method: ``"exact"`` (first-order-hold matrix exponential, sequential scan),
+            ``"parallel"`` (the same, parallel in time: an associative scan, for long series on
+            accelerators) or ``"diffrax"``.
         x0: initial state [°C]; default from the ``T_*0`` parameters.
         options: passed to :func:`~jaxbox.simulate._diffrax.simulate_diffrax`.
     """
@@ -81,6 +84,8 @@ def simulate_arrays(
     u = jnp.asarray(u, dtype=float)
     if method == "exact":
         return simulate_exact(A, B, C, D, x0, u, t[1] - t[0])
+    if method == "parallel":
+        return simulate_parallel(A, B, C, D, x0, u, t[1] - t[0])
     if method == "diffrax":
         return simulate_diffrax(A, B, C, D, x0, t, u, **options)
     raise ValueError(f"unknown simulation method {method!r}; choose one of {METHODS}")
@@ -106,7 +111,8 @@ def simulate(
         model: an :class:`~jaxbox.models.RCModel` (or a library model name).
         theta: parameter values in SI units (``None``: the model's defaults).
         data: a :class:`~jaxbox.data.Dataset` holding the model's inputs at a regular step.
-        method: ``"exact"`` (default) or ``"diffrax"`` (adaptive Kvaerno5, ``rtol``/``atol``).
+        method: ``"exact"`` (default), ``"parallel"`` (exact, parallel in time: for long series
+            on a GPU) or ``"diffrax"`` (adaptive Kvaerno5, ``rtol``/``atol``).
         x0: initial state [°C] overriding the ``T_*0`` parameters.
 
     Returns:

@@ -307,6 +307,20 @@ def test_rc_discretisation_values_and_derivatives() -> None:
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * float(jnp.abs(b).max()))
 
 
+def test_rc_discretisation_derivative_in_the_step() -> None:
+    """The step Δt is differentiable too (e.g. for a sampling-time study): d/dΔt of the
+    eigendecomposition route equals autodiff of the Van Loan matrix exponential."""
+    from jaxbox.simulate import discretize_foh
+
+    A, B, caps = _rc_inputs(S0)
+    rc = jax.jit(jax.jacfwd(lambda dt: _rc(A, B, caps, dt)))
+    van_loan = jax.jit(jax.jacfwd(lambda dt: discretize_foh(A, B, dt)))
+    for a, b in zip(rc(3600.0), van_loan(3600.0), strict=True):
+        assert float(jnp.abs(b).max()) > 0
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * float(jnp.abs(b).max()))
+    check_grads(lambda dt: _rc(A, B, caps, dt), (3600.0,), order=1, modes=("fwd", "rev"))
+
+
 _CLOSE_B = jnp.asarray([[1e-4, 2e-4], [3e-4, 1e-4]])
 
 

@@ -7,7 +7,6 @@ differences of an independent implementation where one exists.
 
 from __future__ import annotations
 
-import importlib
 import types
 
 import diffrax
@@ -22,6 +21,7 @@ from jaxbox.data import Dataset
 from jaxbox.fit import make_problem, make_transform, problem_arrays
 from jaxbox.models import get_model
 from jaxbox.simulate import simulate_arrays
+from jaxbox.simulate._exact import discretize_foh_rc
 from jaxbox.validate import sensitivities
 
 N = 48
@@ -269,13 +269,7 @@ def test_collocation_derivatives(data, objective: str) -> None:
 
 # ---- the symmetric (RC) discretisation and the normal equations of the fit ---------------------
 
-_exact = importlib.import_module("jaxbox.simulate._exact")
-_rc = getattr(_exact, "discretize_foh_rc", None)
-needs_rc = pytest.mark.skipif(_rc is None, reason="no discretize_foh_rc in jaxbox.simulate")
-needs_normal_equations = pytest.mark.skipif(
-    not hasattr(make_problem.__globals__["Problem"], "normal_equations"),
-    reason="Problem has no normal_equations",
-)
+_rc = discretize_foh_rc
 
 
 def _rc_inputs(s):
@@ -285,7 +279,6 @@ def _rc_inputs(s):
     return A, B, jnp.stack([theta["C_zon"], theta["C_wal"]])
 
 
-@needs_rc
 def test_rc_discretisation_values_and_derivatives() -> None:
     """Closed-form (Daleckii–Krein) derivatives of the eigendecomposition route, against finite
     differences and against autodiff of the Van Loan matrix exponential."""
@@ -305,6 +298,20 @@ def test_rc_discretisation_values_and_derivatives() -> None:
     jac = jax.jit(lambda s: (jax.jacfwd(rc)(s), jax.jacfwd(van_loan)(s)))
     for a, b in zip(*jac(S0), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * float(jnp.abs(b).max()))
+
+
+def test_rc_discretisation_derivative_in_the_step() -> None:
+    """The step Δt is differentiable too (e.g. for a sampling-time study): d/dΔt of the
+    eigendecomposition route equals autodiff of the Van Loan matrix exponential."""
+    from jaxbox.simulate import discretize_foh
+
+    A, B, caps = _rc_inputs(S0)
+    rc = jax.jit(jax.jacfwd(lambda dt: _rc(A, B, caps, dt)))
+    van_loan = jax.jit(jax.jacfwd(lambda dt: discretize_foh(A, B, dt)))
+    for a, b in zip(rc(3600.0), van_loan(3600.0), strict=True):
+        assert float(jnp.abs(b).max()) > 0
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * float(jnp.abs(b).max()))
+    check_grads(lambda dt: _rc(A, B, caps, dt), (3600.0,), order=1, modes=("fwd", "rev"))
 
 
 _CLOSE_B = jnp.asarray([[1e-4, 2e-4], [3e-4, 1e-4]])
@@ -329,7 +336,6 @@ def _close_jacobians(v):
     return rc, van_loan
 
 
-@needs_rc
 @pytest.mark.parametrize("gap", [0.0, 1e-9, 1e-6, 1e-3])
 def test_rc_discretisation_with_close_eigenvalues(gap: float) -> None:
     """Two nodes with (nearly) equal time constants: the divided differences of the JVP switch
@@ -341,7 +347,6 @@ def test_rc_discretisation_with_close_eigenvalues(gap: float) -> None:
         np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-10)
 
 
-@needs_normal_equations
 def test_normal_equations_of_the_fit(problem, data, residual_fns) -> None:
     """Cost, ``Jᵀr`` and ``JᵀJ`` of the fit's Levenberg–Marquardt step (state and sensitivities
     propagated together, chunk by chunk) against autodiff of the residuals (checked against

@@ -26,7 +26,7 @@ class FitError(ValueError):
     """The estimation problem is ill-posed or every start failed; the message says why."""
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Problem:
     """Everything static about an estimation problem (no data arrays).
 

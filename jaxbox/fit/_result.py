@@ -16,7 +16,7 @@ __all__ = ["FitResult", "StartReport", "BOUND_TOLERANCE"]
 BOUND_TOLERANCE = 1e-3
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class StartReport:
     """Outcome of every start of a multistart fit.
 
@@ -70,7 +70,7 @@ class StartReport:
         return int(np.sum(self.usable & (self.cost <= c + max(rtol * c, atol))))
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class FitResult:
     """The estimate of a fit and everything needed to report, validate or refit it.
 

@@ -41,7 +41,7 @@ HESSIANS = ("exact", "gauss-newton")
 _CACHE: dict = {}
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class FitSensitivity:
     """Derivatives of the estimates with respect to the measurements.
 

@@ -29,7 +29,7 @@ _LOG, _LIN, _LOWER, _FREE = range(4)
 _EDGE = 1e-12
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Transform:
     """Vectorised bound transform for a fixed list of parameters.
 

@@ -84,22 +84,27 @@ def _scaled(V, d):
     return (V * d[..., None, :]) @ jnp.swapaxes(V, -1, -2)
 
 
-@jax.custom_jvp
 def _sym_phi(S, dt):
-    """``(e^{SΔt}, Δt φ1(SΔt), Δt φ2(SΔt))`` for a symmetric matrix ``S`` and a step ``Δt``."""
-    w, V = jnp.linalg.eigh(S)
-    p0, p1, p2, _ = phi_functions(w * dt)
-    return _scaled(V, p0), _scaled(V, dt * p1), _scaled(V, dt * p2)
+    """``(e^{SΔt}, Δt φ1(SΔt), Δt φ2(SΔt))`` for a symmetric matrix ``S`` and a step ``Δt``
+    (differentiable in both)."""
+    E, Q1, Q2 = _sym_phis(S * dt)
+    return E, dt * Q1, dt * Q2
 
 
-@_sym_phi.defjvp
-def _sym_phi_jvp(primals, tangents):
-    # Daleckii–Krein: for f applied to S = V diag(w) Vᵀ, df = V (F ∘ (Vᵀ dS V)) Vᵀ with
-    # F_ij = (f(w_i) − f(w_j)) / (w_i − w_j), or f'(w_i) when the two are (nearly) equal.
-    S, dt = primals
-    dS, _ = tangents
-    w, V = jnp.linalg.eigh(S)
-    x = w * dt
+@jax.custom_jvp
+def _sym_phis(X):
+    """``(φ0(X), φ1(X), φ2(X))`` of a symmetric matrix ``X`` from one eigendecomposition."""
+    w, V = jnp.linalg.eigh(X)
+    p0, p1, p2, _ = phi_functions(w)
+    return _scaled(V, p0), _scaled(V, p1), _scaled(V, p2)
+
+
+@_sym_phis.defjvp
+def _sym_phis_jvp(primals, tangents):
+    # Daleckii–Krein: for f applied to X = V diag(x) Vᵀ, df = V (F ∘ (Vᵀ dX V)) Vᵀ with
+    # F_ij = (f(x_i) − f(x_j)) / (x_i − x_j), or f'(x_i) when the two are (nearly) equal.
+    (X,), (dX,) = primals, tangents
+    x, V = jnp.linalg.eigh(X)
     p = phi_functions(x)
     xi, xj = x[..., :, None], x[..., None, :]
     gap = xi - xj
@@ -109,14 +114,14 @@ def _sym_phi_jvp(primals, tangents):
     pm = phi_functions(0.5 * (xi + xj))
     # φ0' = φ0, φ1' = φ1 − φ2, φ2' = φ2 − 2 φ3
     dmid = (pm[0], pm[1] - pm[2], pm[2] - 2.0 * pm[3])
-    T = jnp.swapaxes(V, -1, -2) @ dS @ V
+    T = jnp.swapaxes(V, -1, -2) @ dX @ V
     T = 0.5 * (T + jnp.swapaxes(T, -1, -2))
     outs, douts = [], []
-    for k, pre in enumerate((1.0, dt, dt)):
+    for k in range(3):
         pk = p[k]
-        F = jnp.where(close, dmid[k], (pk[..., :, None] - pk[..., None, :]) / safe) * dt
-        outs.append(_scaled(V, pre * pk))
-        douts.append(V @ (pre * F * T) @ jnp.swapaxes(V, -1, -2))
+        F = jnp.where(close, dmid[k], (pk[..., :, None] - pk[..., None, :]) / safe)
+        outs.append(_scaled(V, pk))
+        douts.append(V @ (F * T) @ jnp.swapaxes(V, -1, -2))
     return tuple(outs), tuple(douts)
 
 

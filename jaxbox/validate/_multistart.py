@@ -17,7 +17,7 @@ import numpy as np
 __all__ = ["MultistartView", "Optimum", "multistart_view"]
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Optimum:
     """A group of starts that ended at the same cost (within the tolerance).
 
@@ -34,7 +34,7 @@ class Optimum:
     params: np.ndarray
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class MultistartView:
     """Outcome of every start of a multistart fit, grouped into local optima.
 

@@ -24,7 +24,7 @@ class ValidationError(ValueError):
     """The validation data does not fit the identification data; the message says why."""
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Validation:
     """Post-simulation of a fit on identification (auto) and validation (cross) data.
 

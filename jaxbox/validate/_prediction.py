@@ -27,7 +27,7 @@ __all__ = ["PredictionPerformance", "prediction_performance"]
 DEFAULT_HORIZONS = (1, 2, 3, 6, 12, 24)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class PredictionPerformance:
     """RMSE of k-step-ahead predictions and of the simulation.
 

@@ -113,7 +113,7 @@ def cross_correlation(e, u, max_lag: int | None = None) -> tuple[np.ndarray, np.
     return lags, np.asarray(r) / den
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class LjungBox:
     """Ljung–Box test of whiteness.
 
@@ -157,7 +157,7 @@ def ljung_box(e, lags: int | None = None, alpha: float = 0.05) -> LjungBox:
     return LjungBox(statistic=q, lags=h, p_value=p, alpha=alpha)
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class CumulatedPeriodogram:
     """Cumulated periodogram test of whiteness.
 
@@ -251,7 +251,7 @@ def residual_stats(e) -> dict[str, float]:
     }
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class OutputResiduals:
     """Residual analysis of one output.
 
@@ -323,7 +323,7 @@ class OutputResiduals:
         }
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class ResidualAnalysis:
     """Residual analysis of every output (index by output name or position)."""
 

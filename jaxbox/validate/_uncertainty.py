@@ -49,7 +49,7 @@ __all__ = ["Uncertainty", "Combination", "uncertainty", "sensitivities"]
 _TEMPERATURE_UNITS = ("°C", "K")
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Combination:
     """A direction in parameter space that the data do not determine.
 
@@ -81,7 +81,7 @@ class Combination:
         }
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Uncertainty:
     """Linearised uncertainty of a fit's parameters (lmfit-style error bars).
 

@@ -479,12 +479,15 @@ class GreyBox:
 
     def table_text(self) -> str:
         """The comparison table as fixed-width text."""
-        lines = [f"{'case':<24} {'#par':>4} {'SE auto':>8} {'SE cross':>9} {'valid':>6}  reasons"]
+        width = max([24, *(len(c.name) for c in self.cases.values())])
+        lines = [
+            f"{'case':<{width}} {'#par':>4} {'SE auto':>8} {'SE cross':>9} {'valid':>6}  reasons"
+        ]
         for c in self.cases.values():
             valid = "-" if c.verdict is None else ("yes" if c.is_valid else "no")
             reasons = "; ".join(_short(r) for r in c.reasons)
             lines.append(
-                f"{c.name:<24} {c.n_params:>4} {_fmt(c.se_auto):>8} {_fmt(c.se_cross):>9} "
+                f"{c.name:<{width}} {c.n_params:>4} {_fmt(c.se_auto):>8} {_fmt(c.se_cross):>9} "
                 f"{valid:>6}  {reasons}"
             )
         return "\n".join(lines)

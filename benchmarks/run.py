@@ -615,6 +615,13 @@ def report(res: dict) -> str:
     w(
         f"Written by `python benchmarks/run.py{' ' + res['argv'] if res['argv'] else ''}` on "
         f"{res['date']}; raw numbers in `benchmarks/results.json`."
+        + (
+            f" The run was interrupted after a section and resumed (`--resume`) at "
+            f"{', '.join(res['resumed'])} on the same machine; the sections already measured "
+            "were kept."
+            if res.get("resumed")
+            else ""
+        )
     )
     w("")
     w("## Machine")

@@ -1,10 +1,10 @@
 """Estimation: output-error least squares, bound transforms, multistart Levenberg–Marquardt."""
 
+from ._batch import fit as fit
 from ._batch import fit_batch as fit_batch
 from ._batch import fit_many as fit_many
 from ._fit import clear_compile_cache as clear_compile_cache
 from ._fit import compile_cache_info as compile_cache_info
-from ._fit import fit as fit
 from ._fit import solve_starts as solve_starts
 from ._problem import FitError as FitError
 from ._problem import Problem as Problem

@@ -1,14 +1,15 @@
-"""Several datasets of the same length fitted with one model in one compiled call.
+"""The fitting front ends: one problem (:func:`fit`), one model on several datasets
+(:func:`fit_many`), any problems at once (:func:`fit_batch`).
 
-Every dataset (two twin houses, the same building in several periods, the members of a
-synthetic study…) gets its own estimation problem — guess from its own first samples, its own
-starts — and all their starts run together in one batch of the solver used by
-:func:`~jaxbox.fit.fit`, compiled once for the model structure and the data shape. Fitting two
-buildings then costs one compilation instead of two, and ten buildings barely more than one.
+Each sets up its estimation problems (guess from each dataset's own first samples, its own
+starts) and hands all their starts to the batched solver (:func:`~jaxbox.fit.solve_jobs`), one
+compiled call per compatible shape. Two twin houses, the same building in several periods or the
+members of a synthetic study then cost one compilation instead of one each.
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -19,21 +20,93 @@ from ._fit import _problem_key, make_starts, result_from, solve_jobs
 from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
 
-__all__ = ["fit_many", "fit_batch"]
+__all__ = ["fit", "fit_many", "fit_batch"]
 
-#: the problem arguments of a request (see :func:`fit_batch`), with their defaults
-_PROBLEM = {
-    "free": None,
-    "fixed": None,
-    "bounds": None,
-    "guess": None,
-    "weights": None,
-    "simulator": "exact",
-    "sim_options": None,
+
+def fit(
+    model,
+    data,
+    *,
+    free: Sequence[str] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    guess: Mapping[str, float] | None = None,
+    starts: int | np.ndarray = 1,
+    seed: int | None = 0,
+    weights: Mapping[str, float] | Sequence[float] | None = None,
+    simulator: str = "exact",
+    sim_options: Mapping | None = None,
+    max_steps: int = 100,
+    rtol: float = 1e-6,
+    atol: float = 1e-16,
+    concentration: float = 4.0,
+    slots: int | None = None,
+) -> FitResult:
+    """Estimate the parameters of ``model`` from ``data`` by output-error least squares.
+
+    Args:
+        model: an :class:`~jaxbox.models.RCModel` or a library model name.
+        data: the identification :class:`~jaxbox.data.Dataset` (inputs and outputs).
+        free: parameters to estimate (default: all that are not ``fixed``; initial states
+            included).
+        fixed: parameter values held fixed (SI).
+        bounds: ``{name: (lower, upper)}`` overriding the naming-convention bounds (SI).
+        guess: initial guesses overriding the defaults (SI); initial states default to the
+            data (see :func:`~jaxbox.fit.initial_guess`).
+        starts: number of starts (the guess plus Latin-hypercube samples around it), or an
+            array [S, n_free] of explicit starts in physical units.
+        seed: seed of the Latin hypercube.
+        weights: output weights q_j (per output name or in ``model.outputs`` order).
+        simulator: ``"exact"`` (default, exact for linear models) or ``"diffrax"``.
+        sim_options: diffrax options, e.g. ``{"substeps": 2}``.
+        max_steps: Levenberg–Marquardt iteration cap per start (rejected trials count).
+        rtol, atol: a start has converged when an accepted step reduced the cost, and the
+            linear model predicted it to reduce, by at most ``rtol · cost + atol`` [K²].
+        concentration: spread of the Latin hypercube around the guess (0: uniform).
+        slots: starts iterated together (default :func:`default_slots`); a start that has
+            terminated hands its slot to the next. Results do not depend on it.
+
+    Returns:
+        :class:`FitResult` with the best start's parameters, every start's outcome and timings.
+
+    Raises:
+        FitError: an ill-posed problem, or every start failed.
+    """
+    return fit_batch(
+        [
+            {
+                "model": model,
+                "data": data,
+                "free": free,
+                "fixed": fixed,
+                "bounds": bounds,
+                "guess": guess,
+                "starts": starts,
+                "seed": seed,
+                "weights": weights,
+                "simulator": simulator,
+                "sim_options": sim_options,
+                "max_steps": max_steps,
+                "rtol": rtol,
+                "atol": atol,
+                "concentration": concentration,
+            }
+        ],
+        slots=slots,
+    )[0]
+
+
+#: the keyword arguments of a request (see :func:`fit_batch`) and their defaults: those of fit
+_DEFAULTS = {
+    name: p.default
+    for name, p in inspect.signature(fit).parameters.items()
+    if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "slots"
 }
-#: the solver settings of a request; requests solved together share them
-_SOLVER = {"max_steps": 100, "rtol": 1e-6, "atol": 1e-16}
-_STARTS = {"starts": 1, "seed": 0, "concentration": 4.0}
+#: the problem arguments, the solver settings (requests solved together share them) and the
+#: start arguments of a request
+_PROBLEM = ("free", "fixed", "bounds", "guess", "weights", "simulator", "sim_options")
+_SOLVER = ("max_steps", "rtol", "atol")
+_STARTS = ("starts", "seed", "concentration")
 
 
 def fit_many(
@@ -146,9 +219,7 @@ def fit_batch(
     require_x64()
     if errors not in ("raise", "return"):
         raise FitError(f"errors must be 'raise' or 'return', got {errors!r}")
-    unknown = sorted(
-        {k for r in requests for k in r} - {"model", "data", *_PROBLEM, *_SOLVER, *_STARTS}
-    )
+    unknown = sorted({k for r in requests for k in r} - {"model", "data", *_DEFAULTS})
     if unknown:
         raise FitError(f"unknown fit argument(s) in a request: {', '.join(unknown)}")
     outcomes: list = [None] * len(requests)
@@ -158,14 +229,10 @@ def fit_batch(
             if "model" not in req or "data" not in req:
                 raise FitError(f"request {i} needs 'model' and 'data'")
             model, data = get_model(req["model"]), req["data"]
-            problem = make_problem(model, data, **{k: req.get(k, v) for k, v in _PROBLEM.items()})
-            x0 = make_starts(
-                problem,
-                req.get("starts", _STARTS["starts"]),
-                req.get("seed", _STARTS["seed"]),
-                req.get("concentration", _STARTS["concentration"]),
-            )
-            solver = tuple(float(req.get(k, v)) for k, v in _SOLVER.items())
+            arg = {k: req.get(k, _DEFAULTS[k]) for k in _DEFAULTS}
+            problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
+            x0 = make_starts(problem, *(arg[k] for k in _STARTS))
+            solver = tuple(float(arg[k]) for k in _SOLVER)
             prepared.append((i, problem, data, x0, problem_arrays(problem, data), solver))
         except FitError as err:
             if errors == "raise":
@@ -201,7 +268,7 @@ def fit_batch(
                 "max_steps": max_steps,
                 "rtol": rtol,
                 "atol": atol,
-                "seed": requests[i].get("seed", _STARTS["seed"]),
+                "seed": requests[i].get("seed", _DEFAULTS["seed"]),
                 "slots": slots,
             }
             try:

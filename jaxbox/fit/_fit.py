@@ -38,20 +38,18 @@ Termination (per start)
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from .._x64 import require_x64
-from ..models import get_model
-from ._problem import FitError, Problem, make_problem, problem_arrays
+from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
 from ._starts import latin_hypercube
 
-__all__ = ["fit", "solve_starts", "solve_jobs", "compile_cache_info", "clear_compile_cache"]
+__all__ = ["solve_starts", "solve_jobs", "compile_cache_info", "clear_compile_cache"]
 
 _CACHE: dict = {}
 _STATS = {"compiles": 0, "hits": 0}
@@ -512,82 +510,4 @@ def result_from(problem, data, x0s, out, sl, settings, timing) -> FitResult:
         )
     return FitResult.from_best(
         problem=problem, data=data, report=report, best=best, timing=timing, settings=settings
-    )
-
-
-def fit(
-    model,
-    data,
-    *,
-    free: Sequence[str] | None = None,
-    fixed: Mapping[str, float] | None = None,
-    bounds: Mapping[str, tuple[float, float]] | None = None,
-    guess: Mapping[str, float] | None = None,
-    starts: int | np.ndarray = 1,
-    seed: int | None = 0,
-    weights: Mapping[str, float] | Sequence[float] | None = None,
-    simulator: str = "exact",
-    sim_options: Mapping | None = None,
-    max_steps: int = 100,
-    rtol: float = 1e-6,
-    atol: float = 1e-16,
-    concentration: float = 4.0,
-    slots: int | None = None,
-) -> FitResult:
-    """Estimate the parameters of ``model`` from ``data`` by output-error least squares.
-
-    Args:
-        model: an :class:`~jaxbox.models.RCModel` or a library model name.
-        data: the identification :class:`~jaxbox.data.Dataset` (inputs and outputs).
-        free: parameters to estimate (default: all that are not ``fixed``; initial states
-            included).
-        fixed: parameter values held fixed (SI).
-        bounds: ``{name: (lower, upper)}`` overriding the naming-convention bounds (SI).
-        guess: initial guesses overriding the defaults (SI); initial states default to the
-            data (see :func:`~jaxbox.fit.initial_guess`).
-        starts: number of starts (the guess plus Latin-hypercube samples around it), or an
-            array [S, n_free] of explicit starts in physical units.
-        seed: seed of the Latin hypercube.
-        weights: output weights q_j (per output name or in ``model.outputs`` order).
-        simulator: ``"exact"`` (default, exact for linear models) or ``"diffrax"``.
-        sim_options: diffrax options, e.g. ``{"substeps": 2}``.
-        max_steps: Levenberg–Marquardt iteration cap per start (rejected trials count).
-        rtol, atol: a start has converged when an accepted step reduced the cost, and the
-            linear model predicted it to reduce, by at most ``rtol · cost + atol`` [K²].
-        concentration: spread of the Latin hypercube around the guess (0: uniform).
-        slots: starts iterated together (default :func:`default_slots`); a start that has
-            terminated hands its slot to the next. Results do not depend on it.
-
-    Returns:
-        :class:`FitResult` with the best start's parameters, every start's outcome and timings.
-
-    Raises:
-        FitError: an ill-posed problem, or every start failed.
-    """
-    require_x64()
-    model = get_model(model)
-    problem = make_problem(
-        model,
-        data,
-        free=free,
-        fixed=fixed,
-        bounds=bounds,
-        guess=guess,
-        weights=weights,
-        simulator=simulator,
-        sim_options=sim_options,
-    )
-    arrays = problem_arrays(problem, data)
-    x0s = make_starts(problem, starts, seed, concentration)
-    out = solve_jobs(
-        [(problem, x0s, arrays)], max_steps=max_steps, rtol=rtol, atol=atol, slots=slots
-    )
-    return result_from(
-        problem,
-        data,
-        x0s,
-        out,
-        slice(None),
-        settings={"max_steps": max_steps, "rtol": rtol, "atol": atol, "seed": seed, "slots": slots},
-        timing={"compile_s": out["compile_s"], "fit_s": out["fit_s"]},
     )

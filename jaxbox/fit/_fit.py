@@ -262,9 +262,7 @@ def levenberg_marquardt(
 
 def _problem_key(problem: Problem) -> tuple:
     return (
-        problem.model.structure,
-        problem.free,
-        tuple(n for n, _ in problem.fixed),
+        *problem.structure_key,
         problem.transform.kinds,
         problem.transform.style,
         problem.simulator,

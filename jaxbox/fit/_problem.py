@@ -51,6 +51,12 @@ class Problem:
     sim_options: tuple = ()
 
     @property
+    def structure_key(self) -> tuple:
+        """What a compiled function of this problem depends on besides array shapes: the model
+        structure and the free/fixed split (the key of the caches of compiled functions)."""
+        return (self.model.structure, self.free, tuple(n for n, _ in self.fixed))
+
+    @property
     def fixed_dict(self) -> dict[str, float]:
         return dict(self.fixed)
 

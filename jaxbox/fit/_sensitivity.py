@@ -154,13 +154,7 @@ class FitSensitivity:
 
 
 def _functions(problem: Problem):
-    key = (
-        problem.model,
-        problem.free,
-        tuple(n for n, _ in problem.fixed),
-        problem.simulator,
-        problem.sim_options,
-    )
+    key = (*problem.structure_key, problem.simulator, problem.sim_options)
     fns = _CACHE.get(key)
     if fns is not None:
         return fns

@@ -217,7 +217,7 @@ def _sparsity(grid: _Grid, rows: np.ndarray, n_out: int) -> _Sparsity:
 
 def _functions(problem: Problem, n_c: int):
     model, tr = problem.model, problem.transform
-    key = (model.structure, problem.free, tuple(n for n, _ in problem.fixed), tr.kinds, n_c)
+    key = (*problem.structure_key, tr.kinds, n_c)
     if key in _CACHE:
         return _CACHE[key]
     n = model.n_states

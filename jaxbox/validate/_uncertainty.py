@@ -231,13 +231,7 @@ _JAC: dict = {}
 
 def _jacobian_fn(problem):
     """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]); cached."""
-    key = (
-        problem.model,
-        problem.free,
-        tuple(n for n, _ in problem.fixed),
-        problem.simulator,
-        problem.sim_options,
-    )
+    key = (*problem.structure_key, problem.simulator, problem.sim_options)
     fn = _JAC.get(key)
     if fn is None:
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.linalg
+from _reference import van_loan_states
 
 from jaxbox.data import Dataset
 from jaxbox.datasets import twinhouse_exp1
@@ -45,31 +45,13 @@ def synthetic_inputs(n: int, seed: int = 0) -> dict[str, np.ndarray]:
     return {"T_amb": T_amb, "Q_hea": Q, "I_glo_hor": I_glo}
 
 
-def exact_states(model, theta: dict, data) -> np.ndarray:
-    """Oracle: exact states at the samples [N, n] for inputs linear between samples (scipy
-    matrix exponential of the Van Loan block matrix, numpy recursion)."""
-    A, B, _, _ = (np.asarray(m) for m in model.state_space(theta))
-    n, m = B.shape
-    dt = data.step
-    M = np.zeros((n + 2 * m, n + 2 * m))
-    M[:n, :n], M[:n, n : n + m], M[n : n + m, n + m :] = A * dt, B * dt, np.eye(m)
-    E = scipy.linalg.expm(M)
-    Phi, G0, G1 = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
-    u = data.array(list(model.inputs))
-    x = np.empty((len(u), n))
-    x[0] = [theta[node.T0] for node in model.network.nodes]
-    for k in range(len(u) - 1):
-        x[k + 1] = Phi @ x[k] + G0 @ u[k] + G1 @ (u[k + 1] - u[k])
-    return x
-
-
 def synthetic(model_name: str, theta: dict, n: int = 150, noise: float = 0.05, seed: int = 0):
     """(dataset, true θ): outputs simulated exactly, plus white noise [K]."""
     model = get_model(model_name)
     inputs = synthetic_inputs(n, seed)
     t = np.arange(n) * 3600.0
     blank = Dataset.from_arrays(t, {**inputs, "T_zon": np.zeros(n)})
-    y = exact_states(model, theta, blank)[:, 0]
+    y = van_loan_states(model, theta, blank)[:, 0]
     y = y + noise * np.random.default_rng(seed + 1).standard_normal(n)
     return blank.with_columns(T_zon=y), theta
 
@@ -137,7 +119,7 @@ def order_data():
     data, _ = synthetic("ZonWal", ZONWAL)  # the inputs of the agreement tests; own parameters
     theta = ZONWAL_FAST
     model = get_model("ZonWal")
-    exact = exact_states(model, theta, data)
+    exact = van_loan_states(model, theta, data)
     ref = simulate(model, theta, data, method="diffrax", rtol=1e-12, atol=1e-12).x
     err_exact, err_diffrax = {}, {}
     for n_c in (1, 2, 3):
@@ -189,7 +171,7 @@ def test_collocation_simulation_nodes() -> None:
 
 def _discretisation_error(model, params, data, result=None) -> float:
     """Largest collocation state error at the samples for the parameters (against exact)."""
-    exact = exact_states(model, params, data)
+    exact = van_loan_states(model, params, data)
     x = result.x if result is not None else collocation_simulate(model, params, data).x
     return float(np.max(np.abs(x - exact)))
 
@@ -236,7 +218,7 @@ def test_synthetic_estimates_agree(synthetic_pair) -> None:
 
 def test_synthetic_trajectory_matches_the_post_simulation(synthetic_pair) -> None:
     name, data, theta, lm, col = synthetic_pair
-    exact = exact_states(col.model, col.params, data)
+    exact = van_loan_states(col.model, col.params, data)
     assert np.max(np.abs(exact - col.x)) < 1e-5
     if name == "ZonWal":  # adaptive diffrax, as the reference study validated (shared compile)
         post = col.post_simulate(rtol=1e-12, atol=1e-12)
@@ -356,4 +338,4 @@ def test_twinhouse_estimates_agree(twinhouse_pair) -> None:
     assert lm.converged
     eps = _check_agreement(lm, col, data)
     assert eps < 1e-5
-    assert np.max(np.abs(exact_states(col.model, col.params, data) - col.x)) < 1e-5
+    assert np.max(np.abs(van_loan_states(col.model, col.params, data) - col.x)) < 1e-5

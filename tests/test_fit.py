@@ -5,11 +5,11 @@ import sys
 
 import numpy as np
 import pytest
+from _reference import synthetic_building
 
 from jaxbox.data import Dataset
 from jaxbox.fit import FitError, compile_cache_info, fit
 from jaxbox.models import get_model
-from jaxbox.simulate import simulate_arrays
 
 TRUTH = {
     "C_zon": 3.0e6,
@@ -21,24 +21,9 @@ TRUTH = {
 }
 
 
-def _synthetic(model, theta, n=240, seed=0, noise=0.0):
-    t = np.arange(n) * 3600.0
-    rng = np.random.default_rng(seed)
-    day = 2 * np.pi * t / 86400
-    u = {
-        "T_amb": 12 + 6 * np.sin(day - 2) + rng.normal(0, 0.3, n),
-        "Q_hea": 600.0 * (rng.random(n) > 0.5),
-        "I_glo_hor": np.maximum(0, 450 * np.sin(day)),
-    }
-    U = np.stack([u[k] for k in model.inputs], axis=1)
-    y, _ = simulate_arrays(model, theta, t, U)
-    y = np.asarray(y[:, 0]) + noise * rng.normal(size=n)
-    return Dataset.from_arrays(t, {**u, "T_zon": y})
-
-
 @pytest.fixture(scope="module")
 def zonwal_data():
-    return _synthetic(get_model("ZonWal"), TRUTH)
+    return synthetic_building(get_model("ZonWal"), TRUTH)
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +56,7 @@ def test_multistart_compiles_once_and_reports_a_failing_start(zonwal_data, zonwa
     assert r.best != 1
     assert np.isfinite(r.cost)
     # another dataset of the same shape: no recompilation either
-    other = _synthetic(get_model("ZonWal"), TRUTH | {"R_wal": 0.02}, seed=5)
+    other = synthetic_building(get_model("ZonWal"), TRUTH | {"R_wal": 0.02}, seed=5)
     r2 = fit("ZonWal", other, starts=starts)
     assert compile_cache_info()["compiles"] == before["compiles"]
     assert r2.params["R_wal"] == pytest.approx(0.02, rel=1e-5)
@@ -93,7 +78,7 @@ def test_fixed_parameters_and_bounds(zonwal_data):
 
 
 def test_noisy_fit_is_close(zonwal_data):
-    noisy = _synthetic(
+    noisy = synthetic_building(
         get_model("Zon"),
         {"C_zon": 8e6, "R_wal": 0.01, "gA": 3.0, "T_zon0": 25.0},
         noise=0.05,

@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-import scipy.linalg
+from _reference import van_loan_outputs
 from jax.test_util import check_grads
 
 from jaxbox.data import Dataset
@@ -43,22 +43,6 @@ def data() -> Dataset:
             "T_zon": 20.0 + rng.standard_normal(N),
         },
     )
-
-
-def exact_outputs(model, theta, data) -> np.ndarray:
-    """Independent oracle: outputs [N, p] for inputs linear between samples (scipy expm)."""
-    A, B, C, D = (np.asarray(m) for m in model.state_space(theta))
-    n, m = B.shape
-    M = np.zeros((n + 2 * m, n + 2 * m))
-    M[:n, :n], M[:n, n : n + m], M[n : n + m, n + m :] = A * data.step, B * data.step, np.eye(m)
-    E = scipy.linalg.expm(M)
-    Phi, G0, G1 = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
-    u = data.array(list(model.inputs))
-    x = np.empty((len(u), n))
-    x[0] = [theta[node.T0] for node in model.network.nodes]
-    for k in range(len(u) - 1):
-        x[k + 1] = Phi @ x[k] + G0 @ u[k] + G1 @ (u[k + 1] - u[k])
-    return x @ C.T + u @ D.T
 
 
 def relative_theta(s, x0):
@@ -92,8 +76,8 @@ def test_exact_simulation_derivatives(data) -> None:
         plus, minus = base.copy(), base.copy()
         plus[i] += h
         minus[i] -= h
-        yp = exact_outputs(model, relative_theta(plus[:4], plus[4:]), data)[:, 0]
-        ym = exact_outputs(model, relative_theta(minus[:4], minus[4:]), data)[:, 0]
+        yp = van_loan_outputs(model, relative_theta(plus[:4], plus[4:]), data)[:, 0]
+        ym = van_loan_outputs(model, relative_theta(minus[:4], minus[4:]), data)[:, 0]
         fd[:, i] = (yp - ym) / (2 * h)
     np.testing.assert_allclose(J, fd, rtol=1e-6, atol=1e-7)
     # reverse mode (second order forward is checked through the estimation cost's Hessian in
@@ -202,7 +186,7 @@ def test_interval_sensitivities(data) -> None:
     sim = jax.jit(lambda p: problem.simulate(p, fixed, jnp.asarray(t), jnp.asarray(u)))
     p0 = np.asarray([ZONWAL[n] for n in problem.free])
     np.testing.assert_allclose(ysim, sim(jnp.asarray(p0)), rtol=1e-12)
-    np.testing.assert_allclose(ysim, exact_outputs(model, ZONWAL, data), atol=1e-9)
+    np.testing.assert_allclose(ysim, van_loan_outputs(model, ZONWAL, data), atol=1e-9)
     for i in range(len(p0)):
         h = 1e-5 * abs(p0[i]) if p0[i] != 0 else 1e-5
         dp = np.zeros(len(p0))

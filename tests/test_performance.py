@@ -10,13 +10,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _reference import synthetic_building
 
-from jaxbox.data import Dataset
 from jaxbox.fit import compile_cache_info, fit, make_problem, problem_arrays
 from jaxbox.fit._fit import solve_jobs, solve_starts
 from jaxbox.fit._problem import rc_matrices
 from jaxbox.models import get_model, list_models
-from jaxbox.simulate import discretize_foh, simulate_arrays
+from jaxbox.simulate import discretize_foh
 from jaxbox.simulate._exact import discretize_foh_rc, simulate_exact
 from jaxbox.simulate._parallel import linear_recurrence, simulate_parallel
 
@@ -24,18 +24,7 @@ TRUTH = {"C_zon": 3.0e6, "C_wal": 4.0e7, "R_wal": 0.012, "gA": 2.5, "T_zon0": 26
 
 
 def _synthetic(n, seed=0, noise=0.02, step=3600.0, truth=TRUTH):
-    model = get_model("ZonWal")
-    t = np.arange(n) * step
-    rng = np.random.default_rng(seed)
-    day = 2 * np.pi * t / 86400
-    u = {
-        "T_amb": 12 + 6 * np.sin(day - 2) + rng.normal(0, 0.3, n),
-        "Q_hea": 600.0 * (rng.random(n) > 0.5),
-        "I_glo_hor": np.maximum(0, 450 * np.sin(day)),
-    }
-    U = np.stack([u[k] for k in model.inputs], axis=1)
-    y = np.asarray(simulate_arrays(model, truth, t, U)[0][:, 0]) + noise * rng.normal(size=n)
-    return Dataset.from_arrays(t, {**u, "T_zon": y})
+    return synthetic_building(get_model("ZonWal"), truth, n=n, seed=seed, noise=noise, step=step)
 
 
 @pytest.fixture(scope="module")

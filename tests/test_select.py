@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
+from _reference import synthetic_building
 
-from jaxbox.data import Dataset
 from jaxbox.models import get_model
 from jaxbox.select import (
     GreyBox,
@@ -14,7 +14,6 @@ from jaxbox.select import (
     parent_guess,
     state_ranges,
 )
-from jaxbox.simulate import simulate_arrays
 
 TRUTH = {
     "C_zon": 3.0e6,
@@ -28,19 +27,7 @@ TRUTH = {
 
 def synthetic(n=240, seed=0, noise=0.02):
     """ZonWal data (hourly): a two-state truth, so Zon under-fits and ZonWal is right."""
-    model = get_model("ZonWal")
-    t = np.arange(n) * 3600.0
-    rng = np.random.default_rng(seed)
-    day = 2 * np.pi * t / 86400
-    u = {
-        "T_amb": 12 + 6 * np.sin(day - 2) + rng.normal(0, 0.3, n),
-        "Q_hea": 600.0 * (rng.random(n) > 0.5),
-        "I_glo_hor": np.maximum(0, 450 * np.sin(day)),
-    }
-    U = np.stack([u[k] for k in model.inputs], axis=1)
-    y, _ = simulate_arrays(model, TRUTH, t, U)
-    y = np.asarray(y[:, 0]) + noise * rng.normal(size=n)
-    return Dataset.from_arrays(t, {**u, "T_zon": y})
+    return synthetic_building(get_model("ZonWal"), TRUTH, n=n, seed=seed, noise=noise)
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import types
 
 import numpy as np
 import pytest
-import scipy.linalg
+from _reference import van_loan_states
 
 from jaxbox.data import Dataset
 from jaxbox.fit import FitError, fit, make_problem
@@ -21,22 +21,6 @@ TRUE = {"C_zon": 5e6, "R_wal": 0.01, "gA": 3.0, "T_zon0": 20.0}
 TIGHT = {"rtol": 1e-12, "atol": 1e-12, "max_steps": 500}
 
 
-def exact_states(model, theta, data) -> np.ndarray:
-    """Oracle: exact states [N, n] for inputs linear between samples (scipy Van Loan)."""
-    A, B, _, _ = (np.asarray(m) for m in model.state_space(theta))
-    n, m = B.shape
-    M = np.zeros((n + 2 * m, n + 2 * m))
-    M[:n, :n], M[:n, n : n + m], M[n : n + m, n + m :] = A * data.step, B * data.step, np.eye(m)
-    E = scipy.linalg.expm(M)
-    Phi, G0, G1 = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
-    u = data.array(list(model.inputs))
-    x = np.empty((len(u), n))
-    x[0] = [theta[node.T0] for node in model.network.nodes]
-    for k in range(len(u) - 1):
-        x[k + 1] = Phi @ x[k] + G0 @ u[k] + G1 @ (u[k + 1] - u[k])
-    return x
-
-
 @pytest.fixture(scope="module")
 def data() -> Dataset:
     rng = np.random.default_rng(3)
@@ -48,7 +32,7 @@ def data() -> Dataset:
         "I_glo_hor": np.maximum(0.0, 450.0 * np.sin(day - np.pi / 2)),
     }
     blank = Dataset.from_arrays(t, {**inputs, "T_zon": np.zeros(N)})
-    y = exact_states(get_model("Zon"), TRUE, blank)[:, 0] + 0.1 * rng.standard_normal(N)
+    y = van_loan_states(get_model("Zon"), TRUE, blank)[:, 0] + 0.1 * rng.standard_normal(N)
     return blank.with_columns(T_zon=y)
 
 
@@ -153,7 +137,7 @@ def test_hessian_matches_central_differences(sens, fitted, data) -> None:
 
     def cost(p):
         theta = {**fitted.params, **dict(zip(free, p, strict=True))}
-        e = exact_states(model, theta, data)[:, 0] - y
+        e = van_loan_states(model, theta, data)[:, 0] - y
         return np.mean(e * e)
 
     h = 1e-4 * np.abs(p0)

@@ -179,6 +179,12 @@ def test_fit_several_files_in_one_batch(csv_file, capsys, tmp_path):
     )
     assert main(["fit", str(csv_file), str(csv_file), *common]) == 2
     assert "the same DATA is given twice" in capsys.readouterr().err
+    frame.loc[7, "indoor"] = np.nan
+    gappy = tmp_path / "gappy.csv"
+    frame.to_csv(gappy, index=False)
+    assert main(["fit", str(csv_file), str(gappy), *common]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {gappy}: ") and "'T_zon'" in err  # which file, which column
 
 
 def test_command_line_keeps_a_persistent_compilation_cache(tmp_path):

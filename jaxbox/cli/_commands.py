@@ -212,13 +212,20 @@ def load_all(args):
     """Every DATA of the command line: ``[(spec, data, ident, valid), …]``."""
     columns = _pairs(args.map, "--map", "T_zon=living_temp")
     train, validate = _period(args.train, "--train"), _period(args.validate, "--validate")
+    if len(set(args.data)) < len(args.data):
+        raise UsageError("the same DATA is given twice; give each dataset once")
+    from ..data import DataError
+
     out = []
     for spec in args.data:
-        data = load_data(spec, columns=columns, time_column=args.time, resample=args.resample)
-        ident, valid = split_periods(data, train, validate)
+        try:
+            data = load_data(spec, columns=columns, time_column=args.time, resample=args.resample)
+            ident, valid = split_periods(data, train, validate)
+        except (DataError, UsageError) as err:
+            if len(args.data) == 1:
+                raise
+            raise type(err)(f"{spec}: {err}") from None  # which of the files
         out.append((spec, data, ident, valid))
-    if len({spec for spec, *_ in out}) < len(out):
-        raise UsageError("the same DATA is given twice; give each dataset once")
     return out
 
 

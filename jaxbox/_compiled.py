@@ -1,0 +1,74 @@
+"""One bounded cache of compiled functions, shared by every room that compiles.
+
+The batched fit, the sensitivities at an optimum, the uncertainty analysis and the collocation
+reference each compile functions once per problem *structure* (model structure, free/fixed
+split, solver settings, array shapes) and reuse them across starts, bounds and datasets. They
+all keep them here, under a key that starts with the room's name, so that one call,
+:func:`clear`, frees every compiled executable, and the number kept is bounded (least recently
+used first out).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+from typing import Any
+
+__all__ = ["cached", "clear", "info", "set_max_entries"]
+
+_LOCK = threading.Lock()
+_ENTRIES: OrderedDict[Hashable, Any] = OrderedDict()
+_STATS = {"compiles": 0, "hits": 0, "evictions": 0}
+_MAX = [128]
+
+
+def cached(key: Hashable, build: Callable[[], Any]) -> tuple[Any, bool]:
+    """The value stored under ``key``, built by ``build()`` on a miss.
+
+    Returns ``(value, built)``: ``built`` is True when this call built it (a compilation).
+    ``key`` should start with the name of the room that owns the entry (``("fit", …)``).
+    """
+    with _LOCK:
+        if key in _ENTRIES:
+            _ENTRIES.move_to_end(key)
+            _STATS["hits"] += 1
+            return _ENTRIES[key], False
+    value = build()  # outside the lock: compiling can take seconds
+    with _LOCK:
+        _ENTRIES[key] = value
+        _ENTRIES.move_to_end(key)
+        _STATS["compiles"] += 1
+        while len(_ENTRIES) > _MAX[0]:
+            _ENTRIES.popitem(last=False)
+            _STATS["evictions"] += 1
+    return value, True
+
+
+def clear() -> None:
+    """Drop every compiled function of every room and reset the counters."""
+    with _LOCK:
+        _ENTRIES.clear()
+        _STATS.update(compiles=0, hits=0, evictions=0)
+
+
+def info(room: str | None = None) -> dict:
+    """``entries`` (of ``room``, or of all rooms), and the process-wide ``compiles``, ``hits``
+    and ``evictions``."""
+    with _LOCK:
+        if room is None:
+            n = len(_ENTRIES)
+        else:
+            n = sum(1 for k in _ENTRIES if isinstance(k, tuple) and k and k[0] == room)
+        return {"entries": n, "max_entries": _MAX[0], **_STATS}
+
+
+def set_max_entries(n: int) -> None:
+    """Keep at most ``n`` ≥ 1 compiled functions (the least recently used go first)."""
+    if int(n) < 1:
+        raise ValueError(f"the cache needs room for at least one entry, got {n}")
+    with _LOCK:
+        _MAX[0] = int(n)
+        while len(_ENTRIES) > _MAX[0]:
+            _ENTRIES.popitem(last=False)
+            _STATS["evictions"] += 1

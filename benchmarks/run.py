@@ -107,13 +107,13 @@ def jaxbox_starts(ident, counts, repeats) -> dict:
     for S in counts:
         _fit.clear_compile_cache()
         t0 = time.perf_counter()
-        first = jaxbox.fit(MODEL, ident, starts=S, seed=0)
+        first = jaxbox.fit_model(MODEL, ident, starts=S, seed=0)
         first_wall = time.perf_counter() - t0
         reps = repeats if S <= 64 else max(1, repeats - 1)
         walls, fits = [], []
         for _ in range(reps):
             t0 = time.perf_counter()
-            r = jaxbox.fit(MODEL, ident, starts=S, seed=0)
+            r = jaxbox.fit_model(MODEL, ident, starts=S, seed=0)
             walls.append(time.perf_counter() - t0)
             fits.append(r.timing["fit_s"])
         st = r.starts
@@ -240,9 +240,9 @@ def hierarchy(ident, counts, which, n_casadi, n_scipy, budget, scipy_models=None
         row = {"free": len(problem.free), "jaxbox": {}, "peers": {}}
         for S in counts:
             _fit.clear_compile_cache()
-            first = jaxbox.fit(model, ident, starts=S, seed=0)
+            first = jaxbox.fit_model(model, ident, starts=S, seed=0)
             fit_s, r = timed_min(
-                lambda S=S, model=model: jaxbox.fit(model, ident, starts=S, seed=0), 2
+                lambda S=S, model=model: jaxbox.fit_model(model, ident, starts=S, seed=0), 2
             )
             row["jaxbox"][S] = {
                 "compile_s": first.timing["compile_s"],
@@ -284,16 +284,16 @@ def diffrax_route(ident, repeats) -> dict:
     out = {}
     for S in (1, 16):
         _fit.clear_compile_cache()
-        first = jaxbox.fit(MODEL, ident, starts=S, simulator="diffrax")
+        first = jaxbox.fit_model(MODEL, ident, starts=S, simulator="diffrax")
         fit_s, r = timed_min(
-            lambda S=S: jaxbox.fit(MODEL, ident, starts=S, simulator="diffrax"), repeats
+            lambda S=S: jaxbox.fit_model(MODEL, ident, starts=S, simulator="diffrax"), repeats
         )
-        ex = jaxbox.fit(MODEL, ident, starts=S)
+        ex = jaxbox.fit_model(MODEL, ident, starts=S)
         out[S] = {
             "compile_s": first.timing["compile_s"],
             "fit_s": r.timing["fit_s"],
             "exact_fit_s": min(
-                jaxbox.fit(MODEL, ident, starts=S).timing["fit_s"] for _ in range(repeats)
+                jaxbox.fit_model(MODEL, ident, starts=S).timing["fit_s"] for _ in range(repeats)
             ),
             "best_cost": float(r.cost),
             "exact_best_cost": float(ex.cost),
@@ -347,9 +347,9 @@ y = y + 0.05 * np.random.default_rng(0).normal(size=n)
 data = jaxbox.Dataset.from_arrays(t, {**{c: U[:, i] for i, c in enumerate(cols)}, "T_zon": y})
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 t0 = time.perf_counter()
-r = jaxbox.fit(model, data, starts=S)
+r = jaxbox.fit_model(model, data, starts=S)
 wall = time.perf_counter() - t0
-r2 = jaxbox.fit(model, data, starts=S)
+r2 = jaxbox.fit_model(model, data, starts=S)
 from jaxbox.fit import _fit
 mem = [v.memory_analysis() for v in _fit._CACHE.values()][0]
 print(json.dumps({
@@ -438,11 +438,11 @@ def buildings(repeats) -> dict:
         sets = [s.slice(s.index[0], s.index[n - 1]) for s in sets]
     _fit.clear_compile_cache()
     t0 = time.perf_counter()
-    sep = [jaxbox.fit(MODEL, s, starts=64) for s in sets]
+    sep = [jaxbox.fit_model(MODEL, s, starts=64) for s in sets]
     sep_first = time.perf_counter() - t0
     sep_compiles = _fit.compile_cache_info()["compiles"]
     sep_fit = min(
-        sum(jaxbox.fit(MODEL, s, starts=64).timing["fit_s"] for s in sets) for _ in range(repeats)
+        sum(jaxbox.fit_model(MODEL, s, starts=64).timing["fit_s"] for s in sets) for _ in range(repeats)
     )
     _fit.clear_compile_cache()
     t0 = time.perf_counter()
@@ -484,7 +484,7 @@ enable_compilation_cache(sys.argv[1])
 from jaxbox.datasets import twinhouse_exp1
 ident, _ = twinhouse_exp1("N2").split()
 t0 = time.perf_counter()
-r = jaxbox.fit("ZonWalIntInfWinBouC", ident, starts=64)
+r = jaxbox.fit_model("ZonWalIntInfWinBouC", ident, starts=64)
 print(json.dumps({"process_s": time.perf_counter() - t00, "fit_call_s": time.perf_counter() - t0,
                   "compile_s": r.timing["compile_s"]}))
 """
@@ -682,7 +682,7 @@ def report(res: dict) -> str:
         )
     w("")
     w(
-        "*fit*: the compiled batched solve; *wall per call*: `jaxbox.fit(...)` end to end with the "
+        "*fit*: the compiled batched solve; *wall per call*: `jaxbox.fit_model(...)` end to end with the "
         "executable cached (problem set-up, starts, result). Compile: first call of a structure "
         "in a fresh cache."
     )

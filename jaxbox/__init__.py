@@ -19,7 +19,7 @@ from .data import Dataset as Dataset
 from .data import load as load
 from .fit import FitError as FitError
 from .fit import FitResult as FitResult
-from .fit import fit as fit
+from .fit import fit_model as fit_model
 from .fit import fit_batch as fit_batch
 from .fit import fit_many as fit_many
 from .models import ModelError as ModelError
@@ -32,6 +32,6 @@ from .select import GreyBox as GreyBox
 from .select import forward_selection as forward_selection
 from .select import forward_selection_many as forward_selection_many
 from .simulate import Simulation as Simulation
-from .simulate import simulate as simulate
+from .simulate import simulate_model as simulate_model
 
 __version__ = "0.1.0"

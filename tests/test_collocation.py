@@ -8,7 +8,7 @@ from _reference import van_loan_states
 
 from jaxbox.data import Dataset
 from jaxbox.datasets import twinhouse_exp1
-from jaxbox.fit import FitError, fit, make_problem
+from jaxbox.fit import FitError, fit_model, make_problem
 from jaxbox.models import get_model
 from jaxbox.reference import (
     MAX_POINTS,
@@ -17,7 +17,7 @@ from jaxbox.reference import (
     collocation_simulate,
     radau_iia,
 )
-from jaxbox.simulate import simulate
+from jaxbox.simulate import simulate_model
 
 SQ6 = np.sqrt(6.0)
 #: Radau IIA nodes from the literature (Hairer & Wanner, Solving ODEs II, IV.5; 4 and 5 points
@@ -120,7 +120,7 @@ def order_data():
     theta = ZONWAL_FAST
     model = get_model("ZonWal")
     exact = van_loan_states(model, theta, data)
-    ref = simulate(model, theta, data, method="diffrax", rtol=1e-12, atol=1e-12).x
+    ref = simulate_model(model, theta, data, method="diffrax", rtol=1e-12, atol=1e-12).x
     err_exact, err_diffrax = {}, {}
     for n_c in (1, 2, 3):
         xs = [
@@ -201,7 +201,7 @@ def _check_agreement(lm, col: CollocationResult, data, rtol: float = 1e-3, atol_
 def synthetic_pair(request):
     name = request.param
     data, theta = synthetic(name, ZON if name == "Zon" else ZONWAL)
-    lm = fit(name, data, rtol=1e-12, atol=1e-12, max_steps=500)
+    lm = fit_model(name, data, rtol=1e-12, atol=1e-12, max_steps=500)
     col = collocation_fit(name, data)
     return name, data, theta, lm, col
 
@@ -327,7 +327,7 @@ def test_misuse_raises_like_fit(kwargs, match) -> None:
 @pytest.fixture(scope="module", params=["Zon", "ZonWal"])
 def twinhouse_pair(request):
     data, _ = twinhouse_exp1("N2").split()  # identification half, hourly
-    lm = fit(request.param, data, rtol=1e-12, atol=1e-12, max_steps=500)
+    lm = fit_model(request.param, data, rtol=1e-12, atol=1e-12, max_steps=500)
     col = collocation_fit(request.param, data)
     return data, lm, col
 

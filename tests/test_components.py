@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from jaxbox.data import DataError, Dataset
-from jaxbox.fit import fit
+from jaxbox.fit import fit_model
 from jaxbox.models import (
     ModelError,
     RCNetwork,
@@ -15,7 +15,7 @@ from jaxbox.models import (
     register,
 )
 from jaxbox.models import components as c
-from jaxbox.simulate import simulate, simulate_arrays
+from jaxbox.simulate import simulate_model, simulate_arrays
 
 
 def _net(name="t"):
@@ -303,9 +303,9 @@ def test_an_input_the_data_lacks():
     with pytest.raises(DataError, match="'I_e' required by model W"):
         m.check_data(data)
     with pytest.raises(DataError, match="'I_e'"):
-        fit(m, data)
+        fit_model(m, data)
     with pytest.raises(DataError, match="'I_e'"):
-        simulate(m, None, data)
+        simulate_model(m, None, data)
     m.check_data(data.with_columns(I_e=np.zeros(10)))
 
 
@@ -391,7 +391,7 @@ def test_user_model_recovers_its_parameters():
                 v += rng.uniform(-2, 2)
             row.append(v)
         starts.append(row)
-    result = fit(model, data, starts=np.asarray(starts))
+    result = fit_model(model, data, starts=np.asarray(starts))
     assert result.converged and np.sqrt(result.cost) < 1e-7
     for n in names:
         assert result.params[n] == pytest.approx(TRUTH[n], rel=1e-4), n

@@ -8,7 +8,7 @@ import pytest
 from _reference import synthetic_building
 
 from jaxbox.data import Dataset
-from jaxbox.fit import FitError, compile_cache_info, fit
+from jaxbox.fit import FitError, compile_cache_info, fit_model
 from jaxbox.models import get_model
 
 TRUTH = {
@@ -28,7 +28,7 @@ def zonwal_data():
 
 @pytest.fixture(scope="module")
 def zonwal_fit(zonwal_data):
-    return fit("ZonWal", zonwal_data, starts=8, seed=3)
+    return fit_model("ZonWal", zonwal_data, starts=8, seed=3)
 
 
 def test_recovers_known_parameters_from_default_guess(zonwal_fit):
@@ -48,7 +48,7 @@ def test_multistart_compiles_once_and_reports_a_failing_start(zonwal_data, zonwa
     before = compile_cache_info()
     starts = np.array(r0.starts.initial)
     starts[1] = np.nan  # a start that cannot be evaluated
-    r = fit("ZonWal", zonwal_data, starts=starts)
+    r = fit_model("ZonWal", zonwal_data, starts=starts)
     after = compile_cache_info()
     assert after["compiles"] == before["compiles"], "same shapes must reuse the compiled solve"
     assert r.timing["compile_s"] == 0.0
@@ -57,23 +57,23 @@ def test_multistart_compiles_once_and_reports_a_failing_start(zonwal_data, zonwa
     assert np.isfinite(r.cost)
     # another dataset of the same shape: no recompilation either
     other = synthetic_building(get_model("ZonWal"), TRUTH | {"R_wal": 0.02}, seed=5)
-    r2 = fit("ZonWal", other, starts=starts)
+    r2 = fit_model("ZonWal", other, starts=starts)
     assert compile_cache_info()["compiles"] == before["compiles"]
     assert r2.params["R_wal"] == pytest.approx(0.02, rel=1e-5)
 
 
 def test_all_starts_failing_is_an_error(zonwal_data):
     with pytest.raises(FitError, match="all 2 starts failed"):
-        fit("Zon", zonwal_data, starts=np.full((2, 4), np.nan))
+        fit_model("Zon", zonwal_data, starts=np.full((2, 4), np.nan))
 
 
 def test_fixed_parameters_and_bounds(zonwal_data):
-    r = fit("ZonWal", zonwal_data, fixed={"gA": 2.5}, bounds={"R_wal": (0.001, 0.1)})
+    r = fit_model("ZonWal", zonwal_data, fixed={"gA": 2.5}, bounds={"R_wal": (0.001, 0.1)})
     assert "gA" not in r.free and r.params["gA"] == 2.5
     assert r.bounds["R_wal"] == (0.001, 0.1)
     assert r.params["R_wal"] == pytest.approx(TRUTH["R_wal"], rel=1e-5)
     # a bound that excludes the truth: the estimate ends on it and is flagged
-    r = fit("ZonWal", zonwal_data, bounds={"R_wal": (0.001, 0.008)}, starts=1)
+    r = fit_model("ZonWal", zonwal_data, bounds={"R_wal": (0.001, 0.008)}, starts=1)
     assert r.at_bound()["R_wal"]
 
 
@@ -84,15 +84,15 @@ def test_noisy_fit_is_close(zonwal_data):
         noise=0.05,
         seed=2,
     )
-    r = fit("Zon", noisy, starts=4)
+    r = fit_model("Zon", noisy, starts=4)
     assert r.params["R_wal"] == pytest.approx(0.01, rel=0.02)
     assert r.params["C_zon"] == pytest.approx(8e6, rel=0.05)
     assert np.sqrt(r.cost) == pytest.approx(0.05, rel=0.2)
 
 
 def test_diffrax_simulator_fits_too(zonwal_data):
-    r = fit("Zon", zonwal_data, simulator="diffrax", starts=1, max_steps=60)
-    r_ex = fit("Zon", zonwal_data, starts=1, max_steps=60)
+    r = fit_model("Zon", zonwal_data, simulator="diffrax", starts=1, max_steps=60)
+    r_ex = fit_model("Zon", zonwal_data, starts=1, max_steps=60)
     assert r.problem.simulator == "diffrax"
     # both fit the same (misspecified) problem; the fixed-step error is small against the misfit
     assert r.params["R_wal"] == pytest.approx(r_ex.params["R_wal"], rel=0.05)
@@ -113,7 +113,7 @@ def test_diffrax_simulator_fits_too(zonwal_data):
 )
 def test_problem_errors(zonwal_data, kwargs, match):
     with pytest.raises(FitError, match=match):
-        fit("Zon", zonwal_data, **kwargs)
+        fit_model("Zon", zonwal_data, **kwargs)
 
 
 def test_missing_column_is_named(zonwal_data):
@@ -121,7 +121,7 @@ def test_missing_column_is_named(zonwal_data):
 
     data = Dataset.from_arrays(zonwal_data.t, {"T_amb": zonwal_data["T_amb"]})
     with pytest.raises(DataError, match="Q_hea"):
-        fit("Zon", data)
+        fit_model("Zon", data)
 
 
 def test_float32_is_refused_with_a_clear_message():
@@ -129,7 +129,7 @@ def test_float32_is_refused_with_a_clear_message():
         "import jaxbox, numpy as np\n"
         "d = jaxbox.Dataset.from_arrays(np.arange(10)*3600., {k: np.ones(10) for k in "
         "['T_amb','Q_hea','I_glo_hor','T_zon']})\n"
-        "jaxbox.fit('Zon', d)\n"
+        "jaxbox.fit_model('Zon', d)\n"
     )
     proc = subprocess.run(
         [sys.executable, "-c", code],
@@ -139,3 +139,17 @@ def test_float32_is_refused_with_a_clear_message():
     )
     assert proc.returncode != 0
     assert "enable_x64" in proc.stderr
+
+
+def test_subpackages_are_not_shadowed_by_verbs():
+    import importlib
+    import types
+
+    import jaxbox
+
+    for name in ("fit", "simulate", "validate", "select", "models", "data", "report"):
+        module = importlib.import_module(f"jaxbox.{name}")
+        assert isinstance(getattr(jaxbox, name), types.ModuleType), name
+        assert getattr(jaxbox, name) is module
+    assert callable(jaxbox.fit_model) and callable(jaxbox.simulate_model)
+    assert jaxbox.fit.fit_model is jaxbox.fit_model

@@ -11,7 +11,7 @@ import pytest
 from scipy.linalg import expm
 
 from jaxbox.data import Dataset
-from jaxbox.fit import fit, fit_batch
+from jaxbox.fit import fit_model, fit_batch
 from jaxbox.models import (
     ModelError,
     describe_models,
@@ -508,7 +508,7 @@ def test_two_zone_fit_with_output_weights():
     model, theta, free, _, noisy = recovered("Zon2IntBou")
     data = noisy.data
     q = {"T_zon1": 1.0, "T_zon2": 3.0}
-    weighted = fit(model, data, weights=q, starts=starts_away(model, free, theta))
+    weighted = fit_model(model, data, weights=q, starts=starts_away(model, free, theta))
     t, u = data.t, data.array(list(model.inputs))
     y = data.array(list(model.outputs))
     e = reference_simulation(model, weighted.params, t, u) - y
@@ -545,7 +545,7 @@ def test_exp1_hierarchy_on_twin_house_data():
         model = get_model(name)
         guess = {k: v for k, v in parent.items() if k in model.param_names}
         b = {k: v for k, v in bounds.items() if k in model.param_names}
-        result = fit(model, data, guess=guess, bounds=b, starts=12, seed=0, max_steps=500)
+        result = fit_model(model, data, guess=guess, bounds=b, starts=12, seed=0, max_steps=500)
         assert result.starts.usable[result.best], name
         # auto-validation: post-simulation on the identification data (with the exact
         # discretisation; the adaptive diffrax route agrees to 1e-6 K, see test_simulate)
@@ -581,7 +581,7 @@ def test_fit_many_fits_same_shaped_datasets_in_one_call():
         for p in model.param_names:
             assert r.params[p] == pytest.approx(truths[k][p], rel=1e-4), (k, p)
     # the same as fitting one by one
-    alone = fit(model, data["B"], starts=x0, max_steps=500)
+    alone = fit_model(model, data["B"], starts=x0, max_steps=500)
     for p in model.param_names:
         assert alone.params[p] == pytest.approx(results["B"].params[p], rel=1e-6), p
     as_list = fit_many(model, list(data.values()), starts=x0, max_steps=500)

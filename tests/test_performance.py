@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from _reference import synthetic_building
 
-from jaxbox.fit import compile_cache_info, fit, make_problem, problem_arrays
+from jaxbox.fit import compile_cache_info, fit_model, make_problem, problem_arrays
 from jaxbox.fit._fit import solve_jobs, solve_starts
 from jaxbox.fit._problem import rc_matrices
 from jaxbox.models import get_model, list_models
@@ -34,9 +34,9 @@ def two_datasets():
 
 def test_same_shape_reuses_the_compiled_solve(two_datasets):
     a, b = two_datasets
-    fit("ZonWal", a, starts=6, seed=1)
+    fit_model("ZonWal", a, starts=6, seed=1)
     before = compile_cache_info()
-    r = fit("ZonWal", b, starts=6, seed=4, bounds={"R_wal": (1e-4, 1.0)})
+    r = fit_model("ZonWal", b, starts=6, seed=4, bounds={"R_wal": (1e-4, 1.0)})
     after = compile_cache_info()
     assert after["compiles"] == before["compiles"]
     assert after["hits"] == before["hits"] + 1
@@ -48,7 +48,7 @@ def test_a_start_does_not_depend_on_its_batch(two_datasets):
     data = two_datasets[0]
     problem = make_problem(get_model("ZonWal"), data)
     arrays = problem_arrays(problem, data)
-    r = fit("ZonWal", data, starts=12, seed=0)
+    r = fit_model("ZonWal", data, starts=12, seed=0)
     x0s = r.starts.initial
     batched = {s: solve_starts(problem, x0s, arrays, slots=s) for s in (12, 4)}
     for s, out in batched.items():
@@ -118,11 +118,11 @@ def test_parallel_and_sequential_simulation_agree(n):
 
 
 def test_parallel_in_time_through_the_public_api(two_datasets):
-    from jaxbox.simulate import simulate
+    from jaxbox.simulate import simulate_model
 
     data = two_datasets[0]
-    seq = simulate("ZonWal", TRUTH, data)
-    par = simulate("ZonWal", TRUTH, data, method="parallel")
+    seq = simulate_model("ZonWal", TRUTH, data)
+    par = simulate_model("ZonWal", TRUTH, data, method="parallel")
     np.testing.assert_allclose(par.x, seq.x, rtol=1e-12, atol=1e-10)
     np.testing.assert_allclose(par.y, seq.y, rtol=1e-12, atol=1e-10)
 
@@ -219,7 +219,7 @@ def test_fit_batch_groups_by_shape_and_reports_failures(two_datasets):
     assert isinstance(out[3], FitError) and "no_such_parameter" in str(out[3])
     assert [r.timing["batch"] for r in out[:3]] == [2, 1, 2]
     for req, res in zip(requests[:3], out[:3], strict=True):
-        alone = fit(
+        alone = fit_model(
             req["model"],
             req["data"],
             **{k: v for k, v in req.items() if k not in ("model", "data")},

@@ -9,8 +9,8 @@ import pytest
 from matplotlib.figure import Figure
 
 from jaxbox.data import Dataset
-from jaxbox.fit import StartReport, fit
-from jaxbox.simulate import simulate
+from jaxbox.fit import StartReport, fit_model
+from jaxbox.simulate import simulate_model
 from jaxbox.validate import (
     fit_report,
     plot_autocorrelation,
@@ -43,7 +43,7 @@ def _data(n, irradiance=True):
         "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)) * irradiance,
     }
     clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
-    y = simulate("Zon", TRUTH, clean).y[:, 0]
+    y = simulate_model("Zon", TRUTH, clean).y[:, 0]
     return clean.with_columns(T_zon=y + rng.normal(0, 0.1, n))
 
 
@@ -65,7 +65,7 @@ def _several_starts(res):
 @pytest.fixture(scope="module")
 def fitted():
     ident, valid = _data(2 * N).split()
-    res = fit("Zon", ident, starts=np.asarray([[TRUTH[n] * 1.1 for n in FREE]]))
+    res = fit_model("Zon", ident, starts=np.asarray([[TRUTH[n] * 1.1 for n in FREE]]))
     res = _several_starts(res)
     v = validate(res, valid, method="exact")
     return res, valid, v
@@ -113,7 +113,7 @@ def test_plots_of_auto_validation_only(fitted):
 
 
 def test_confidence_interval_plot_marks_non_identifiable():
-    res = fit("Zon", _data(N, irradiance=False), starts=np.asarray([[TRUTH[n] for n in FREE]]))
+    res = fit_model("Zon", _data(N, irradiance=False), starts=np.asarray([[TRUTH[n] for n in FREE]]))
     unc = uncertainty(res)
     assert unc.not_identifiable == ("gA",)
     fig = plot_confidence_intervals(unc)

@@ -10,7 +10,7 @@ import pytest
 from jaxbox.data import Dataset
 from jaxbox.fit import FitResult, StartReport, make_problem
 from jaxbox.models import get_model
-from jaxbox.simulate import simulate, simulate_arrays
+from jaxbox.simulate import simulate_model, simulate_arrays
 from jaxbox.validate import prediction_performance, validate
 
 N = 200
@@ -32,7 +32,7 @@ def _inputs(n, seed=0):
 def _data(model, theta, n, sigma, seed=1):
     t, u = _inputs(n)
     clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
-    y = simulate(model, theta, clean).y[:, 0]
+    y = simulate_model(model, theta, clean).y[:, 0]
     return clean.with_columns(T_zon=y + np.random.default_rng(seed).normal(0, sigma, n))
 
 
@@ -41,7 +41,7 @@ def _result_at(model, data, theta):
     model = get_model(model)
     problem = make_problem(model, data, guess=theta)
     p = np.asarray([theta[n] for n in problem.free])
-    e = simulate(model, theta, data).y - data.array(list(model.outputs))
+    e = simulate_model(model, theta, data).y - data.array(list(model.outputs))
     cost = float(np.sum(np.asarray(problem.weights) * np.mean(e * e, axis=0)))
     report = StartReport(
         initial=p[None],
@@ -75,7 +75,7 @@ def test_k_step_rmse_against_brute_force():
     t = np.asarray(data.t)
     u = data.array(list(model.inputs))
     y = data.array(["T_zon"])[:, 0]
-    xs = simulate(model, theta, data).x
+    xs = simulate_model(model, theta, data).x
     xhat = xs.copy()
     xhat[:, 0] = y
     th = {k: jnp.asarray(v) for k, v in theta.items()}

@@ -10,7 +10,7 @@ import pytest
 from _reference import van_loan_states
 
 from jaxbox.data import Dataset
-from jaxbox.fit import FitError, fit, make_problem
+from jaxbox.fit import FitError, fit_model, make_problem
 from jaxbox.fit._sensitivity import FitSensitivity, fit_sensitivity
 from jaxbox.models import get_model
 from jaxbox.validate import uncertainty
@@ -38,7 +38,7 @@ def data() -> Dataset:
 
 @pytest.fixture(scope="module")
 def fitted(data):
-    result = fit("Zon", data, **TIGHT)
+    result = fit_model("Zon", data, **TIGHT)
     assert result.converged
     return result
 
@@ -61,7 +61,7 @@ def refit(result, data, **kw) -> np.ndarray:
     """
     p = np.asarray([result.params[n] for n in result.free])
     for _ in range(3):
-        again = fit("Zon", data, starts=p[None], **TIGHT, **kw)
+        again = fit_model("Zon", data, starts=p[None], **TIGHT, **kw)
         assert again.converged
         p = np.asarray([again.params[n] for n in again.free])
     return p
@@ -161,7 +161,7 @@ def test_gauss_newton_covariance_is_the_classic_one(sens_gn, fitted) -> None:
 
 def test_parameter_on_a_bound_is_held(fitted, data) -> None:
     bounds = {"gA": (3.5, 50.0)}  # the truth (3) and the free optimum lie below
-    result = fit("Zon", data, bounds=bounds, **TIGHT)
+    result = fit_model("Zon", data, bounds=bounds, **TIGHT)
     assert result.at_bound()["gA"]
     sens = fit_sensitivity(result)
     assert sens.held == ("gA",)

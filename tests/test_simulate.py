@@ -6,7 +6,7 @@ import pytest
 
 from jaxbox.data import Dataset
 from jaxbox.models import get_model
-from jaxbox.simulate import simulate, simulate_arrays
+from jaxbox.simulate import simulate_model, simulate_arrays
 
 DT = 3600.0
 
@@ -80,7 +80,7 @@ def test_simulate_on_a_dataset_and_vmap_over_parameters(inputs):
     t, u = inputs
     m = get_model("Zon")
     ds = Dataset.from_arrays(t, u)
-    sim = simulate(m, None, ds)
+    sim = simulate_model(m, None, ds)
     assert sim.y.shape == (len(t), 1) and sim.x.shape == (len(t), 1)
     th = {k: np.full(5, v) for k, v in m.defaults().items()}
     th["R_wal"] = np.linspace(0.005, 0.02, 5)
@@ -98,11 +98,11 @@ def test_simulate_errors(inputs):
     m = get_model("Zon")
     ds = Dataset.from_arrays(t, {"T_amb": u["T_amb"], "Q_hea": u["Q_hea"]})
     with pytest.raises(DataError, match="I_glo_hor"):
-        simulate(m, None, ds)
+        simulate_model(m, None, ds)
     ds = Dataset.from_arrays(t, u)
     with pytest.raises(ModelError, match="no value for parameter"):
-        simulate(m, {"C_zon": 1e6}, ds)
+        simulate_model(m, {"C_zon": 1e6}, ds)
     with pytest.raises(ModelError, match="no parameter"):
-        simulate(m, m.defaults() | {"R_x": 1.0}, ds)
+        simulate_model(m, m.defaults() | {"R_x": 1.0}, ds)
     with pytest.raises(ValueError, match="unknown simulation method"):
-        simulate(m, None, ds, method="euler")
+        simulate_model(m, None, ds, method="euler")

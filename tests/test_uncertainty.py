@@ -7,9 +7,9 @@ import pytest
 from scipy import optimize, stats
 
 from jaxbox.data import Dataset
-from jaxbox.fit import fit, problem_arrays
+from jaxbox.fit import fit_model, problem_arrays
 from jaxbox.models import RCNetwork
-from jaxbox.simulate import simulate
+from jaxbox.simulate import simulate_model
 from jaxbox.validate import check_validity, sensitivities, uncertainty
 
 N = 200
@@ -32,7 +32,7 @@ def _inputs(seed=0, n=N):
 def _dataset(model, theta, noise_seed, sigma=SIGMA, inputs=None):
     t, u = inputs if inputs is not None else _inputs()
     clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(len(t))})
-    y = simulate(model, theta, clean).y[:, 0]
+    y = simulate_model(model, theta, clean).y[:, 0]
     y = y + np.random.default_rng(noise_seed).normal(0.0, sigma, len(t))
     return clean.with_columns(T_zon=y)
 
@@ -60,7 +60,7 @@ def test_coverage_of_95_percent_intervals():
     hits = np.zeros((n_sets, len(FREE)), dtype=bool)
     for k in range(n_sets):
         data = _dataset("Zon", TRUTH, noise_seed=1000 + k, inputs=inputs)
-        res = fit("Zon", data, starts=_start(TRUTH, FREE))
+        res = fit_model("Zon", data, starts=_start(TRUTH, FREE))
         assert res.converged
         unc = uncertainty(res, include_initial_states=True)
         assert unc.names == FREE
@@ -77,7 +77,7 @@ def test_coverage_of_95_percent_intervals():
 @pytest.fixture(scope="module")
 def zon_fit():
     data = _dataset("Zon", TRUTH, noise_seed=7)
-    return fit("Zon", data, starts=_start(TRUTH, FREE))
+    return fit_model("Zon", data, starts=_start(TRUTH, FREE))
 
 
 def test_jacobian_matches_central_differences(zon_fit):
@@ -148,7 +148,7 @@ def test_initial_states_get_no_interval_by_default(zon_fit):
 
 
 def test_common_output_weight_does_not_change_the_covariance(zon_fit):
-    res4 = fit("Zon", zon_fit.data, starts=_start(TRUTH, FREE), weights={"T_zon": 4.0})
+    res4 = fit_model("Zon", zon_fit.data, starts=_start(TRUTH, FREE), weights={"T_zon": 4.0})
     a = uncertainty(zon_fit)
     b = uncertainty(res4)
     np.testing.assert_allclose(b.std, a.std, rtol=1e-5)
@@ -170,7 +170,7 @@ def test_two_resistances_in_parallel_are_flagged():
     model = _parallel_model()
     theta = {"C_zon": 5e6, "R_a": 0.02, "R_b": 0.02, "gA": 2.0, "T_zon0": 20.0}
     data = _dataset(model, theta, noise_seed=3)
-    res = fit(model, data, starts=_start(theta, model.param_names, 1.05))
+    res = fit_model(model, data, starts=_start(theta, model.param_names, 1.05))
     unc = uncertainty(res)
     assert set(unc.not_identifiable) == {"R_a", "R_b"}
     assert len(unc.combinations) == 1
@@ -198,7 +198,7 @@ def test_unexcited_input_is_flagged():
     t, u = _inputs()
     u = {**u, "I_glo_hor": np.zeros(N)}
     data = _dataset("Zon", TRUTH, noise_seed=5, inputs=(t, u))
-    res = fit("Zon", data, starts=_start(TRUTH, FREE))
+    res = fit_model("Zon", data, starts=_start(TRUTH, FREE))
     unc = uncertainty(res)
     assert unc.not_identifiable == ("gA",)
     assert np.isnan(unc.std[2]) and np.all(np.isfinite(unc.std[:2]))

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from jaxbox.data import Dataset
-from jaxbox.fit import StartReport, fit
+from jaxbox.fit import StartReport, fit_model
 from jaxbox.models import get_model
-from jaxbox.simulate import simulate
+from jaxbox.simulate import simulate_model
 from jaxbox.validate import (
     analyse_residuals,
     check_validity,
@@ -34,7 +34,7 @@ def _data(seed=7, sigma=0.1):
         "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)),
     }
     clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(N)})
-    y = simulate("Zon", TRUTH, clean).y[:, 0]
+    y = simulate_model("Zon", TRUTH, clean).y[:, 0]
     return clean.with_columns(T_zon=y + np.random.default_rng(seed).normal(0, sigma, N))
 
 
@@ -44,7 +44,7 @@ def _start(factor=1.1):
 
 @pytest.fixture(scope="module")
 def good():
-    return fit("Zon", _data(), starts=_start())
+    return fit_model("Zon", _data(), starts=_start())
 
 
 def test_a_good_fit_is_valid(good):
@@ -58,7 +58,7 @@ def test_a_good_fit_is_valid(good):
 
 
 def test_parameter_driven_onto_its_bound_is_flagged():
-    res = fit("Zon", _data(), starts=_start(0.4), bounds={"gA": (0.0, 1.0)})
+    res = fit_model("Zon", _data(), starts=_start(0.4), bounds={"gA": (0.0, 1.0)})
     assert res.params["gA"] == pytest.approx(1.0, abs=1e-3)
     v = check_validity(res)
     assert not v.valid
@@ -69,7 +69,7 @@ def test_parameter_driven_onto_its_bound_is_flagged():
 
 def test_near_a_bound_but_significantly_away_from_it_is_a_warning():
     """gA = 2 with bounds [0, 250]: within 1 % of the lower bound, yet its interval excludes 0."""
-    res = fit("Zon", _data(sigma=0.02), starts=_start(), bounds={"gA": (0.0, 250.0)})
+    res = fit_model("Zon", _data(sigma=0.02), starts=_start(), bounds={"gA": (0.0, 250.0)})
     assert res.bound_position()["gA"] < 0.01
     v = check_validity(res)
     assert v.valid, v.reasons
@@ -79,7 +79,7 @@ def test_near_a_bound_but_significantly_away_from_it_is_a_warning():
 
 
 def test_initial_temperature_pinned_at_its_bound():
-    res = fit(
+    res = fit_model(
         "Zon", _data(), starts=np.asarray([[5e6, 0.01, 2.0, 27.0]]), bounds={"T_zon0": (25.0, 37.0)}
     )
     v = check_validity(res)

@@ -1,6 +1,6 @@
 """Estimation: output-error least squares, bound transforms, multistart Levenberg–Marquardt."""
 
-from ._batch import fit as fit
+from ._batch import fit_model as fit_model
 from ._batch import fit_batch as fit_batch
 from ._batch import fit_many as fit_many
 from ._fit import clear_compile_cache as clear_compile_cache

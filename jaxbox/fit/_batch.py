@@ -23,7 +23,7 @@ from ._result import FitResult
 __all__ = ["fit", "fit_many", "fit_batch"]
 
 
-def fit(
+def fit_model(
     model,
     data,
     *,
@@ -99,7 +99,7 @@ def fit(
 #: the keyword arguments of a request (see :func:`fit_batch`) and their defaults: those of fit
 _DEFAULTS = {
     name: p.default
-    for name, p in inspect.signature(fit).parameters.items()
+    for name, p in inspect.signature(fit_model).parameters.items()
     if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "slots"
 }
 #: the problem arguments, the solver settings (requests solved together share them) and the
@@ -130,7 +130,7 @@ def fit_many(
 ) -> list[FitResult] | dict[str, FitResult]:
     """Fit ``model`` to each of several datasets of the same length in one batched call.
 
-    Takes the arguments of :func:`~jaxbox.fit.fit`; they apply to every dataset. Initial states
+    Takes the arguments of :func:`~jaxbox.fit.fit_model`; they apply to every dataset. Initial states
     are guessed from each dataset's own first samples, and each dataset gets ``starts`` starts
     (the guess plus Latin-hypercube samples around it, with the same ``seed``), or the same
     explicit starts [S, n_free]. ``slots`` counts the starts iterated together over all
@@ -197,13 +197,13 @@ def fit_batch(
     """Several estimation problems solved together: one compiled call per compatible group.
 
     A request is a mapping with ``model`` and ``data`` and any of the keyword arguments of
-    :func:`~jaxbox.fit.fit` (``free``, ``fixed``, ``bounds``, ``guess``, ``starts``, ``seed``,
+    :func:`~jaxbox.fit.fit_model` (``free``, ``fixed``, ``bounds``, ``guess``, ``starts``, ``seed``,
     ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
     ``atol``). Requests with the same number of free parameters, data of the same shape and the
     same solver settings are solved in one batch (with the exact simulator even when their model
     structures differ, provided they have as many states and fixed parameters and measure the
     same states; with diffrax only for the same structure); the others in batches of their own.
-    Each result is the one :func:`~jaxbox.fit.fit` would return for its request.
+    Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request.
 
     Args:
         requests: the problems, in order.

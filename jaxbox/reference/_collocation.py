@@ -341,11 +341,11 @@ class CollocationResult:
         """Simulate the model with the estimated parameters (default: adaptive diffrax).
 
         ``data`` defaults to the identification data; ``options`` go to
-        :func:`jaxbox.simulate.simulate` (e.g. ``rtol``, ``atol``).
+        :func:`jaxbox.simulate.simulate_model` (e.g. ``rtol``, ``atol``).
         """
-        from ..simulate import simulate
+        from ..simulate import simulate_model
 
-        return simulate(
+        return simulate_model(
             self.model, self.params, self.data if data is None else data, method=method, **options
         )
 

@@ -96,7 +96,7 @@ def _simulate_jit(model, theta, t, u, x0, method, options):
     return simulate_arrays(model, theta, t, u, method=method, x0=x0, **dict(options))
 
 
-def simulate(
+def simulate_model(
     model: RCModel,
     theta: Mapping | None,
     data,

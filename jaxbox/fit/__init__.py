@@ -12,6 +12,10 @@ from ._problem import initial_guess as initial_guess
 from ._problem import make_problem as make_problem
 from ._problem import problem_arrays as problem_arrays
 from ._result import FitResult as FitResult
+from ._solver import LevenbergMarquardt as LevenbergMarquardt
+from ._solver import LMState as LMState
+from ._solver import NielsenDamping as NielsenDamping
+from ._solver import ScaledDampedNewton as ScaledDampedNewton
 from ._result import StartReport as StartReport
 from ._sensitivity import FitSensitivity as FitSensitivity
 from ._sensitivity import fit_sensitivity as fit_sensitivity

@@ -13,12 +13,14 @@ import inspect
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import optimistix as optx
 
 from .._x64 import require_x64
 from ..models import get_model
 from ._fit import _problem_key, make_starts, result_from, solve_jobs
 from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
+from ._solver import LevenbergMarquardt
 
 __all__ = ["fit", "fit_many", "fit_batch"]
 
@@ -40,6 +42,7 @@ def fit_model(
     rtol: float = 1e-6,
     atol: float = 1e-16,
     concentration: float = 4.0,
+    solver: optx.AbstractLeastSquaresSolver | None = None,
     slots: int | None = None,
 ) -> FitResult:
     """Estimate the parameters of ``model`` from ``data`` by output-error least squares.
@@ -63,6 +66,12 @@ def fit_model(
         rtol, atol: a start has converged when an accepted step reduced the cost, and the
             linear model predicted it to reduce, by at most ``rtol · cost + atol`` [K²].
         concentration: spread of the Latin hypercube around the guess (0: uniform).
+        solver: any optimistix least-squares solver (or minimiser). Default:
+            :class:`jaxbox.LevenbergMarquardt` with ``rtol`` and ``atol``, driven by the fused,
+            slot-refilling multistart; another solver (``optimistix.LevenbergMarquardt``,
+            ``optimistix.Dogleg``, ``optimistix.GaussNewton``, …) runs one
+            ``optimistix.least_squares`` per start under ``vmap``, with its own tolerances and
+            a Jacobian by forward-mode autodiff through the simulator.
         slots: starts iterated together (default :func:`default_slots`); a start that has
             terminated hands its slot to the next. Results do not depend on it.
 
@@ -90,6 +99,7 @@ def fit_model(
                 "rtol": rtol,
                 "atol": atol,
                 "concentration": concentration,
+                "solver": solver,
             }
         ],
         slots=slots,
@@ -105,7 +115,7 @@ _DEFAULTS = {
 #: the problem arguments, the solver settings (requests solved together share them) and the
 #: start arguments of a request
 _PROBLEM = ("free", "fixed", "bounds", "guess", "weights", "simulator", "sim_options")
-_SOLVER = ("max_steps", "rtol", "atol")
+_SOLVER = ("max_steps", "rtol", "atol", "solver")
 _STARTS = ("starts", "seed", "concentration")
 
 
@@ -126,6 +136,7 @@ def fit_many(
     rtol: float = 1e-6,
     atol: float = 1e-16,
     concentration: float = 4.0,
+    solver: optx.AbstractLeastSquaresSolver | None = None,
     slots: int | None = None,
 ) -> list[FitResult] | dict[str, FitResult]:
     """Fit ``model`` to each of several datasets of the same length in one batched call.
@@ -178,6 +189,7 @@ def fit_many(
         "max_steps": max_steps,
         "rtol": rtol,
         "atol": atol,
+        "solver": solver,
     }
     outcomes = fit_batch(
         [{"model": model, "data": data, **common} for data in items], slots=slots, errors="return"
@@ -232,7 +244,7 @@ def fit_batch(
             arg = {k: req.get(k, _DEFAULTS[k]) for k in _DEFAULTS}
             problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
             x0 = make_starts(problem, *(arg[k] for k in _STARTS))
-            solver = tuple(float(arg[k]) for k in _SOLVER)
+            solver = (int(arg["max_steps"]), float(arg["rtol"]), float(arg["atol"]), arg["solver"])
             prepared.append((i, problem, data, x0, problem_arrays(problem, data), solver))
         except FitError as err:
             if errors == "raise":
@@ -248,16 +260,18 @@ def fit_batch(
             tuple(problem.output_states),
             *(np.shape(a) for a in arrays),
         )
-        structure = None if problem.simulator == "exact" else _problem_key(problem)
+        fused = solver[3] is None or isinstance(solver[3], LevenbergMarquardt)
+        structure = None if problem.simulator == "exact" and fused else _problem_key(problem)
         groups.setdefault((solver, shape, problem.simulator, structure), []).append(item)
-    for (solver, *_), members in groups.items():
-        max_steps, rtol, atol = int(solver[0]), solver[1], solver[2]
+    for (settings_key, *_), members in groups.items():
+        max_steps, rtol, atol, solver = settings_key
         out = solve_jobs(
             [(problem, x0, arrays) for _, problem, _, x0, arrays, _ in members],
             max_steps=max_steps,
             rtol=rtol,
             atol=atol,
             slots=slots,
+            solver=solver,
         )
         timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(members)}
         first = 0

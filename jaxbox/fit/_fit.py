@@ -43,46 +43,33 @@ from collections.abc import Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 from jax import lax
 
+from .. import _compiled
 from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
+from ._solver import LevenbergMarquardt
 from ._starts import latin_hypercube
 
 __all__ = ["solve_starts", "solve_jobs", "compile_cache_info", "clear_compile_cache"]
 
-_CACHE: dict = {}
-_STATS = {"compiles": 0, "hits": 0}
 
 #: termination codes of the batched solve
 CONVERGED, MAX_STEPS, NONFINITE, RUNNING = 0, 1, 2, -1
 _STATUS = {CONVERGED: "converged", MAX_STEPS: "max_steps", NONFINITE: "nonfinite"}
 
-_LAMBDA0 = 1e-2
-_LAMBDA_MAX = 1e16
-_ACCEPT = 1e-4
-#: a coordinate whose column norm of J is below this fraction of the largest is saturated
-_SATURATED = 1e-8
-
 
 def compile_cache_info() -> dict:
-    """Number of compilations and cache hits of batched solves in this process."""
-    return {"entries": len(_CACHE), **_STATS}
+    """Compiled functions kept (``entries``: those of the fit), and the process-wide number of
+    compilations and cache hits (see :mod:`jaxbox._compiled`)."""
+    return _compiled.info("fit")
 
 
 def clear_compile_cache() -> None:
-    _CACHE.clear()
-    _STATS.update(compiles=0, hits=0)
+    """Drop every compiled function (of the fit and of every other room)."""
+    _compiled.clear()
 
-
-# ---- the solver ----------------------------------------------------------------------------------
-
-
-#: step control (read when a solve is compiled, part of the compile key): Moré's scaling by the
-#: running maximum of the column norms, the first damping, and a cap on the largest change of an
-#: internal coordinate per step, which keeps a far start from leaping into a saturated corner of
-#: the bounds.
-_OPTIONS = {"scaling": "more", "lambda0": _LAMBDA0, "step_cap": 2.0}
 
 
 def default_slots(n_starts: int) -> int:
@@ -91,24 +78,30 @@ def default_slots(n_starts: int) -> int:
     return int(min(n_starts, max(16, min(128, n_starts // 8))))
 
 
-def levenberg_marquardt(
+#: the solver reads each slot's normal equations from the batch evaluation (see _multistart)
+_FROM_BATCH = {"normal_equations": lambda y, args: args}
+
+
+def _multistart(
+    solver: LevenbergMarquardt,
     lin,
     z0,
     *,
     max_steps: int,
-    rtol: float,
-    atol: float,
     start_counts: Sequence[int] | None = None,
     slot_counts: Sequence[int] | None = None,
 ):
-    """Batched Levenberg–Marquardt on ``cost(z) = Σ r(z)²`` from starts ``z0`` [S, p].
+    """Every start of ``z0`` [S, p] through ``solver``, a fixed number of *slots* at a time.
 
-    The starts go through a fixed number of *slots* (``slot_counts`` per group of consecutive
-    starts, ``start_counts``): each iteration advances every slot by one trial; a slot whose start
-    has terminated takes the next start of its group, so the batch stays busy until the queue is
-    empty. ``lin(z [B, p], idx [B]) -> (cost [B], g [B, p], H [B, p, p])`` with ``g = Jᵀr``,
-    ``H = JᵀJ`` evaluates the slots, ``idx`` naming the start each slot holds. Traceable (call it
-    under ``jax.jit``). Returns ``(z [S, p], cost [S], code [S], steps [S])``.
+    Each iteration evaluates the normal equations of every slot at once — ``lin(Z [B, p],
+    idx [B]) -> (Σ r² [B], Jᵀr [B, p], JᵀJ [B, p, p])``, ``idx`` naming the start each slot
+    holds — and then advances each slot by one ``solver.step`` (under ``vmap``; the step reads
+    its slot's evaluation through ``options["normal_equations"]``). A slot whose start
+    terminates (``solver.terminate``) or reaches ``max_steps`` takes the next start of its group
+    (``slot_counts`` slots for each group of ``start_counts`` consecutive starts), through
+    ``solver.init``, so the batch stays busy until the queue is empty; each start's result does
+    not depend on the batch it ran in. Traceable (call it under ``jax.jit``). Returns
+    ``(z [S, p], cost [S], code [S], steps [S])``.
     """
     n_starts, p = z0.shape
     dtype = z0.dtype
@@ -121,33 +114,28 @@ def levenberg_marquardt(
     slot_first = np.concatenate([[0], np.cumsum(slot_counts)[:-1]])
     end = jnp.asarray(first + np.asarray(start_counts))
     idx0 = np.asarray(first[group] + np.arange(batch) - slot_first[group])
-    eye = jnp.eye(p, dtype=dtype)
-    bcast = lambda m, a: m.reshape((batch,) + (1,) * (a.ndim - 1))  # noqa: E731
-    where = lambda m, a, b: jnp.where(bcast(m, a), a, b)  # noqa: E731
+    tags = frozenset()
 
-    def finite(*arrays):
-        ok = jnp.ones((batch,), bool)
-        for a in arrays:
-            ok = ok & jnp.all(jnp.isfinite(a.reshape(batch, -1)), axis=1)
-        return ok
+    def init(z):
+        return solver.init(None, z, None, _FROM_BATCH, None, None, tags)
 
-    def guarded_diag(H, fallback):
-        diag = jnp.sqrt(jnp.diagonal(H, axis1=1, axis2=2))
-        return jnp.where(jnp.isfinite(diag) & (diag > 0), diag, fallback)
+    def step(y, state, evaluation):
+        return solver.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
+
+    def terminate(y, state):
+        return solver.terminate(None, y, None, _FROM_BATCH, state, tags)
+
+    def where(mask, a, b):
+        return jax.tree_util.tree_map(
+            lambda x, y: jnp.where(mask.reshape((batch,) + (1,) * (x.ndim - 1)), x, y), a, b
+        )
 
     rounds = -(-np.asarray(start_counts) // np.asarray(slot_counts))
     cap = int((max_steps + 1) * rounds.max() + 1)
-    state = dict(
+    carry = dict(
         idx=jnp.asarray(idx0, jnp.int32),
-        z=z0[idx0],
-        cost=jnp.zeros((batch,), dtype),
-        g=jnp.zeros((batch, p), dtype),
-        H=jnp.broadcast_to(eye, (batch, p, p)),
-        d=jnp.ones((batch, p), dtype),
-        lam=jnp.full((batch,), _OPTIONS["lambda0"], dtype),
-        nu=jnp.full((batch,), 2.0, dtype),
-        steps=jnp.zeros((batch,), jnp.int32),
-        fresh=jnp.ones((batch,), bool),
+        y=z0[idx0],
+        state=jax.vmap(init)(z0[idx0]),
         live=jnp.ones((batch,), bool),
         nxt=jnp.asarray(first + np.asarray(slot_counts), jnp.int32),
         out_z=jnp.full((n_starts, p), jnp.nan, dtype),
@@ -157,104 +145,49 @@ def levenberg_marquardt(
         it=jnp.asarray(0, jnp.int32),
     )
 
-    def cond(s):
-        return (s["it"] < cap) & jnp.any(s["live"])
+    def cond(c):
+        return (c["it"] < cap) & jnp.any(c["live"])
 
-    def body(s):
-        z, cost, g, H, d, lam, nu = (s[k] for k in ("z", "cost", "g", "H", "d", "lam", "nu"))
-        fresh, live = s["fresh"], s["live"]
-        # the damped Gauss–Newton step in coordinates scaled by d (a fresh start: no step)
-        M = H / (d[:, :, None] * d[:, None, :]) + lam[:, None, None] * eye
-        L = jnp.linalg.cholesky(M)
-        step_s = -jax.scipy.linalg.cho_solve((L, True), (g / d)[..., None])[..., 0]
-        step = step_s / d
-        if _OPTIONS["step_cap"]:
-            # the step is shortened as a whole (its direction kept) so that no coordinate moves
-            # by more than the cap; a saturated coordinate (a parameter resting on a bound: its
-            # column of J vanishes and its step is huge) is clipped on its own instead, so that
-            # it cannot freeze all the others
-            limit = _OPTIONS["step_cap"]
-            col = jnp.sqrt(jnp.clip(jnp.diagonal(H, axis1=1, axis2=2), 0.0))
-            sat = col < _SATURATED * jnp.max(col, axis=-1, keepdims=True)
-            big = jnp.max(jnp.where(sat, 0.0, jnp.abs(step)), axis=-1)
-            shrink = jnp.minimum(1.0, limit / jnp.where(big > 0, big, 1.0))
-            step = jnp.where(sat, jnp.clip(step, -limit, limit), step * shrink[:, None])
-        step = where(fresh, jnp.zeros_like(step), step)
-        pred = -(2.0 * jnp.sum(g * step, -1) + jnp.einsum("bi,bij,bj->b", step, H, step))
-        zt = z + step
-        ct, gt, Ht = lin(zt, s["idx"])
-        actual = cost - ct
-        ok_t = finite(zt, ct, gt, Ht)
-        ok = ok_t & (pred > 0) & (actual > _ACCEPT * pred)
-        rho = jnp.where(ok, actual / jnp.where(pred > 0, pred, 1.0), 0.0)
-        running = live & ~fresh
-        accept = (live & fresh & ok_t) | (running & ok)
-        # damping (Nielsen) and scaling
-        lam_new = jnp.where(
-            ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), lam * nu
-        )
-        nu_new = jnp.where(ok, 2.0, 2.0 * nu)
-        lam_new = jnp.where(fresh, _OPTIONS["lambda0"], lam_new)
-        nu_new = jnp.where(fresh, 2.0, nu_new)
-        if _OPTIONS["scaling"] == "more":
-            d_new = jnp.maximum(d, guarded_diag(Ht, 0.0))
-        else:
-            d_new = guarded_diag(Ht, d)
-        d_new = jnp.where(fresh[:, None], guarded_diag(Ht, 1.0), d_new)
-        # termination
-        tol = rtol * cost + atol
-        small = ok & (actual <= tol) & (pred <= tol)
-        stalled = lam_new > _LAMBDA_MAX
-        steps = s["steps"] + running.astype(jnp.int32)
-        converged = running & (small | stalled)
-        nonfinite = live & fresh & ~ok_t
-        capped = running & ~converged & (steps >= max_steps)
-        finished = converged | nonfinite | capped
-        code = jnp.where(converged, CONVERGED, jnp.where(nonfinite, NONFINITE, MAX_STEPS))
-        z = where(accept, zt, z)
-        cost = where(accept, ct, cost)
-        g = where(accept, gt, g)
-        H = where(accept, Ht, H)
-        d = where(accept, d_new, d)
-        lam = where(live, lam_new, lam)
-        nu = where(live, nu_new, nu)
+    def body(c):
+        live = c["live"]
+        cost, g, H = lin(c["state"].y_eval, c["idx"])
+        y, state = jax.vmap(step)(c["y"], c["state"], (0.5 * cost, g, H))
+        done, result = jax.vmap(terminate)(y, state)
+        steps = state.num_steps
+        diverged = done & (result == optx.RESULTS.nonlinear_divergence)
+        converged = done & ~diverged
+        capped = ~done & (steps >= max_steps)
+        finished = live & (done | capped)
+        code = jnp.where(converged, CONVERGED, jnp.where(diverged, NONFINITE, MAX_STEPS))
         # results of the finished starts
-        target = jnp.where(finished, s["idx"], n_starts)  # out of range: dropped
-        out_z = s["out_z"].at[target].set(jnp.where(nonfinite[:, None], zt, z), mode="drop")
-        out_cost = s["out_cost"].at[target].set(jnp.where(nonfinite, ct, cost), mode="drop")
-        out_code = s["out_code"].at[target].set(code, mode="drop")
-        out_steps = s["out_steps"].at[target].set(steps, mode="drop")
+        target = jnp.where(finished, c["idx"], n_starts)  # out of range: dropped
+        final_cost = jnp.where(diverged, cost, 2.0 * state.f_info.f)
+        out_z = c["out_z"].at[target].set(y, mode="drop")
+        out_cost = c["out_cost"].at[target].set(final_cost, mode="drop")
+        out_code = c["out_code"].at[target].set(code, mode="drop")
+        out_steps = c["out_steps"].at[target].set(steps, mode="drop")
         # the freed slots take the next starts of their group
         onehot = (group[:, None] == np.arange(n_groups)[None, :]) & finished[:, None]
         rank = jnp.cumsum(onehot, axis=0)[jnp.arange(batch), group] - 1
-        new_idx = s["nxt"][group] + rank
+        new_idx = c["nxt"][group] + rank
         load = finished & (new_idx < end[group])
-        nxt = jnp.minimum(s["nxt"] + jnp.sum(onehot, axis=0), end).astype(jnp.int32)
-        idx = jnp.where(load, new_idx, s["idx"]).astype(jnp.int32)
-        z = where(load, z0[jnp.where(load, new_idx, 0)], z)
-        steps = jnp.where(load, 0, steps).astype(jnp.int32)
+        nxt = jnp.minimum(c["nxt"] + jnp.sum(onehot, axis=0), end).astype(jnp.int32)
+        z_new = z0[jnp.where(load, new_idx, 0)]
         return dict(
-            idx=idx,
-            z=z,
-            cost=cost,
-            g=g,
-            H=H,
-            d=d,
-            lam=lam,
-            nu=nu,
-            steps=steps,
-            fresh=load,
+            idx=jnp.where(load, new_idx, c["idx"]).astype(jnp.int32),
+            y=where(load, z_new, y),
+            state=where(load, jax.vmap(init)(z_new), state),
             live=jnp.where(finished, load, live),
             nxt=nxt,
             out_z=out_z,
             out_cost=out_cost,
             out_code=out_code,
             out_steps=out_steps,
-            it=s["it"] + 1,
+            it=c["it"] + 1,
         )
 
-    s = lax.while_loop(cond, body, state)
-    return s["out_z"], s["out_cost"], s["out_code"], s["out_steps"]
+    c = lax.while_loop(cond, body, carry)
+    return c["out_z"], c["out_cost"], c["out_code"], c["out_steps"]
 
 
 # ---- jobs: (problem, starts, data) sharing one compiled solve ------------------------------------
@@ -281,7 +214,9 @@ def _groups(problems: Sequence[Problem], counts: Sequence[int]):
     return tuple((p, c) for p, c in out)
 
 
-def _build(groups, slot_counts, max_steps: int, rtol: float, atol: float):
+def _build(groups, slot_counts, max_steps: int, solver):
+    if not isinstance(solver, LevenbergMarquardt):
+        return _build_generic(groups, max_steps, solver)
     exact = all(p.simulator == "exact" for p, _ in groups)
     if not exact and len(groups) > 1:
         raise FitError("model variants can only be batched with the exact simulator")
@@ -310,15 +245,48 @@ def _build(groups, slot_counts, max_steps: int, rtol: float, atol: float):
             _, uu, yy, ww = data
             return normal_equations(cat(prim), cat(tang), groups[0][0].output_states, uu, yy, ww)
 
-        return levenberg_marquardt(
+        return _multistart(
+            solver,
             lin,
             z0,
             max_steps=max_steps,
-            rtol=rtol,
-            atol=atol,
             start_counts=tuple(c for _, c in groups),
             slot_counts=slot_counts,
         )
+
+    return jax.jit(solve)
+
+
+def _build_generic(groups, max_steps: int, solver):
+    """Any other optimistix least-squares solver, one ``optx.least_squares`` per start under
+    ``vmap``: the Jacobian by forward-mode autodiff through the problem's simulator."""
+    if len(groups) > 1:
+        raise FitError(
+            "model variants can only be batched with jaxbox.LevenbergMarquardt; fit them one "
+            "by one with another solver"
+        )
+    prob = groups[0][0]
+
+    def solve(z0, fixed, lo, hi, sc, dt, t, u, y, w):
+        per_member = u.shape[1] != 1
+
+        def one(z, f, a, b, c, tt, uu, yy, ww):
+            def residuals(zz, _):
+                p = prob.transform.to_physical(zz, a, b, c)
+                return ((prob.simulate(p, f, tt, uu) - yy) * ww).ravel()
+
+            sol = optx.least_squares(residuals, solver, z, max_steps=max_steps, throw=False)
+            r = residuals(sol.value, None)
+            ok = sol.result == optx.RESULTS.successful
+            capped = sol.result == optx.RESULTS.max_steps_reached
+            code = jnp.where(ok, CONVERGED, jnp.where(capped, MAX_STEPS, NONFINITE))
+            return sol.value, r @ r, code.astype(jnp.int32), sol.stats["num_steps"]
+
+        d_axis = 1 if per_member else None
+        if not per_member:
+            t, u, y, w = (a[:, 0] for a in (t, u, y, w))
+        axes = (0, 0, 0, 0, 0, d_axis, d_axis, d_axis, d_axis)
+        return jax.vmap(one, in_axes=axes)(z0, fixed, lo, hi, sc, t, u, y, w)
 
     return jax.jit(solve)
 
@@ -330,8 +298,9 @@ def solve_jobs(
     rtol: float = 1e-6,
     atol: float = 1e-16,
     slots: int | None = None,
+    solver: optx.AbstractLeastSquaresSolver | None = None,
 ) -> dict:
-    """Run Levenberg–Marquardt for several jobs in one compiled, batched call.
+    """Run a least-squares solver for several jobs in one compiled, batched call.
 
     A job is ``(problem, starts [S, p] physical, arrays)`` with ``arrays`` from
     :func:`~jaxbox.fit.problem_arrays`. Every job must have the same number of free parameters,
@@ -392,25 +361,26 @@ def solve_jobs(
     groups = _groups(problems, counts)
     n_slots = default_slots(len(z0)) if slots is None else max(1, int(slots))
     slot_counts = tuple(min(c, max(1, round(n_slots * c / len(z0)))) for _, c in groups)
+    if solver is None:
+        solver = LevenbergMarquardt(rtol=rtol, atol=atol)
+    elif not isinstance(solver, optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser):
+        raise FitError(
+            f"solver must be an optimistix least-squares solver or minimiser (e.g. "
+            f"jaxbox.LevenbergMarquardt(), optimistix.Dogleg(rtol, atol)), got {solver!r}"
+        )
     key = (
+        "fit",
         tuple((_problem_key(p), c) for p, c in groups),
         slot_counts,
-        tuple(sorted(_OPTIONS.items())),
+        solver,
         tuple(a.shape for a in args),
         max_steps,
-        rtol,
-        atol,
     )
-    compile_s = 0.0
-    compiled = _CACHE.get(key)
-    if compiled is None:
-        t0 = time.perf_counter()
-        compiled = _build(groups, slot_counts, max_steps, rtol, atol).lower(*args).compile()
-        compile_s = time.perf_counter() - t0
-        _CACHE[key] = compiled
-        _STATS["compiles"] += 1
-    else:
-        _STATS["hits"] += 1
+    t0 = time.perf_counter()
+    compiled, built = _compiled.cached(
+        key, lambda: _build(groups, slot_counts, max_steps, solver).lower(*args).compile()
+    )
+    compile_s = time.perf_counter() - t0 if built else 0.0
     try:
         mem = compiled.memory_analysis()
         memory = int(mem.temp_size_in_bytes + mem.argument_size_in_bytes + mem.output_size_in_bytes)

@@ -17,7 +17,7 @@ import optimistix as optx
 
 from .._x64 import require_x64
 from ..models import get_model
-from ._fit import _problem_key, make_starts, result_from, solve_jobs
+from ._fit import _problem_key, make_starts, result_from, solve_jobs, solver_key
 from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
 from ._solver import LevenbergMarquardt
@@ -262,9 +262,10 @@ def fit_batch(
         )
         fused = solver[3] is None or isinstance(solver[3], LevenbergMarquardt)
         structure = None if problem.simulator == "exact" and fused else _problem_key(problem)
-        groups.setdefault((solver, shape, problem.simulator, structure), []).append(item)
-    for (settings_key, *_), members in groups.items():
-        max_steps, rtol, atol, solver = settings_key
+        key = (*solver[:3], solver_key(solver[3]))
+        groups.setdefault((key, shape, problem.simulator, structure), []).append(item)
+    for members in groups.values():
+        max_steps, rtol, atol, solver = members[0][5]
         out = solve_jobs(
             [(problem, x0, arrays) for _, problem, _, x0, arrays, _ in members],
             max_steps=max_steps,

@@ -72,6 +72,16 @@ def clear_compile_cache() -> None:
 
 
 
+def solver_key(solver) -> object:
+    """A hashable stand-in for a solver (a cache and grouping key): the solver itself, or its
+    type and text where it holds arrays."""
+    try:
+        hash(solver)
+    except TypeError:
+        return (type(solver).__module__, type(solver).__qualname__, repr(solver))
+    return solver
+
+
 def default_slots(n_starts: int) -> int:
     """Starts iterated together: enough to use the vector units, few enough that a start that
     has terminated soon hands its slot to the next one instead of idling."""
@@ -277,10 +287,10 @@ def _build_generic(groups, max_steps: int, solver):
 
             sol = optx.least_squares(residuals, solver, z, max_steps=max_steps, throw=False)
             r = residuals(sol.value, None)
+            steps = sol.stats["num_steps"]
             ok = sol.result == optx.RESULTS.successful
-            capped = sol.result == optx.RESULTS.max_steps_reached
-            code = jnp.where(ok, CONVERGED, jnp.where(capped, MAX_STEPS, NONFINITE))
-            return sol.value, r @ r, code.astype(jnp.int32), sol.stats["num_steps"]
+            code = jnp.where(ok, CONVERGED, jnp.where(steps >= max_steps, MAX_STEPS, NONFINITE))
+            return sol.value, r @ r, code.astype(jnp.int32), steps
 
         d_axis = 1 if per_member else None
         if not per_member:
@@ -372,7 +382,7 @@ def solve_jobs(
         "fit",
         tuple((_problem_key(p), c) for p, c in groups),
         slot_counts,
-        solver,
+        solver_key(solver),
         tuple(a.shape for a in args),
         max_steps,
     )

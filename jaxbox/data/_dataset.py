@@ -11,6 +11,7 @@ import pandas as pd
 
 from ._checks import (
     Where,
+    check_finite,
     check_kelvin,
     check_missing,
     check_order,
@@ -40,13 +41,19 @@ def _names(names: str | Iterable[str]) -> list[str]:
 
 
 def validated_frame(
-    frame: pd.DataFrame, *, check: bool, regular: bool = True, where: Where = _position
+    frame: pd.DataFrame,
+    *,
+    check: bool,
+    regular: bool = True,
+    where: Where = _position,
+    scale: Mapping[str, float] | None = None,
 ) -> pd.DataFrame:
     """A fresh float64 copy of ``frame`` (DatetimeIndex named ``time``) after the checks.
 
     Always: unique string column names, strictly increasing time stamps, numeric values, at
-    least two samples. With ``check``: no NaN, no temperature in kelvin and, with ``regular``,
-    a constant sampling step.
+    least two samples, no infinite value or absurd magnitude. With ``check``: no NaN, no
+    temperature in kelvin and, with ``regular``, a constant sampling step. ``scale`` (column ->
+    factor) multiplies columns before the value checks.
     """
     if not isinstance(frame, pd.DataFrame):
         raise DataError(
@@ -73,6 +80,9 @@ def validated_frame(
     if check and regular:
         check_regular(index, where)
     values = to_float(frame.set_axis(columns, axis=1).set_axis(index, axis=0), where)
+    for name, factor in (scale or {}).items():
+        values[name] = values[name] * factor
+    check_finite(values)
     if check:
         check_missing(values)
         check_kelvin(values)
@@ -176,6 +186,7 @@ class Dataset:
                 )
             frame[str(name)] = array
         added = frame[[str(name) for name in new]]
+        check_finite(added)
         check_missing(added)
         check_kelvin(added)
         return Dataset._new(frame, self._step)

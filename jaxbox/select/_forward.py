@@ -21,7 +21,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..models import RCModel, get_model, list_models
-from ._greybox import Case, GreyBox, Progress, _quiet, run_cases
+from ._cases import Case, Progress, quiet, run_cases
+from ._greybox import GreyBox
 from ._guess import state_ranges
 
 __all__ = ["Selection", "forward_selection", "forward_selection_many", "candidate_models"]
@@ -297,7 +298,7 @@ def forward_selection_many(
     Returns:
         One :class:`Selection` per GreyBox, in order (``elapsed_s``: the whole run).
     """
-    say = progress or _quiet
+    say = progress or quiet
     if not greyboxes:
         raise ValueError("forward selection needs at least one GreyBox")
     for gb in greyboxes:

@@ -18,6 +18,7 @@ previous save intact and loadable.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import json
@@ -29,16 +30,28 @@ import pandas as pd
 from .._io import atomic_write_bytes, atomic_write_json
 from ..data import Dataset
 from ..models import RCModel, get_model
-from ._greybox import Case, GreyBox
+from ._cases import Case
 from ._guess import Guess
 
-__all__ = ["save_greybox", "load_greybox", "FORMAT"]
+__all__ = ["save_greybox", "read_greybox", "Saved", "FORMAT"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Saved:
+    """The parts of a saved GreyBox, read back."""
+
+    name: str
+    data: Dataset
+    train: tuple
+    valid: tuple | bool
+    cases: list
+
 
 FORMAT = "jaxbox.greybox/1"
 INDEX = "greybox.json"
 
 
-def _arrays(gb: GreyBox) -> dict[str, np.ndarray]:
+def _arrays(gb) -> dict[str, np.ndarray]:
     frame = gb.data.frame
     out = {
         "data/values": frame.to_numpy(dtype=np.float64),
@@ -92,7 +105,7 @@ def _case_doc(i: int, case: Case) -> dict:
     return doc
 
 
-def save_greybox(gb: GreyBox, path) -> Path:
+def save_greybox(gb, path) -> Path:
     """Save ``gb`` with all its cases into folder ``path`` (created if needed), atomically.
 
     Returns:
@@ -127,7 +140,7 @@ def _model(name: str, models) -> RCModel:
     return get_model(name)
 
 
-def load_greybox(path, *, models: dict | None = None) -> GreyBox:
+def read_greybox(path, *, models: dict | None = None):
     """Load a GreyBox saved with :func:`save_greybox` (folder or its ``greybox.json``).
 
     Args:
@@ -154,12 +167,7 @@ def load_greybox(path, *, models: dict | None = None) -> GreyBox:
         columns=[str(c) for c in arrays["data/columns"]],
     )
     data = Dataset(frame)
-    gb = GreyBox(
-        data,
-        train=tuple(doc["train"]),
-        valid=False if doc["valid"] is None else tuple(doc["valid"]),
-        name=doc["name"],
-    )
+    cases = []
     for cd in doc["cases"]:
         model = _model(cd["model"], models)
         ident = data.slice(*cd["train"])
@@ -219,5 +227,11 @@ def load_greybox(path, *, models: dict | None = None) -> GreyBox:
                 except ValueError:
                     unc = None
                 case.verdict = check_validity(case.result, unc, check_intervals=unc is not None)
-        gb.cases[case.name] = case
-    return gb
+        cases.append(case)
+    return Saved(
+        name=doc["name"],
+        data=data,
+        train=tuple(doc["train"]),
+        valid=False if doc["valid"] is None else tuple(doc["valid"]),
+        cases=cases,
+    )

@@ -5,8 +5,11 @@ arrays from :meth:`Dataset.array`. Signals use canonical names with fixed units 
 listed in :data:`SIGNALS`.
 """
 
+from ._args import check_mapping as check_mapping
+from ._checks import check_finite as check_finite
 from ._dataset import Dataset as Dataset
 from ._errors import DataError as DataError
+from ._load import as_dataset as as_dataset
 from ._load import load as load
 from ._signals import SIGNALS as SIGNALS
 from ._signals import signal_unit as signal_unit

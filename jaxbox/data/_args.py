@@ -24,10 +24,10 @@ def check_mapping(value: Any, name: str, example: str | None = None) -> dict:
         return {}
     if isinstance(value, Mapping):
         return dict(value)
-    got = type(value).__name__
+    got = f"a {type(value).__name__}"
     if isinstance(value, str):
         got = f"the string {value!r}"
     elif isinstance(value, (list, tuple, set)):
-        got = f"a {got} of {len(value)} item(s)"
+        got = f"{got} of {len(value)} item(s)"
     hint = f" such as {name}={example}" if example else ""
     raise TypeError(f"{name} must be a mapping (a dict{hint}), got {got}.")

@@ -21,7 +21,7 @@ from ._dataset import Dataset, validated_frame
 from ._errors import DataError, list_names
 from ._signals import signal_base
 
-__all__ = ["load"]
+__all__ = ["as_dataset", "load"]
 
 _TIME_NAMES = ("time",)
 
@@ -316,3 +316,37 @@ def load(
         validated_frame(frame, check=check, regular=resample is None, where=where, scale=factors)
     )
     return dataset if resample is None else dataset.resample(resample)
+
+
+def as_dataset(obj: object, *, what: str = "data", **load_kwargs: object) -> Dataset:
+    """The :class:`Dataset` for what a user passed as data.
+
+    Accepts a :class:`Dataset` (returned as it is, or passed through :func:`load` when
+    ``load_kwargs`` are given), a pandas DataFrame with a DatetimeIndex or a ``time`` column,
+    or the path of a CSV file (``str`` or ``os.PathLike``), both read with :func:`load`.
+
+    Args:
+        obj: the data.
+        what: what the argument is, for the messages (``"data"``, ``"valid"``...).
+        load_kwargs: keyword arguments of :func:`load` (``columns``, ``resample``, ``sep``...).
+
+    Raises:
+        TypeError: ``obj`` is something else (a numpy array, ``None``, a list, a dict...); the
+            message says what it takes.
+        DataError: from :func:`load`.
+    """
+    if isinstance(obj, Dataset):
+        return load(obj.frame, **load_kwargs) if load_kwargs else obj  # type: ignore[arg-type]
+    if isinstance(obj, (pd.DataFrame, str, os.PathLike)):
+        return load(obj, **load_kwargs)  # type: ignore[arg-type]
+    got = "None" if obj is None else f"a {type(obj).__module__}.{type(obj).__qualname__}"
+    got = got.replace("builtins.", "")
+    hint = ""
+    if hasattr(obj, "shape") and hasattr(obj, "dtype"):
+        hint = "; for arrays use jaxbox.data.Dataset.from_arrays(time_s, {'T_zon': ..., ...})"
+    elif isinstance(obj, Mapping):
+        hint = "; for a dict of columns use jaxbox.data.Dataset.from_arrays(time_s, columns)"
+    raise TypeError(
+        f"{what} must be a jaxbox Dataset, a pandas DataFrame with a DatetimeIndex or a 'time' "
+        f"column, or the path of a CSV file; got {got}{hint}."
+    )

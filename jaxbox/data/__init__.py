@@ -9,7 +9,13 @@ from ._args import check_mapping as check_mapping
 from ._checks import check_finite as check_finite
 from ._dataset import Dataset as Dataset
 from ._errors import DataError as DataError
+from ._errors import DataWarning as DataWarning
 from ._load import as_dataset as as_dataset
 from ._load import load as load
+from ._plausible import PLAUSIBLE_RANGES as PLAUSIBLE_RANGES
+from ._plausible import Finding as Finding
+from ._plausible import check_plausibility as check_plausibility
+from ._plausible import find_implausible as find_implausible
+from ._plausible import plausible_range as plausible_range
 from ._signals import SIGNALS as SIGNALS
 from ._signals import signal_unit as signal_unit

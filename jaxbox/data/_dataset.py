@@ -21,6 +21,7 @@ from ._checks import (
     to_float,
 )
 from ._errors import DataError, list_names
+from ._plausible import check_plausibility
 from ._resample import resample_mean
 
 if TYPE_CHECKING:
@@ -356,6 +357,35 @@ class Dataset:
         return (
             Dataset._new(frame.iloc[:first].copy(), self._step),
             Dataset._new(frame.iloc[first:].copy(), self._step),
+        )
+
+    def check_plausible(
+        self,
+        *,
+        overrides: Mapping[str, tuple[float, float]] | None = None,
+        columns: str | Iterable[str] | None = None,
+        what: str | None = None,
+        stuck_hours: float | None = 24.0,
+        spike_k: float = 10.0,
+        warn: bool = True,
+    ) -> tuple[str, ...]:
+        """Refuse physically implausible signals; return the warnings.
+
+        See :func:`jaxbox.data.check_plausibility` (ranges per kind of signal with
+        ``overrides={column: (lo, hi)}``, kelvin/°F/kW mix-ups, spikes, jumps, stuck sensors).
+        Apply it to the windows actually used, e.g. ``ident.check_plausible()``.
+
+        Raises:
+            DataError: naming the column, the time stamps and what to do.
+        """
+        return check_plausibility(
+            self,
+            overrides=overrides,
+            columns=columns,
+            what=what,
+            stuck_hours=stuck_hours,
+            spike_k=spike_k,
+            warn=warn,
         )
 
     def plot(self, columns: str | Iterable[str] | None = None, ax: Axes | None = None) -> Figure:

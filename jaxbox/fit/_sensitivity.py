@@ -30,6 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._compiled import cached
 from .._x64 import require_x64
 from ._problem import FitError, Problem, problem_arrays
 from ._result import BOUND_TOLERANCE
@@ -37,8 +38,6 @@ from ._result import BOUND_TOLERANCE
 __all__ = ["FitSensitivity", "fit_sensitivity"]
 
 HESSIANS = ("exact", "gauss-newton")
-
-_CACHE: dict = {}
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -153,11 +152,21 @@ class FitSensitivity:
         )
 
 
-def _functions(problem: Problem):
-    key = (*problem.structure_key, problem.simulator, problem.sim_options)
-    fns = _CACHE.get(key)
-    if fns is not None:
-        return fns
+def _functions(problem: Problem, n_samples: int) -> dict:
+    """The compiled derivatives of ``problem``'s structure over ``n_samples`` samples, kept in
+    the ``"sensitivity"`` room of :mod:`jaxbox._compiled` (built on a miss)."""
+    key = (
+        "sensitivity",
+        *problem.structure_key,
+        problem.simulator,
+        problem.sim_options,
+        n_samples,
+    )
+    return cached(key, lambda: _build_functions(problem))[0]
+
+
+def _build_functions(problem: Problem) -> dict:
+    """``derivatives`` (∂ŷ/∂q and the exact Hessian of the cost) and ``inputs`` (∂²C/∂u∂q)."""
 
     def cost(q, scale, fixed_values, t, u, y, sqrt_w):
         e = (problem.simulate(q * scale, fixed_values, t, u) - y) * sqrt_w
@@ -187,8 +196,7 @@ def _functions(problem: Problem):
         grad_u = jax.grad(cost, argnums=4)
         return jax.jacfwd(grad_u)(q, scale, fixed_values, t, u, y, sqrt_w)  # [N, m, n]
 
-    fns = _CACHE[key] = {"derivatives": jax.jit(derivatives), "inputs": jax.jit(mixed_inputs)}
-    return fns
+    return {"derivatives": jax.jit(derivatives), "inputs": jax.jit(mixed_inputs)}
 
 
 def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> FitSensitivity:
@@ -225,7 +233,7 @@ def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> 
     args = tuple(
         jnp.asarray(a, dtype=float) for a in (p_hat / scale, scale, fixed_values, t, u, y, sqrt_w)
     )
-    fns = _functions(problem)
+    fns = _functions(problem, len(t))
     J, H = (np.asarray(a) for a in fns["derivatives"](*args))
     w2 = np.asarray(sqrt_w) ** 2  # q_j / N per output
     if hessian == "gauss-newton":

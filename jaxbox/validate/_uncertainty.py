@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
+from .._compiled import cached
 from .._x64 import require_x64
 
 __all__ = ["Uncertainty", "Combination", "uncertainty", "sensitivities"]
@@ -226,23 +227,27 @@ def _pair_or_none(pair):
     return [lo, hi] if np.isfinite(lo) and np.isfinite(hi) else None
 
 
-_JAC: dict = {}
+def _jacobian_fn(problem, n_samples: int):
+    """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]) for N =
+    ``n_samples``, kept in the ``"uncertainty"`` room of :mod:`jaxbox._compiled`."""
+    key = (
+        "uncertainty",
+        *problem.structure_key,
+        problem.simulator,
+        problem.sim_options,
+        n_samples,
+    )
+    return cached(key, lambda: _build_jacobian_fn(problem))[0]
 
 
-def _jacobian_fn(problem):
-    """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]); cached."""
-    key = (*problem.structure_key, problem.simulator, problem.sim_options)
-    fn = _JAC.get(key)
-    if fn is None:
+def _build_jacobian_fn(problem):
+    def f(p, fixed_values, t, u):
+        return problem.simulate(p, fixed_values, t, u)
 
-        def f(p, fixed_values, t, u):
-            return problem.simulate(p, fixed_values, t, u)
+    def both(p, fixed_values, t, u):
+        return f(p, fixed_values, t, u), jax.jacfwd(f)(p, fixed_values, t, u)
 
-        def both(p, fixed_values, t, u):
-            return f(p, fixed_values, t, u), jax.jacfwd(f)(p, fixed_values, t, u)
-
-        fn = _JAC[key] = jax.jit(both)
-    return fn
+    return jax.jit(both)
 
 
 def sensitivities(result, params=None):
@@ -267,7 +272,7 @@ def sensitivities(result, params=None):
         params = [result.params[n] for n in problem.free]
     p = jnp.asarray(np.asarray(params, dtype=float))
     fixed_values = jnp.asarray([v for _, v in problem.fixed], dtype=float)
-    ysim, J = _jacobian_fn(problem)(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
+    ysim, J = _jacobian_fn(problem, len(t))(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
     return np.asarray(ysim), np.asarray(J)
 
 

@@ -29,6 +29,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike, Float
 
 from .._compiled import cached
 from .._x64 import require_x64
@@ -66,19 +67,19 @@ class FitSensitivity:
 
     names: tuple[str, ...]
     units: tuple[str, ...]
-    params: np.ndarray
+    params: Float[np.ndarray, " free"]
     outputs: tuple[str, ...]
-    t: np.ndarray
-    values: np.ndarray
+    t: Float[np.ndarray, " samples"]
+    values: Float[np.ndarray, "free samples outputs"]
     inputs: tuple[str, ...]
-    input_values: np.ndarray | None
+    input_values: Float[np.ndarray, "free samples inputs"] | None
     held: tuple[str, ...]
     hessian: str
-    hessian_matrix: np.ndarray
+    hessian_matrix: Float[np.ndarray, "free free"]
     condition: float
     positive_definite: bool
 
-    def __getitem__(self, name: str) -> np.ndarray:
+    def __getitem__(self, name: str) -> Float[np.ndarray, "samples outputs"]:
         """``dθ̂/dy`` [N, n_outputs] of one parameter."""
         try:
             return self.values[self.names.index(name)]
@@ -87,14 +88,18 @@ class FitSensitivity:
                 f"{name!r} is not a free parameter; free parameters: {', '.join(self.names)}"
             ) from None
 
-    def relative(self) -> np.ndarray:
+    def relative(self) -> Float[np.ndarray, "free samples outputs"]:
         """``(dθ̂_i/dy_jk) / |θ̂_i|`` [n_free, N, n_outputs] in 1/K (``nan`` where θ̂_i = 0)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             return (
                 self.values / np.where(self.params != 0, np.abs(self.params), np.nan)[:, None, None]
             )
 
-    def predicted_change(self, dy, du=None) -> dict[str, float]:
+    def predicted_change(
+        self,
+        dy: Float[ArrayLike, "samples outputs"] | Float[ArrayLike, " samples"],
+        du: Float[ArrayLike, "samples inputs"] | None = None,
+    ) -> dict[str, float]:
         """First-order change of each estimate for a change of the data.
 
         Args:
@@ -118,7 +123,9 @@ class FitSensitivity:
             out = out + np.einsum("ikl,kl->i", self.input_values, du)
         return {n: float(v) for n, v in zip(self.names, out, strict=True)}
 
-    def covariance(self, sigma2) -> np.ndarray:
+    def covariance(
+        self, sigma2: float | Float[ArrayLike, " outputs"]
+    ) -> Float[np.ndarray, "free free"]:
         """Covariance of the estimates for independent measurement noise of variance ``sigma2``.
 
         ``Σ_k Σ_j σ_j² (dθ̂/dy_jk)(dθ̂/dy_jk)ᵀ`` [SI²]; ``sigma2`` is one variance [K²] or one per

@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import scipy.sparse.linalg
+from jaxtyping import Float
 
 from .._x64 import require_x64
 from ..fit import FitError, make_problem
@@ -173,7 +174,7 @@ def _linear_system(A, B, x0, uc, h, win, Dm):
 
 def collocation_simulate(
     model, theta: Mapping | None, data, *, n_c: int = 3, subdivide: int = 1, nodes: bool = False
-):
+) -> Simulation | tuple[Simulation, Float[np.ndarray, " nodes"], Float[np.ndarray, "nodes states"]]:
     """Solve the collocation equations for fixed parameters (the Radau IIA method as a simulator).
 
     Args:

@@ -6,6 +6,7 @@ import dataclasses
 
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Float
 
 from ..fit import Problem
 from ..models import RCModel
@@ -51,11 +52,11 @@ class CollocationResult:
     params: dict
     cost: float
     cost_samples: float
-    t: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    t_nodes: np.ndarray
-    x_nodes: np.ndarray
+    t: Float[np.ndarray, " samples"]
+    x: Float[np.ndarray, "samples states"]
+    y: Float[np.ndarray, "samples outputs"]
+    t_nodes: Float[np.ndarray, " nodes"]
+    x_nodes: Float[np.ndarray, "nodes states"]
     status: str
     message: str
     iterations: int

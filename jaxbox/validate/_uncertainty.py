@@ -40,6 +40,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike, Bool, Float
 from scipy import stats
 
 from .._compiled import cached
@@ -112,13 +113,13 @@ class Uncertainty:
 
     names: tuple[str, ...]
     units: tuple[str, ...]
-    values: np.ndarray
-    std: np.ndarray
-    ci95: np.ndarray
-    rel_ci: np.ndarray
-    cov: np.ndarray
-    correlation: np.ndarray
-    identifiable: np.ndarray
+    values: Float[np.ndarray, " params"]
+    std: Float[np.ndarray, " params"]
+    ci95: Float[np.ndarray, "params 2"]
+    rel_ci: Float[np.ndarray, " params"]
+    cov: Float[np.ndarray, "params params"]
+    correlation: Float[np.ndarray, "params params"]
+    identifiable: Bool[np.ndarray, " params"]
     level: float
     t_quantile: float
     dof: int
@@ -128,9 +129,9 @@ class Uncertainty:
     collinearity: float
     combinations: tuple[Combination, ...]
     free: tuple[str, ...]
-    cov_free: np.ndarray
-    jacobian: np.ndarray
-    singular_values: np.ndarray
+    cov_free: Float[np.ndarray, "free free"]
+    jacobian: Float[np.ndarray, "rows free"]
+    singular_values: Float[np.ndarray, " free"]
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -250,7 +251,9 @@ def _build_jacobian_fn(problem):
     return jax.jit(both)
 
 
-def sensitivities(result, params=None):
+def sensitivities(
+    result, params: Float[ArrayLike, " free"] | None = None
+) -> tuple[Float[np.ndarray, "samples outputs"], Float[np.ndarray, "samples outputs free"]]:
     """Exact sensitivities of the simulated outputs to the free parameters.
 
     Forward-mode autodiff through the fit's own simulator (``result.problem.simulate``) on the

@@ -15,4 +15,5 @@ from ._guess import naming_guess as naming_guess
 from ._guess import parent_guess as parent_guess
 from ._guess import state_guess as state_guess
 from ._guess import state_ranges as state_ranges
+from ._persist import PersistError as PersistError
 from ._persist import save_greybox as save_greybox

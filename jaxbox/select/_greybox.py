@@ -14,12 +14,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..data import DataError
+from ..data import DataError, as_dataset, check_mapping, check_plausibility
 from ..models import RCModel, get_model
 from ._cases import SETTINGS, Case, Progress, fmt_se
 from ._guess import Guess, manual_guess, naming_guess, parent_guess
 from ._persist import read_greybox, save_greybox
-from ._shim import as_dataset, check_mapping, check_plausibility
 
 __all__ = ["GreyBox", "load_greybox"]
 
@@ -56,7 +55,7 @@ class GreyBox:
     """
 
     def __init__(self, data, *, train=None, valid=None, name: str = "building") -> None:
-        data = as_dataset(data, what="GreyBox")
+        data = as_dataset(data, what="the data of a GreyBox")
         self.data = data
         self.name = str(name)
         if train is None and valid is None:
@@ -79,9 +78,9 @@ class GreyBox:
                 val = data.slice(*_pair(valid, "valid"))
             else:
                 val = _after(data, ident)
-        check_plausibility(ident, what="the identification period")
+        check_plausibility(ident, what="identification data")
         if val is not None:
-            check_plausibility(val, what="the validation period")
+            check_plausibility(val, what="validation data")
         self.train = _period(ident)
         self.valid_period = None if val is None else _period(val)
         self.cases: dict[str, Case] = {}

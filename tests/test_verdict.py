@@ -108,10 +108,19 @@ def test_custom_limits(good):
 
 
 def test_fast_time_constant_is_a_warning(good):
-    fast = dataclasses.replace(good, params={**good.params, "C_zon": 2e4})  # τ = 200 s < 1 h
+    fast = dataclasses.replace(good, params={**good.params, "C_zon": 2e5})  # τ = 2000 s < 1 h
     v = check_validity(fast, check_intervals=False)
     assert v.valid
     assert any("shorter than the sampling step" in w for w in v.warnings)
+
+
+def test_a_building_that_settles_within_minutes_is_not_valid(good):
+    """τ = 200 s as the slowest (here the only) mode: no building settles that fast."""
+    fast = dataclasses.replace(good, params={**good.params, "C_zon": 2e4})
+    v = check_validity(fast, check_intervals=False)
+    assert not v.valid
+    assert any("slowest time constant" in r and "3.34 min" in r for r in v.reasons)
+    assert check_validity(fast, check_intervals=False, slowest_tau_range=(60.0, 1e8)).valid
 
 
 def test_unconverged_optimum_is_invalid(good):

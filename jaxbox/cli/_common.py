@@ -100,8 +100,14 @@ def _deferred_interrupt():
 #: (pattern, replacement) turning the library's Python advice into command-line options.
 _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
     # "pass sep=';' (command line: --sep ';')" -> "pass --sep ';'"
-    (re.compile(r"\b[a-z_]+=[^;()]*?\s*\(command line: ([^)]*)\)"), r"\1"),
+    (re.compile(r"\b[a-z_]+=(?:(?![;:.] )[^()])*?\s*\(command line: ([^)]*)\)"), r"\1"),
     (re.compile(r"\s*\(command line: [^)]*\)"), ""),
+    # "overrides={'T_zon': (lo, hi)} (--range T_zon=LO:HI)" -> "--range T_zon=LO:HI"
+    (re.compile(r"\b[a-z_]+=\{[^}]*\} \((--[^)]*)\)"), r"\1"),
+    # "(columns=, --map)" -> "(--map)"; "scale=, --scale" -> "--scale"
+    (re.compile(r"\b[a-z_]+=, (--[a-z-]+)"), r"\1"),
+    (re.compile(r"; Dataset\.\w+\)"), ")"),
+    (re.compile(r"\s*\(e\.g\. DataFrame\.\w+\)"), ""),
     (
         re.compile(r"map yours with columns=\{([^}]*)\} in jaxbox\.data\.load"),
         lambda m: (
@@ -117,7 +123,8 @@ _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
     (re.compile(r"pass resample= \(e\.g\. resample='([^']*)'\)"), r"pass --resample \1"),
     (re.compile(r"resample='([^']*)'"), r"--resample \1"),
     (re.compile(r"scale=\{'([^']+)': ([^}]+)\}"), r"--scale \1=\2"),
-    (re.compile(r"\bscale=, (--scale)"), r"\1"),
+    (re.compile(r"^scale (names|factor)"), r"--scale \1"),
+    (re.compile(r"\bscale applies after columns="), "--scale applies after --map"),
     (
         re.compile(r"read it with pd\.read_csv\(\.\.\., encoding=\.\.\.\) and pass the DataFrame"),
         "save it as UTF-8 text",
@@ -173,13 +180,16 @@ def floats(items: Sequence[str], option: str, example: str) -> dict[str, float]:
     return {k: number(v, f"{option} {k}={v}") for k, v in pairs(items, option, example).items()}
 
 
-def bounds(items: Sequence[str]) -> dict[str, tuple[float, float]]:
+def bounds(
+    items: Sequence[str], option: str = "--bounds", example: str = "R_wal=0.001:0.1"
+) -> dict[str, tuple[float, float]]:
+    """``P=LO:HI`` items with ``LO < HI``, both finite."""
     out = {}
-    for key, value in pairs(items, "--bounds", "R_wal=0.001:0.1").items():
+    for key, value in pairs(items, option, example).items():
         lo, sep, hi = value.partition(":")
         if not sep or not lo.strip() or not hi.strip():
-            raise UsageError(f"--bounds {key}={value!r} must look like {key}=LO:HI")
-        where = f"--bounds {key}={value}"
+            raise UsageError(f"{option} {key}={value!r} must look like {key}=LO:HI")
+        where = f"{option} {key}={value}"
         low, high = number(lo, where), number(hi, where)
         if not low < high:
             raise UsageError(f"{where}: the lower bound {low:g} must be below the upper {high:g}")
@@ -340,8 +350,8 @@ def check_folder(text: str | None, option: str) -> Path | None:
         if path.exists() and not path.is_dir():
             raise UsageError(f"{option} {text!r} is a file, not a folder; give a folder")
         made = _make_folder(path)
-    except UsageError:
-        raise
+    except UsageError as err:
+        raise UsageError(f"{option} {text!r}: {err}") from None
     except (OSError, ValueError) as err:
         raise UsageError(f"{option} {text!r}: cannot make this folder ({_reason(err)})") from None
     try:
@@ -520,6 +530,14 @@ def add_data_arguments(p) -> None:
         help="multiply canonical column COLUMN by FACTOR, e.g. Q_hea=1000 for kW (repeatable)",
     )
     p.add_argument(
+        "--range",
+        action="append",
+        default=[],
+        metavar="COLUMN=LO:HI",
+        help="plausible range of COLUMN where the default does not fit, e.g. T_zon=-10:60 "
+        "(repeatable)",
+    )
+    p.add_argument(
         "--resample", metavar="RULE", help="resample first, e.g. 1h (mean, right-closed)"
     )
     p.add_argument(
@@ -544,6 +562,7 @@ class DataOptions:
                 f"--sep and --decimal are both {self.sep!r}; with --decimal ',' use --sep ';'"
             )
         self.scale = scale(args.scale)
+        self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
         self.resample = resample_rule(args.resample)
         self.train_text, self.valid_text = args.train, args.validate
         self.train = period(args.train, "--train")
@@ -663,13 +682,17 @@ def split_periods(data, opts: DataOptions):
     return ident, val
 
 
-def check_windows(ident, valid, columns=None) -> None:
+def check_windows(ident, valid, columns=None, ranges=None) -> None:
     """The physical plausibility of the signals (``columns``, default every canonical one) in
-    the windows actually used; warnings (uncertain findings) go to stderr."""
+    the windows actually used (``ranges``: the ``--range`` overrides); warnings (uncertain
+    findings) go to stderr."""
     from ..data import check_plausibility
 
     for data, what in ((ident, "identification data"), (valid, "validation data")):
-        for note in check_plausibility(data, columns=columns, what=what, warn=False):
+        notes = check_plausibility(
+            data, overrides=ranges or None, columns=columns, what=what, warn=False
+        )
+        for note in notes:
             print(f"warning: {cli_message(note)}", file=sys.stderr, flush=True)
 
 
@@ -688,7 +711,7 @@ def load_all(args, opts: DataOptions | None = None, *, model=None):
             if model is not None:
                 columns = list(model.inputs) + list(model.outputs)
                 ident.require(columns, what=f"model {model.name}")
-            check_windows(ident, valid, columns)
+            check_windows(ident, valid, columns, opts.ranges)
         except (DataError, UsageError) as err:
             if len(opts.specs) == 1:
                 raise

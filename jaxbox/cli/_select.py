@@ -97,6 +97,7 @@ def _selection_default(name: str):
 
 def _candidates(text: str, data=None):
     """The candidate models of ``--models``, checked (names known, fed by the data)."""
+    from ..data import DataError
     from ..models import ModelError, families
     from ..select import candidate_models
 
@@ -108,7 +109,10 @@ def _candidates(text: str, data=None):
         text = names
     try:
         models = candidate_models(text, data)
-    except ModelError as err:
+        if data is not None and not isinstance(text, str):  # named models: fed by the data?
+            for m in models:
+                data.require(list(m.inputs) + list(m.outputs), what=f"model {m.name}")
+    except (ModelError, DataError) as err:
         raise UsageError(f"--models: {err}") from None
     except ValueError as err:  # no candidate the data can feed
         shown = text if isinstance(text, str) else ",".join(text)
@@ -116,7 +120,7 @@ def _candidates(text: str, data=None):
     return models
 
 
-def _run_selection(sets, args, candidates):
+def _run_selection(sets, args, candidates, ranges=None):
     """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
     lock-step, each step's fits batched over the buildings."""
     from ..data import DataWarning
@@ -130,6 +134,7 @@ def _run_selection(sets, args, candidates):
                 train=(str(ident.start), str(ident.end)),
                 valid=(str(valid.start), str(valid.end)),
                 name=spec,
+                ranges=ranges,
             )
             for spec, data, ident, valid in sets
         ]
@@ -220,7 +225,7 @@ def select_command(args) -> int:
         _candidates(args.models, data)
     with Outputs() as outputs:
         t0 = time.perf_counter()
-        outcomes = _run_selection(sets, args, candidates)
+        outcomes = _run_selection(sets, args, candidates, opts.ranges)
         elapsed = time.perf_counter() - t0
         docs = []
         for (spec, _, ident, valid), (gb, sel) in zip(sets, outcomes, strict=True):

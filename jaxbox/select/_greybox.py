@@ -52,12 +52,28 @@ class GreyBox:
         valid: validation period ``(start, end)``; default everything after ``train``. Pass
             ``valid=False`` for no validation data.
         name: a label for tables and reports (the building).
+        ranges: plausible range per column, ``{"T_zon": (lo, hi)}`` in canonical units, where
+            the defaults of :func:`jaxbox.data.check_plausibility` do not fit the building
+            (the identification and validation windows are checked when the data are
+            attached).
     """
 
-    def __init__(self, data, *, train=None, valid=None, name: str = "building") -> None:
+    def __init__(
+        self,
+        data,
+        *,
+        train=None,
+        valid=None,
+        name: str = "building",
+        ranges: Mapping[str, tuple[float, float]] | None = None,
+    ) -> None:
         data = as_dataset(data, what="the data of a GreyBox")
         self.data = data
         self.name = str(name)
+        self.ranges = {
+            str(k): (float(lo), float(hi))
+            for k, (lo, hi) in check_mapping(ranges, "ranges").items()
+        }
         if train is None and valid is None:
             ident, val = data.split()
         else:
@@ -78,9 +94,9 @@ class GreyBox:
                 val = data.slice(*_pair(valid, "valid"))
             else:
                 val = _after(data, ident)
-        check_plausibility(ident, what="identification data")
+        check_plausibility(ident, overrides=self.ranges, what="identification data")
         if val is not None:
-            check_plausibility(val, what="validation data")
+            check_plausibility(val, overrides=self.ranges, what="validation data")
         self.train = _period(ident)
         self.valid_period = None if val is None else _period(val)
         self.cases: dict[str, Case] = {}
@@ -315,7 +331,9 @@ class GreyBox:
     def load(cls, path, *, models: Mapping[str, RCModel] | None = None) -> GreyBox:
         """Load a GreyBox saved with :meth:`save`; see :func:`load_greybox`."""
         saved = read_greybox(path, models=models)
-        gb = cls(saved.data, train=saved.train, valid=saved.valid, name=saved.name)
+        gb = cls(
+            saved.data, train=saved.train, valid=saved.valid, name=saved.name, ranges=saved.ranges
+        )
         gb.cases = {case.name: case for case in saved.cases}
         return gb
 

@@ -70,6 +70,7 @@ class Saved:
     train: tuple
     valid: tuple | bool
     cases: list
+    ranges: dict
 
 
 # ---- the schema of the index -------------------------------------------------------------------
@@ -123,7 +124,9 @@ _TOP = {
     "valid": ("a [start, end] pair of time stamps", True),
     "arrays": ("a string", False),
     "cases": ("a list", False),
+    "ranges": ("an object of [lower, upper] pairs", False),
 }
+_TOP_OPTIONAL = {"ranges"}
 _CASE = {
     "name": ("a string", False),
     "model": ("a string", False),
@@ -192,7 +195,7 @@ def _check_index(doc, index: Path) -> None:
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
         raise PersistError(f"{index} is not a saved GreyBox (format {got!r}, expected {FORMAT!r})")
-    _check_fields(doc, _TOP, "", fail)
+    _check_fields(doc, _TOP, "", fail, _TOP_OPTIONAL)
     if not _ARRAYS_NAME.fullmatch(doc["arrays"]):
         fail(
             "arrays",
@@ -324,6 +327,7 @@ def save_greybox(gb, path) -> Path:
         "train": list(gb.train),
         "valid": None if gb.valid_period is None else list(gb.valid_period),
         "arrays": arrays_name,
+        "ranges": {k: list(v) for k, v in getattr(gb, "ranges", {}).items()},
         "cases": [_case_doc(i, c) for i, c in enumerate(gb.cases.values())],
     }
     index = atomic_write_json(folder / INDEX, doc)
@@ -414,6 +418,7 @@ def read_greybox(path, *, models: dict | None = None) -> Saved:
         train=tuple(doc["train"]),
         valid=False if doc["valid"] is None else tuple(doc["valid"]),
         cases=cases,
+        ranges={k: tuple(v) for k, v in doc.get("ranges", {}).items()},
     )
 
 

@@ -340,6 +340,13 @@ def test_csv_refused_with_the_option_that_reads_it(tmp_path, text, keywords, wor
     assert "no time column" not in message
 
 
+def test_a_frame_read_with_the_wrong_separator(tmp_path):
+    path = tmp_path / "data.csv"
+    path.write_text(_csv(sep=";"))
+    with pytest.raises(DataError, match=r"one column 'time;T_zon;T_amb;Q_hea'.*--sep ';'"):
+        load(pd.read_csv(path))
+
+
 @pytest.mark.parametrize(
     ("sep", "decimal"), [(";", ","), (";", "."), ("\t", "."), ("\t", ","), (",", ".")]
 )

@@ -154,6 +154,12 @@ def _time_values(
     extra = " and the DataFrame index (not a DatetimeIndex)" if from_frame else ""
     likely = [name for name in names if any(k in name.lower() for k in ("time", "date", "stamp"))]
     hint = f" (perhaps {list_names(likely, 5)}?)" if likely else ""
+    for char, option in ((";", "';'"), ("\t", "'\\t'")):
+        if len(names) == 1 and char in names[0]:
+            raise DataError(
+                f"the data have one column {names[0][:60]!r}: a file separated by {option}? "
+                f"read it with sep={option} (command line: --sep {option})."
+            )
     raise DataError(
         f"no time column found (tried {tried}{extra}); pass time='your_time_column'{hint}; "
         f"columns: {list_names(names)}."

@@ -20,18 +20,23 @@ points.
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
-from ._grid import _assemble
+from ._grid import _assemble, _Sparsity
 from ._radau import radau_iia
 from ._transcription import _jargs, _Transcription
 
 #: "auto" switches from Gauss-Newton to the exact Hessian below this scaled constraint violation
 #: and relative Newton decrement.
 _SWITCH = 1e-6
+#: a step is accepted when the merit function decreases by at least this share of the predicted
+#: decrease.
+_ETA = 1e-4
 
 
 class _Failure(Exception):
@@ -102,10 +107,8 @@ def _sqp(fns, w, jargs, sp, p, hessian, max_iterations, ctol, ftol, stats, histo
 
 def _sqp_loop(fns, w, jargs, sp, p, hessian, max_iterations, ctol, ftol, stats, history, last):
     nx = sp.n_x
-    mu, grow = None, 2.0
-    nu = 0.0
+    damping = _Damping()
     dscale = np.zeros(p)
-    eta = 1e-4
     switched = False
 
     def evaluate(ww):
@@ -119,62 +122,35 @@ def _sqp_loop(fns, w, jargs, sp, p, hessian, max_iterations, ctol, ftol, stats, 
         return np.asarray(c), np.asarray(r)
 
     c, r, gx, jx, gz, jz = evaluate(w)
-    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(r))):
-        raise _Failure("nonfinite", "the constraints or residuals are not finite at the start")
+    _check_finite(c, r, "the constraints or residuals are not finite at the start")
     for it in range(max_iterations + 1):
         last["it"] = it
         f = 0.5 * float(r @ r)
         viol = float(np.max(np.abs(c)))
-        GX, JX = _assemble(sp, gx, jx)
-        try:
-            lu = scipy.sparse.linalg.splu(GX)
-        except RuntimeError as err:
-            raise _Failure(
-                "failed",
-                f"the collocation equations are singular at iteration {it} ({err}); the "
-                "parameters make the discretised dynamics degenerate",
-            ) from None
-        S = lu.solve(np.column_stack([c, gz]))
-        YX, ZX = -S[:, 0], -S[:, 1:]
-        gX, gZ = JX.T @ r, jz.T @ r
-        lam = -lu.solve(gX, trans="T")
-        JZ = JX @ ZX + jz
-        JY = JX @ YX
-        # Gauss-Newton reduced Hessian and gradient (always: cheap, and the fallback)
-        Hr = JZ.T @ JZ
-        gr = JZ.T @ (r + JY)
-        decrement = _decrement(Hr, gr)
-        exact = hessian == "exact" or (
+        red = _null_space(sp, c, r, gx, jx, gz, jz, it)
+        decrement = _decrement(red.Hr, red.gr)
+        if hessian == "exact" or (
             hessian == "auto" and (switched or (viol <= _SWITCH and decrement <= _SWITCH * f))
-        )
-        if exact:
-            dirs = np.zeros((p + 1, nx + p))
-            dirs[0, :nx] = YX
-            dirs[1:, :nx] = ZX.T
-            dirs[1:, nx:] = np.eye(p)
-            HV = np.asarray(fns["hvp"](jnp.asarray(w), jnp.asarray(lam), jnp.asarray(dirs), jargs))
-            HY, HZ = HV[0], HV[1:].T
-            Hr_e = ZX.T @ HZ[:nx] + HZ[nx:]
-            gr_e = ZX.T @ (gX + HY[:nx]) + (gZ + HY[nx:])
-            dec_e = _decrement(Hr_e, gr_e)
+        ):
+            ex = _exact(fns["hvp"], w, red, jargs, nx, p)
+            dec_e = _decrement(ex.Hr, ex.gr)
+            # not positive definite under "auto": a Gauss-Newton step this time
             if hessian == "exact" or np.isfinite(dec_e):
-                Hr, gr, decrement, switched = Hr_e, gr_e, dec_e, True
-            else:  # not positive definite: a Gauss-Newton step this time
-                exact = False
-        Hr = 0.5 * (Hr + Hr.T)
+                red, decrement, switched = ex, dec_e, True
+        red = dataclasses.replace(red, Hr=0.5 * (red.Hr + red.Hr.T))
         entry = {
             "iteration": it,
             "cost": 2 * f,
             "constraint_violation": viol,
-            "reduced_gradient": float(np.max(np.abs(gr))),
+            "reduced_gradient": float(np.max(np.abs(red.gr))),
             "decrement": decrement,
-            "hessian": "exact" if exact else "gauss-newton",
+            "hessian": "gauss-newton" if red.HY is None else "exact",
         }
         history.append(entry)
         stats.update(
             reduced_gradient=entry["reduced_gradient"],
             newton_decrement=decrement,
-            multipliers_max=float(np.max(np.abs(lam))),
+            multipliers_max=float(np.max(np.abs(red.lam))),
         )
         if viol <= ctol and decrement <= ftol * f + 1e-300:
             return (
@@ -188,86 +164,35 @@ def _sqp_loop(fns, w, jargs, sp, p, hessian, max_iterations, ctol, ftol, stats, 
             )
         if it == max_iterations:
             break
-        dscale = np.maximum(dscale, np.abs(np.diag(Hr)))
+        dscale = np.maximum(dscale, np.abs(np.diag(red.Hr)))
         dfloor = np.maximum(dscale, 1e-12 * max(float(np.max(dscale)), 1e-300))
-        if mu is None:
-            mu = 1e-3
         c1 = float(np.sum(np.abs(c)))
-        nu = max(nu, 1.01 * float(np.max(np.abs(lam))))
-        accepted = False
-        while not accepted:
-            M = Hr + mu * np.diag(dfloor)
-            try:
-                cho = scipy.linalg.cho_factor(M)
-            except (np.linalg.LinAlgError, ValueError):
-                mu, grow = mu * grow, grow * 2
-                if mu > 1e20:
-                    raise _Failure(
-                        "failed", "the reduced Hessian stays indefinite under any damping"
-                    ) from None
-                continue
-            dz = -scipy.linalg.cho_solve(cho, gr)
-            dX = YX + ZX @ dz
-            d = np.concatenate([dX, dz])
-            gd = float(gX @ dX + gZ @ dz)
-            if exact:
-                Hd = HY + HZ @ dz
-                dHd = float(d @ Hd)
-            else:
-                Jd = JY + JZ @ dz
-                dHd = float(Jd @ Jd)
-            pred_f = -(gd + 0.5 * dHd)
-            if c1 > 0 and pred_f < 0:
-                nu = max(nu, -2.0 * pred_f / c1)
-            pred = pred_f + nu * c1
-            phi = f + nu * c1
-            trial = w + d
-            c_t, r_t = values(trial)
-            phi_t = _merit(c_t, r_t, nu)
-            ratio = (phi - phi_t) / pred if pred > 0 else -np.inf
-            if not ratio >= eta:
-                # second-order correction: restore the linearised constraints at the trial
-                if np.all(np.isfinite(c_t)):
-                    soc = trial.copy()
-                    soc[:nx] -= lu.solve(c_t)
-                    c_s, r_s = values(soc)
-                    phi_s = _merit(c_s, r_s, nu)
-                    ratio_s = (phi - phi_s) / pred if pred > 0 else -np.inf
-                    if ratio_s >= eta:
-                        stats["n_second_order_corrections"] += 1
-                        trial, ratio = soc, ratio_s
-            if ratio >= eta:
-                accepted = True
-                if ratio > 0.25:
-                    mu = max(mu / 10.0, 1e-12)
-                elif ratio < 0.1:
-                    mu *= 2.0
-                grow = 2.0
-                entry.update(mu=mu, step=float(np.max(np.abs(dz))), ratio=float(ratio), nu=nu)
-                w = last["w"] = trial
-            else:
-                stats["n_rejected"] += 1
-                mu, grow = mu * grow, grow * 2
-                if mu > 1e20 or not np.isfinite(pred):
-                    if viol <= ctol and decrement <= 1e-10 * f:
-                        return (
-                            w,
-                            it,
-                            "converged",
-                            (
-                                "no further decrease at round-off level; constraints hold to "
-                                f"{viol:.1e} (scaled)"
-                            ),
-                        )
-                    raise _Failure(
-                        "failed",
-                        f"no step decreases the merit function at iteration {it} (constraint "
-                        f"violation {viol:.1e}, cost {2 * f:.6g}); try other starting values",
-                    )
+        damping.nu = max(damping.nu, 1.01 * float(np.max(np.abs(red.lam))))
+        step = _step(values, w, red, dfloor, c1, f, damping, stats, nx)
+        if step is None:
+            if viol <= ctol and decrement <= 1e-10 * f:
+                return (
+                    w,
+                    it,
+                    "converged",
+                    (
+                        "no further decrease at round-off level; constraints hold to "
+                        f"{viol:.1e} (scaled)"
+                    ),
+                )
+            raise _Failure(
+                "failed",
+                f"no step decreases the merit function at iteration {it} (constraint "
+                f"violation {viol:.1e}, cost {2 * f:.6g}); try other starting values",
+            )
+        w, ratio, dz = step
+        entry.update(
+            mu=damping.mu, step=float(np.max(np.abs(dz))), ratio=float(ratio), nu=damping.nu
+        )
+        last["w"] = w
         c, r, gx, jx, gz, jz = evaluate(w)
-        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(r))):
-            raise _Failure("nonfinite", f"non-finite constraints or residuals at iteration {it}")
-    stats["penalty"] = nu
+        _check_finite(c, r, f"non-finite constraints or residuals at iteration {it}")
+    stats["penalty"] = damping.nu
     return (
         w,
         max_iterations,
@@ -277,6 +202,150 @@ def _sqp_loop(fns, w, jargs, sp, p, hessian, max_iterations, ctol, ftol, stats, 
             f"decrement {decrement:.1e}); raise max_iterations or check the problem"
         ),
     )
+
+
+def _check_finite(c, r, message: str) -> None:
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(r))):
+        raise _Failure("nonfinite", message)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Reduced:
+    """One iteration's KKT system reduced to the free parameters (the null-space method).
+
+    A step ``dX = YX + ZX dz`` of the scaled states satisfies the linearised constraints for any
+    parameter step ``dz``; the damped reduced system ``(Hr + μ D) dz = −gr`` chooses ``dz``.
+    ``HY``/``HZ`` are set when ``Hr`` is the exact reduced Hessian of the Lagrangian, ``None``
+    for the Gauss–Newton one.
+    """
+
+    lu: scipy.sparse.linalg.SuperLU  # the state Jacobian of the constraints, factorised
+    YX: np.ndarray  # particular state step [nx]
+    ZX: np.ndarray  # state change per parameter change [nx, p]
+    gX: np.ndarray  # gradient of ½‖r‖² in the states [nx]
+    gZ: np.ndarray  # gradient of ½‖r‖² in the parameters [p]
+    lam: np.ndarray  # constraint multipliers [nx]
+    JY: np.ndarray  # residual change along YX [R]
+    JZ: np.ndarray  # residual change per parameter step along the null space [R, p]
+    Hr: np.ndarray  # reduced Hessian [p, p]
+    gr: np.ndarray  # reduced gradient [p]
+    HY: np.ndarray | None = None  # Hessian of the Lagrangian times (YX, 0) [nx + p]
+    HZ: np.ndarray | None = None  # Hessian of the Lagrangian times the null space [nx + p, p]
+
+
+def _null_space(sp: _Sparsity, c, r, gx, jx, gz, jz, it: int) -> _Reduced:
+    """Factorise the state Jacobian of the constraints and reduce the KKT system (Gauss–Newton
+    reduced Hessian and gradient: always computed, cheap, and the fallback)."""
+    GX, JX = _assemble(sp, gx, jx)
+    try:
+        lu = scipy.sparse.linalg.splu(GX)
+    except RuntimeError as err:
+        raise _Failure(
+            "failed",
+            f"the collocation equations are singular at iteration {it} ({err}); the "
+            "parameters make the discretised dynamics degenerate",
+        ) from None
+    S = lu.solve(np.column_stack([c, gz]))
+    YX, ZX = -S[:, 0], -S[:, 1:]
+    gX, gZ = JX.T @ r, jz.T @ r
+    lam = -lu.solve(gX, trans="T")
+    JZ = JX @ ZX + jz
+    JY = JX @ YX
+    return _Reduced(lu, YX, ZX, gX, gZ, lam, JY, JZ, Hr=JZ.T @ JZ, gr=JZ.T @ (r + JY))
+
+
+def _exact(hvp, w, red: _Reduced, jargs, nx: int, p: int) -> _Reduced:
+    """The reduced system with the exact Hessian of the Lagrangian (Hessian-vector products
+    along the particular step and the null space)."""
+    dirs = np.zeros((p + 1, nx + p))
+    dirs[0, :nx] = red.YX
+    dirs[1:, :nx] = red.ZX.T
+    dirs[1:, nx:] = np.eye(p)
+    HV = np.asarray(hvp(jnp.asarray(w), jnp.asarray(red.lam), jnp.asarray(dirs), jargs))
+    HY, HZ = HV[0], HV[1:].T
+    Hr = red.ZX.T @ HZ[:nx] + HZ[nx:]
+    gr = red.ZX.T @ (red.gX + HY[:nx]) + (red.gZ + HY[nx:])
+    return dataclasses.replace(red, Hr=Hr, gr=gr, HY=HY, HZ=HZ)
+
+
+@dataclasses.dataclass
+class _Damping:
+    """Levenberg–Marquardt damping ``mu`` of the reduced system (``grow``: its growth factor
+    after a rejection) and the penalty ``nu`` of the ℓ1 merit function."""
+
+    mu: float = 1e-3
+    grow: float = 2.0
+    nu: float = 0.0
+
+    def accept(self, ratio: float) -> None:
+        if ratio > 0.25:
+            self.mu = max(self.mu / 10.0, 1e-12)
+        elif ratio < 0.1:
+            self.mu *= 2.0
+        self.grow = 2.0
+
+    def reject(self) -> None:
+        self.mu, self.grow = self.mu * self.grow, self.grow * 2
+
+
+def _step(values, w, red: _Reduced, dfloor, c1: float, f: float, damping: _Damping, stats, nx):
+    """The first damped step accepted on the merit function, as ``(w, ratio, dz)``; ``None``
+    when the damping grows past 1e20 (or the prediction is not finite) without one."""
+    while True:
+        try:
+            cho = scipy.linalg.cho_factor(red.Hr + damping.mu * np.diag(dfloor))
+        except (np.linalg.LinAlgError, ValueError):
+            damping.reject()
+            if damping.mu > 1e20:
+                raise _Failure(
+                    "failed", "the reduced Hessian stays indefinite under any damping"
+                ) from None
+            continue
+        dz = -scipy.linalg.cho_solve(cho, red.gr)
+        dX = red.YX + red.ZX @ dz
+        d = np.concatenate([dX, dz])
+        gd = float(red.gX @ dX + red.gZ @ dz)
+        pred_f = -(gd + 0.5 * _curvature(red, d, dz))
+        if c1 > 0 and pred_f < 0:
+            damping.nu = max(damping.nu, -2.0 * pred_f / c1)
+        pred = pred_f + damping.nu * c1
+        phi = f + damping.nu * c1
+        trial, ratio = _trial(values, w + d, red.lu, phi, pred, damping.nu, stats, nx)
+        if ratio >= _ETA:
+            damping.accept(ratio)
+            return trial, ratio, dz
+        stats["n_rejected"] += 1
+        damping.reject()
+        if damping.mu > 1e20 or not np.isfinite(pred):
+            return None
+
+
+def _curvature(red: _Reduced, d, dz) -> float:
+    """``dᵀ H d`` under the Hessian in use: exact, or Gauss–Newton ``‖J d‖²``."""
+    if red.HY is not None:
+        return float(d @ (red.HY + red.HZ @ dz))
+    Jd = red.JY + red.JZ @ dz
+    return float(Jd @ Jd)
+
+
+def _trial(values, trial, lu, phi: float, pred: float, nu: float, stats, nx: int):
+    """The trial point and its ratio of actual to predicted merit decrease; when too small, a
+    second-order correction (restoring the linearised constraints at the trial) is tried."""
+    c_t, r_t = values(trial)
+    ratio = _ratio(phi, _merit(c_t, r_t, nu), pred)
+    if not ratio >= _ETA and np.all(np.isfinite(c_t)):
+        soc = trial.copy()
+        soc[:nx] -= lu.solve(c_t)
+        c_s, r_s = values(soc)
+        ratio_s = _ratio(phi, _merit(c_s, r_s, nu), pred)
+        if ratio_s >= _ETA:
+            stats["n_second_order_corrections"] += 1
+            return soc, ratio_s
+    return trial, ratio
+
+
+def _ratio(phi: float, phi_t: float, pred: float) -> float:
+    return (phi - phi_t) / pred if pred > 0 else -np.inf
 
 
 def _decrement(H, g) -> float:

@@ -728,11 +728,17 @@ def print_json(obj) -> None:
     print(json.dumps(to_jsonable(obj), indent=2, allow_nan=False))
 
 
-def progress(args) -> Callable[[str], None] | None:
-    """Progress lines on stderr (never with ``--json``)."""
-    if getattr(args, "json", False):
-        return None
-    return lambda msg: print(msg, file=sys.stderr, flush=True)
+def progress(args) -> Callable[[str], None]:
+    """The progress callback of a long computation: lines on stderr (never with ``--json``),
+    and at each step a Ctrl-C that a library swallowed stops the command."""
+    quiet = getattr(args, "json", False)
+
+    def say(msg: str) -> None:
+        check_interrupted()
+        if not quiet:
+            print(msg, file=sys.stderr, flush=True)
+
+    return say
 
 
 def fit_json(result, validation, *, timing, data_info, valid=None) -> dict:

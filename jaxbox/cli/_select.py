@@ -254,12 +254,12 @@ def demo_command(args) -> int:
     from ..datasets import CITATION
 
     check_run_options(args)
-    out = check_folder(args.out, "--out") if args.out else fresh_folder()
+    out = check_folder(args.out or str(fresh_folder()), "--out")
     spec = f"twinhouse_exp1:{args.house}"
     data = load_data(spec)
     ident, valid = data.split()
     check_windows(ident, valid)
-    say = progress(args) or (lambda msg: None)
+    say = progress(args)
     say(
         f"jaxbox demo: twin house {args.house} (IEA EBC Annex 58, Holzkirchen 2013), "
         f"{len(data)} hourly samples; identification {ident.start} .. {ident.end}, "

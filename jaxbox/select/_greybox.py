@@ -205,7 +205,8 @@ class GreyBox:
             p._require_run()
             g = parent_guess(model, ident, p.result.params, parent)
         else:
-            raise ValueError(
+            error = ValueError if isinstance(guess, str) else TypeError
+            raise error(
                 f"unknown guess {guess!r}; give 'naming', 'parent' (with parent=), a dict of "
                 "values or a Guess"
             )
@@ -330,7 +331,7 @@ class GreyBox:
     @classmethod
     def load(cls, path, *, models: Mapping[str, RCModel] | None = None) -> GreyBox:
         """Load a GreyBox saved with :meth:`save`; see :func:`load_greybox`."""
-        saved = read_greybox(path, models=models)
+        saved = read_greybox(path, models=check_mapping(models, "models"))
         gb = cls(
             saved.data, train=saved.train, valid=saved.valid, name=saved.name, ranges=saved.ranges
         )

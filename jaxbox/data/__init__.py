@@ -3,6 +3,13 @@
 pandas is used here (and in :mod:`jaxbox.datasets`) only; everything downstream receives numpy
 arrays from :meth:`Dataset.array`. Signals use canonical names with fixed units (°C, W, W/m²),
 listed in :data:`SIGNALS`.
+
+:func:`load` refuses what is always wrong (unparseable or duplicate time stamps and columns,
+text in number columns, infinities, absurd magnitudes, a temperature column in kelvin);
+:func:`check_plausibility` (or :meth:`Dataset.check_plausible`) judges the periods actually used
+for identification and validation: physical ranges per kind of signal, kelvin/°F/kW mix-ups in
+part of a column, spikes, jumps and stuck sensors. :func:`as_dataset` turns what a user passes
+as data (a Dataset, a DataFrame, a path) into a Dataset.
 """
 
 from ._args import check_mapping as check_mapping

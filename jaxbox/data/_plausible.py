@@ -316,7 +316,7 @@ def _jump(c: _Column, frame: pd.DataFrame) -> list[Finding]:
             "jump",
             f"{c.name!r} jumps by {step[i]:+.3g} K between {c.index[i - 1]} and {c.index[i]} and "
             "stays there: a change of unit (K, °F) or of sensor? fix the data before loading, "
-            f"or {_WINDOWS}.",
+            "or use the periods on one side of it (--train/--validate; Dataset.slice).",
         )
     ]
 
@@ -383,8 +383,8 @@ def _stuck(c: _Column, frame: pd.DataFrame, stuck_hours: float | None) -> list[F
             c.name,
             "stuck",
             f"{c.name!r} stays exactly at {c.x[s]:.4g} °C for {hours[k]:.3g} h, from "
-            f"{c.index[s]} to {c.index[e]}: a stuck or disconnected sensor? {_WINDOWS} "
-            "(stuck_hours= sets the tolerance).",
+            f"{c.index[s]} to {c.index[e]}: a stuck or disconnected sensor? choose periods where "
+            "it moves (--train/--validate; Dataset.slice); stuck_hours= sets the tolerance.",
         )
     ]
 

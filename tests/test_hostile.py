@@ -189,6 +189,12 @@ CASES = [
         FIT,
         ["T_zon"],
     ),
+    (
+        "a text column dropped, columns missing",
+        changed(note=np.full(N, "abc"), Q_hea=(0, np.nan)),
+        [*FIT, "--map", "Q_hea=nothere"],
+        ["nothere"],
+    ),
     ("kelvin column", changed(T_zon=frame()["T_zon"] + 273.15), FIT, ["T_zon", "kelvin"]),
     ("text in a number column", changed(T_amb=(5, "oops")), FIT, ["T_amb", "oops"]),
     ("NaN in a column", changed(Q_hea=(7, np.nan)), FIT, ["Q_hea"]),
@@ -328,11 +334,13 @@ def test_hostile_command_line(make, argv, words, tmp_path, monkeypatch, capsys):
     out = capsys.readouterr()
     lines = out.err.strip().splitlines()
     assert code == 2, out.err
-    assert len(lines) == 1 and lines[0].startswith("error: "), out.err
+    errors = [line for line in lines if line.startswith("error: ")]
+    assert len(errors) == 1 and lines[-1] == errors[0], out.err
+    assert all(line.startswith("warning: ") for line in lines[:-1]), out.err  # one line each
     for word in words:
-        assert word in lines[0], (word, lines[0])
+        assert word in errors[0], (word, errors[0])
     assert "Traceback" not in out.err and "internal error" not in out.err
-    assert _python_advice(lines[0]) == [], lines[0]
+    assert _python_advice(out.err) == [], out.err
     assert out.out == ""
     assert _tree(tmp_path) == before  # nothing written, nothing left behind
     assert elapsed < 20, "refused before any fitting"

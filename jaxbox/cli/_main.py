@@ -14,6 +14,7 @@ import argparse
 import os
 import signal
 import sys
+import warnings
 
 from ._commands import add_fit_arguments, fit_command, models_command
 from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
@@ -123,11 +124,18 @@ def _run(argv: list[str] | None) -> int:
         return 0
     from .. import enable_x64
 
-    enable_x64()
-    _compilation_cache()
-    code = _COMMANDS[args.command](args)
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warning
+        enable_x64()
+        _compilation_cache()
+        code = _COMMANDS[args.command](args)
     check_interrupted()  # a Ctrl-C some library swallowed still stops with 130
     return code
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line ``warning: …`` in command-line terms (no file, line, source)."""
+    print(f"warning: {cli_message(str(message))}", file=sys.stderr, flush=True)
 
 
 def _error(text: str) -> None:

@@ -29,7 +29,13 @@ from ._grid import _assemble, _grid, _sparsity
 from ._radau import MAX_POINTS, radau_iia
 from ._result import CollocationResult, _result
 from ._solver import _Failure, _initial_point, _sqp
-from ._transcription import _constraint_blocks, _constraints, _jargs, _transcribe
+from ._transcription import (
+    _constraint_blocks,
+    _constraints,
+    _jargs,
+    _transcribe,
+    _Transcription,
+)
 
 __all__ = ["CollocationResult", "collocation_fit", "collocation_simulate", "OBJECTIVES"]
 
@@ -105,7 +111,6 @@ def collocation_fit(
         model, data, free=free, fixed=fixed, bounds=bounds, guess=guess, weights=weights
     )
     tx = _transcribe(problem, data, n_c, subdivide, objective)
-    grid, args, sparsity, fns = tx.grid, tx.args, tx.sparsity, tx.fns
     settings = {
         "n_c": n_c,
         "subdivide": subdivide,
@@ -115,34 +120,19 @@ def collocation_fit(
         "ctol": ctol,
         "ftol": ftol,
     }
-    stats = {
-        "n_elements": grid.n_elements,
-        "n_variables": sparsity.n_x + len(problem.free),
-        "n_constraints": sparsity.n_c,
-        "n_residuals": sparsity.n_r,
-        "nnz_constraint_jacobian": len(sparsity.g_rows) + sparsity.n_c * len(problem.free),
-        "n_evaluations": 0,
-        "n_rejected": 0,
-        "n_second_order_corrections": 0,
-    }
+    stats = _initial_stats(tx)
     history: list[dict] = []
-    w = np.concatenate([np.zeros(sparsity.n_x), tx.z0])
+    w = np.concatenate([np.zeros(tx.sparsity.n_x), tx.z0])
     status, message, iterations = "failed", "", 0
     t_setup = None
     try:
         w = _initial_point(tx)
-        jargs = _jargs(args)
-        # compile (or fetch) every function before the clock of the solve starts
-        jw = jnp.asarray(w)
-        jax.block_until_ready(fns["evaluate"](jw, jargs))
-        if hessian != "gauss-newton":
-            n_free = len(problem.free)
-            dirs = jnp.zeros((n_free + 1, w.size))
-            jax.block_until_ready(fns["hvp"](jw, jnp.zeros(sparsity.n_c), dirs, jargs))
+        jargs = _jargs(tx.args)
+        _compile(tx, w, jargs, hessian)  # before the clock of the solve starts
         t_setup = time.perf_counter()
         w, iterations, status, message = _sqp(
-            fns, w, jargs, sparsity, len(problem.free), hessian, max_iterations, ctol, ftol,
-            stats, history,
+            tx.fns, w, jargs, tx.sparsity, len(problem.free), hessian, max_iterations, ctol,
+            ftol, stats, history,
         )  # fmt: skip
     except _Failure as err:
         status, message = err.status, err.message
@@ -151,12 +141,32 @@ def collocation_fit(
     t_end = time.perf_counter()
     if t_setup is None:
         t_setup = t_end
-    return _result(
-        problem, data, grid, args, fns, w, sparsity, status, message, iterations, stats,
-        history, settings,
-        {"setup_s": t_setup - t_start, "solve_s": t_end - t_setup, "total_s": t_end - t_start},
-        tx.y, tx.sqrt_w, tx.u,
-    )  # fmt: skip
+    timing = {"setup_s": t_setup - t_start, "solve_s": t_end - t_setup, "total_s": t_end - t_start}
+    return _result(tx, data, w, status, message, iterations, stats, history, settings, timing)
+
+
+def _initial_stats(tx: _Transcription) -> dict:
+    """The sizes of the NLP and zeroed counters of the solve."""
+    sp, n_free = tx.sparsity, len(tx.problem.free)
+    return {
+        "n_elements": tx.grid.n_elements,
+        "n_variables": sp.n_x + n_free,
+        "n_constraints": sp.n_c,
+        "n_residuals": sp.n_r,
+        "nnz_constraint_jacobian": len(sp.g_rows) + sp.n_c * n_free,
+        "n_evaluations": 0,
+        "n_rejected": 0,
+        "n_second_order_corrections": 0,
+    }
+
+
+def _compile(tx: _Transcription, w, jargs, hessian: str) -> None:
+    """Compile (or fetch) every function the solve will call."""
+    jw = jnp.asarray(w)
+    jax.block_until_ready(tx.fns["evaluate"](jw, jargs))
+    if hessian != "gauss-newton":
+        dirs = jnp.zeros((len(tx.problem.free) + 1, w.size))
+        jax.block_until_ready(tx.fns["hvp"](jw, jnp.zeros(tx.sparsity.n_c), dirs, jargs))
 
 
 # ---- collocation as a simulator ---------------------------------------------------------------

@@ -11,7 +11,7 @@ from jaxtyping import Float
 from ..fit import Problem
 from ..models import RCModel
 from ..simulate import Simulation, simulate_model
-from ._transcription import _jargs
+from ._transcription import _jargs, _Transcription
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,11 +119,13 @@ class CollocationResult:
 
 
 def _result(
-    problem, data, grid, args, fns, w, sp, status, message, iterations, stats, history,
-    settings, timing, y, sqrt_w, u,
-):  # fmt: skip
+    tx: _Transcription, data, w, status, message, iterations, stats, history, settings, timing
+) -> CollocationResult:
+    """The result at the scaled variables ``w`` (the solution, or the last iterate)."""
+    problem, grid, args, fns = tx.problem, tx.grid, tx.args, tx.fns
+    y, sqrt_w, u = tx.y, tx.sqrt_w, tx.u
     n = grid.n_states
-    nx = sp.n_x
+    nx = tx.sparsity.n_x
     V = w[:nx].reshape(grid.n_nodes, n)
     z = w[nx:]
     x_nodes = V * args["sx"]

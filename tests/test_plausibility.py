@@ -314,6 +314,12 @@ CSV_CASES = [
         ["decimal commas", "--sep ';' --decimal ','"],
     ),
     ("tabs", _csv(sep="\t"), {}, ["tabs", "--sep"]),
+    (
+        "trailing commas",
+        "time,T_zon\n2020-01-01 00:00,20.5,\n2020-01-01 01:00,20.6,\n",
+        {},
+        ["line 2", "trailing commas"],
+    ),
     ("same separator and decimal mark", _csv(), {"decimal": ","}, ["--sep ';' --decimal ','"]),
     (
         "a quoted decimal comma",

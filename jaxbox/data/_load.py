@@ -72,6 +72,11 @@ def _sniff(path: Path, sep: str | None, decimal: str | None) -> None:
     if (sep or ",") == "," and '"' not in header:
         width = header.count(",")
         wider = [i for i, row in enumerate(rows) if '"' not in row and row.count(",") > width]
+        if wider and all(rows[i].rstrip(", ").count(",") <= width for i in wider):
+            raise DataError(
+                f"{name!r}: line {wider[0] + 2} ends with more separators than the header has "
+                "columns (trailing commas); remove them from the file."
+            )
         if wider and len(wider) >= max(1, len(rows) // 2):
             fields = rows[wider[0]].count(",") + 1
             raise DataError(

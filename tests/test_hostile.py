@@ -367,7 +367,7 @@ def _python_advice(line: str) -> list[str]:
 
 
 def test_a_file_named_like_a_bundled_dataset_is_read_as_that_file(tmp_path, monkeypatch):
-    from jaxbox.cli._common import load_data
+    from jaxbox.cli._data import load_data
 
     monkeypatch.chdir(tmp_path)
     csv(tmp_path / "twinhouse_exp1_myhouse.csv")
@@ -378,7 +378,7 @@ def test_a_file_named_like_a_bundled_dataset_is_read_as_that_file(tmp_path, monk
 
 
 def test_semicolons_decimal_commas_and_kilowatts_read_with_options(tmp_path, monkeypatch):
-    from jaxbox.cli._common import DataOptions, load_data
+    from jaxbox.cli._data import DataOptions, load_data
 
     f = frame()
     f["Q_hea"] = f["Q_hea"] / 1000

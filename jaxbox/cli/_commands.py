@@ -12,12 +12,8 @@ import time
 from pathlib import Path
 
 from ._common import (
-    DataOptions,
-    Outputs,
     UsageError,
-    add_data_arguments,
     bounds,
-    check_folder,
     check_interrupted,
     check_parameters,
     check_run_options,
@@ -26,9 +22,17 @@ from ._common import (
     fit_json,
     floats,
     int_option,
-    load_all,
     print_json,
+)
+from ._data import (
+    DataOptions,
+    add_data_arguments,
+    load_all,
     slug,
+)
+from ._outputs import (
+    Outputs,
+    check_folder,
 )
 
 __all__ = ["add_fit_arguments", "fit_command", "models_command"]

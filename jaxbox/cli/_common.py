@@ -1,44 +1,38 @@
-"""The ground floor of the command line, shared by every command: bad-input errors in command-line
-terms, option checks, DATA resolution and loading, output folders written all at once, Ctrl-C.
+"""The ground floor of the command line, shared by every command: bad-input errors and their
+messages in command-line terms, option checks, Ctrl-C, the JSON documents.
 
-Nothing here imports another module of :mod:`jaxbox.cli`; the commands (``_commands``,
-``_select``) import from here, and ``_main`` from all of them.
+Nothing here imports another module of :mod:`jaxbox.cli`; ``_outputs`` and ``_data`` build on
+it, the commands (``_commands``, ``_select``) on all three, and ``_main`` on the commands.
 
 The contract of every command: all options are checked, and the output folders probed for
 writing, before any computing; bad input raises :class:`UsageError` (or another ``ValueError`` of
 the library: ``DataError``, ``ModelError``, ``FitError``…) whose message :func:`cli_message` puts
 in command-line terms; outputs are written into a hidden staging folder and moved into place only
-once everything is computed (:class:`Outputs`), so that an error or Ctrl-C leaves no partial file.
+once everything is computed (:class:`~jaxbox.cli._outputs.Outputs`), so that an error or Ctrl-C
+leaves no partial file.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
 import re
-import shutil
 import signal
-import socket
 import sys
-import tempfile
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
-from datetime import datetime
-from pathlib import Path
 
-from .._io import remove_stale_temporaries, temporary_prefix, to_jsonable
+from .._io import to_jsonable
 
 __all__ = [
-    "DATA_HELP",
     "UsageError",
-    "Outputs",
-    "add_data_arguments",
-    "check_folder",
+    "check_interrupted",
+    "check_run_options",
     "cli_message",
+    "deferred_interrupt",
+    "fit_default",
     "fit_json",
-    "load_all",
-    "load_data",
+    "install_interrupt_handler",
     "print_json",
     "progress",
 ]
@@ -75,12 +69,8 @@ def check_interrupted() -> None:
         raise KeyboardInterrupt
 
 
-def interrupted() -> bool:
-    return _INTERRUPTED[0]
-
-
 @contextmanager
-def _deferred_interrupt():
+def deferred_interrupt():
     """Hold Ctrl-C back while the block runs (moving finished files into place); raise it
     after."""
     try:
@@ -334,393 +324,6 @@ def check_run_options(args) -> None:
         )
 
 
-# ---- output folders ----------------------------------------------------------------------------
-
-
-def check_folder(text: str | None, option: str) -> Path | None:
-    """The output folder of ``option``, probed for writing before any computing: a file, a
-    folder under a file, a place that cannot be written are refused (a probe file is created in
-    it, and removed, together with any folder made for it)."""
-    if text is None:
-        return None
-    if not text.strip():
-        raise UsageError(f"{option} is empty; give a folder")
-    path = Path(text)
-    try:
-        if path.exists() and not path.is_dir():
-            raise UsageError(f"{option} {text!r} is a file, not a folder; give a folder")
-        made = _make_folder(path)
-    except UsageError as err:
-        raise UsageError(f"{option} {text!r}: {err}") from None
-    except (OSError, ValueError) as err:
-        raise UsageError(f"{option} {text!r}: cannot make this folder ({_reason(err)})") from None
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".jaxbox-probe-", dir=path)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as err:
-        raise UsageError(f"{option} {text!r}: cannot write into it ({_reason(err)})") from None
-    finally:
-        _remove_folders(made)
-    return path
-
-
-def _reason(err: BaseException) -> str:
-    return getattr(err, "strerror", None) or str(err)
-
-
-def _make_folder(path: Path) -> list[Path]:
-    """``mkdir -p`` that returns the folders it made (deepest last)."""
-    missing = []
-    p = path
-    while not p.exists():
-        missing.append(p)
-        if p.parent == p:
-            break
-        p = p.parent
-    if p.exists() and not p.is_dir():
-        raise UsageError(f"{p} is a file, so no folder can be made under it")
-    made = []
-    for folder in reversed(missing):
-        folder.mkdir()
-        made.append(folder)
-    return made
-
-
-def _remove_folders(made: list[Path]) -> None:
-    for folder in reversed(made):
-        try:
-            folder.rmdir()
-        except OSError:
-            pass
-
-
-class Outputs:
-    """The files one command writes, all or nothing.
-
-    :meth:`folder` gives a hidden staging folder inside a target folder (made if needed); once
-    everything is computed, :meth:`commit` moves each staged file into place (``os.replace``:
-    atomic per file, Ctrl-C held back meanwhile) and runs the ``after`` actions (saving
-    GreyBoxes, themselves atomic). Leaving the ``with`` block by an error or Ctrl-C removes the
-    staging folders and the target folders this run made. Staging folders of a run killed
-    outright are removed by the next run writing there.
-    """
-
-    def __init__(self) -> None:
-        self._staged: list[tuple[Path, Path]] = []
-        self._made: list[Path] = []
-        self._after: list[Callable[[], object]] = []
-        self.committed = False
-
-    def __enter__(self) -> Outputs:
-        return self
-
-    def __exit__(self, kind, err, tb) -> None:
-        if not self.committed:
-            self.discard()
-
-    def folder(self, target: Path) -> Path:
-        """A staging folder whose files :meth:`commit` moves into ``target``."""
-        target = Path(target)
-        self._made += _make_folder(target)
-        remove_stale_temporaries(target)
-        staging = Path(tempfile.mkdtemp(prefix=temporary_prefix("jaxbox-out"), dir=target))
-        self._staged.append((staging, target))
-        return staging
-
-    def after(self, action: Callable[[], object]) -> None:
-        """Run ``action`` at commit, after the staged files are in place."""
-        self._after.append(action)
-
-    def commit(self) -> None:
-        check_interrupted()
-        with _deferred_interrupt():
-            for staging, target in self._staged:
-                _move_tree(staging, target)
-                shutil.rmtree(staging, ignore_errors=True)
-            for action in self._after:
-                action()
-            self.committed = True
-
-    def discard(self) -> None:
-        for staging, _ in self._staged:
-            shutil.rmtree(staging, ignore_errors=True)
-        for folder in sorted(self._made, key=lambda p: len(p.parts), reverse=True):
-            try:
-                folder.rmdir()  # only if empty: what was there before stays
-            except OSError:
-                pass
-
-
-def _move_tree(source: Path, target: Path) -> None:
-    target.mkdir(parents=True, exist_ok=True)
-    for item in sorted(source.iterdir()):
-        if item.is_dir():
-            _move_tree(item, target / item.name)
-        else:
-            os.replace(item, target / item.name)
-
-
-def fresh_folder() -> Path:
-    """A new ``jaxbox-out-<date>-<time>`` folder name in the current directory."""
-    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
-    path = Path(f"jaxbox-out-{stamp}")
-    n = 1
-    while path.exists():
-        n += 1
-        path = Path(f"jaxbox-out-{stamp}-{n}")
-    return path
-
-
-def slug(spec: str, specs: Sequence[str] = ()) -> str:
-    """A folder name for a DATA argument, unique among ``specs`` (the numbered position is
-    prefixed when two share a name)."""
-    from ..datasets import is_bundled
-
-    def name(x: str) -> str:
-        base = x if is_bundled(x) else Path(x).stem
-        return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in base) or "data"
-
-    out = name(spec)
-    if [name(x) for x in specs].count(out) > 1:
-        out = f"{list(specs).index(spec) + 1}-{out}"
-    return out
-
-
-# ---- DATA --------------------------------------------------------------------------------------
-
-DATA_HELP = (
-    "CSV file with a 'time' column and canonical columns (T_zon, T_amb, Q_hea, I_glo_hor, …), "
-    "or a bundled dataset by its exact name: twinhouse_exp1:N2, twinhouse_exp1:O5 (add @10min "
-    "for 10-minute data)"
-)
-
-
-def add_data_arguments(p) -> None:
-    """DATA and the options that read and split it (shared by ``fit`` and ``select``)."""
-    p.add_argument(
-        "data",
-        metavar="DATA",
-        nargs="+",
-        help=DATA_HELP + "; several DATA of the same length are fitted together in one batch",
-    )
-    p.add_argument(
-        "--map",
-        action="append",
-        default=[],
-        metavar="CANONICAL=COLUMN",
-        help="take canonical signal CANONICAL from your column COLUMN (repeatable)",
-    )
-    p.add_argument(
-        "--time",
-        "--time-column",
-        dest="time",
-        metavar="COLUMN",
-        help="name of the time column (default: time)",
-    )
-    p.add_argument("--sep", metavar="CHAR", help="column separator of the CSV (default ',')")
-    p.add_argument(
-        "--decimal", metavar="CHAR", help="decimal mark of the CSV: '.' (default) or ','"
-    )
-    p.add_argument(
-        "--scale",
-        action="append",
-        default=[],
-        metavar="COLUMN=FACTOR",
-        help="multiply canonical column COLUMN by FACTOR, e.g. Q_hea=1000 for kW (repeatable)",
-    )
-    p.add_argument(
-        "--range",
-        action="append",
-        default=[],
-        metavar="COLUMN=LO:HI",
-        help="plausible range of COLUMN where the default does not fit, e.g. T_zon=-10:60 "
-        "(repeatable)",
-    )
-    p.add_argument(
-        "--resample", metavar="RULE", help="resample first, e.g. 1h (mean, right-closed)"
-    )
-    p.add_argument(
-        "--train", metavar="START..END", help="identification period (default: first half)"
-    )
-    p.add_argument("--validate", metavar="START..END", help="validation period (default: the rest)")
-
-
-class DataOptions:
-    """The checked data options of a command line (before anything is loaded)."""
-
-    def __init__(self, args) -> None:
-        self.specs = list(args.data)
-        self.columns = pairs(args.map, "--map", "T_zon=living_temp")
-        self.time = args.time
-        if self.time is not None and not self.time.strip():
-            raise UsageError("--time is empty; give the name of the time column")
-        self.sep = separator(args.sep, "--sep")
-        self.decimal = separator(args.decimal, "--decimal", ".,")
-        if self.sep is not None and self.sep == (self.decimal or "."):
-            raise UsageError(
-                f"--sep and --decimal are both {self.sep!r}; with --decimal ',' use --sep ';'"
-            )
-        self.scale = scale(args.scale)
-        self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
-        self.resample = resample_rule(args.resample)
-        self.train_text, self.valid_text = args.train, args.validate
-        self.train = period(args.train, "--train")
-        self.valid = period(args.validate, "--validate")
-        self._check_specs()
-
-    @property
-    def csv_options(self) -> dict:
-        return {
-            "--map": self.columns,
-            "--time": self.time,
-            "--sep": self.sep,
-            "--decimal": self.decimal,
-            "--scale": self.scale,
-        }
-
-    def _check_specs(self) -> None:
-        from ..datasets import NAMES, is_bundled
-
-        seen: dict[object, str] = {}
-        for spec in self.specs:
-            if not spec.strip():
-                raise UsageError("a DATA argument is empty; give a CSV file or a bundled name")
-            if is_bundled(spec):
-                used = [k for k, v in self.csv_options.items() if v]
-                if used:
-                    raise UsageError(
-                        f"{used[0]} applies to CSV files, not to the bundled dataset {spec}"
-                    )
-                key: object = spec
-            else:
-                path = Path(spec)
-                try:
-                    exists, is_dir = path.exists(), path.is_dir()
-                except (OSError, ValueError) as err:
-                    raise UsageError(f"DATA {spec!r}: {_reason(err)}") from None
-                if not exists:
-                    hint = ""
-                    if spec.split(":")[0].split("@")[0] in {n.split(":")[0] for n in NAMES}:
-                        hint = f"; bundled datasets are named exactly {', '.join(NAMES)}"
-                    raise UsageError(
-                        f"DATA {spec!r}: file not found (relative paths are taken from "
-                        f"{os.getcwd()!r}){hint}"
-                    )
-                if is_dir:
-                    raise UsageError(f"DATA {spec!r} is a folder; give the path of a CSV file")
-                if not os.access(path, os.R_OK):
-                    raise UsageError(f"DATA {spec!r}: the file cannot be read (permissions)")
-                st = path.stat()
-                key = (st.st_dev, st.st_ino)
-            if key in seen:
-                same = "" if seen[key] == spec else f" (as {seen[key]!r} and {spec!r})"
-                raise UsageError(f"the same DATA is given twice{same}; give each dataset once")
-            seen[key] = spec
-
-
-def load_data(spec: str, opts: DataOptions | None = None):
-    """A dataset from a CSV path or a bundled name (exactly ``twinhouse_exp1:N2[@10min]``)."""
-    from ..data import load
-    from ..datasets import bundled, is_bundled
-
-    if is_bundled(spec):
-        data = bundled(spec)
-        rule = opts.resample if opts else None
-        return data.resample(rule) if rule else data
-    if opts is None:
-        return load(spec)
-    return load(
-        spec,
-        time=opts.time,
-        columns=opts.columns or None,
-        resample=opts.resample,
-        sep=opts.sep,
-        decimal=opts.decimal,
-        scale=opts.scale or None,
-    )
-
-
-def split_periods(data, opts: DataOptions):
-    """Identification and validation datasets from the ``--train`` and ``--validate`` periods."""
-    from ..data import DataError
-
-    train, valid = opts.train, opts.valid
-    if train is None and valid is None:
-        return data.split()
-
-    def cut(span, option, text):
-        try:
-            return data.slice(*span)
-        except DataError as err:
-            raise UsageError(f"{option} {text}: {err}") from None
-
-    val = cut(valid, "--validate", opts.valid_text) if valid is not None else None
-    if train is not None:
-        ident = cut(train, "--train", opts.train_text)
-    else:
-        before = data.index[data.index < val.start]
-        if len(before) == 0:
-            raise UsageError(
-                f"--validate {opts.valid_text}: no data before the validation period to identify "
-                f"on (the data start at {data.start}); give --train or start --validate later"
-            )
-        ident = data.slice(None, before[-1])
-    if val is None:
-        rest = data.index[data.index > ident.end]
-        if len(rest) == 0:
-            raise UsageError(
-                "no data left after the identification period for validation (the data end at "
-                f"{data.end}); shorten --train or give --validate"
-            )
-        val = data.slice(rest[0], None)
-    if val.start <= ident.end:
-        raise UsageError(
-            f"the validation period ({val.start} .. {val.end}) must start after the "
-            f"identification period ends ({ident.end}); adjust --train or --validate"
-        )
-    return ident, val
-
-
-def check_windows(ident, valid, columns=None, ranges=None) -> None:
-    """The physical plausibility of the signals (``columns``, default every canonical one) in
-    the windows actually used (``ranges``: the ``--range`` overrides); warnings (uncertain
-    findings) go to stderr."""
-    from ..data import check_plausibility
-
-    for data, what in ((ident, "identification data"), (valid, "validation data")):
-        notes = check_plausibility(
-            data, overrides=ranges or None, columns=columns, what=what, warn=False
-        )
-        for note in notes:
-            print(f"warning: {cli_message(note)}", file=sys.stderr, flush=True)
-
-
-def load_all(args, opts: DataOptions | None = None, *, model=None):
-    """Every DATA of the command line, loaded, split and checked: ``[(spec, data, ident, valid),
-    …]``. With ``model``, its inputs and outputs must be columns of each."""
-    from ..data import DataError
-
-    opts = opts or DataOptions(args)
-    out = []
-    for spec in opts.specs:
-        try:
-            data = load_data(spec, opts)
-            ident, valid = split_periods(data, opts)
-            columns = None
-            if model is not None:
-                columns = list(model.inputs) + list(model.outputs)
-                ident.require(columns, what=f"model {model.name}")
-            check_windows(ident, valid, columns, opts.ranges)
-        except (DataError, UsageError) as err:
-            if len(opts.specs) == 1:
-                raise
-            raise type(err)(f"{spec}: {err}") from None  # which of the files
-        check_interrupted()
-        out.append((spec, data, ident, valid))
-    return out
-
-
 # ---- output documents --------------------------------------------------------------------------
 
 
@@ -787,7 +390,3 @@ def fit_default(name: str):
     from ..fit import fit_model
 
     return inspect.signature(fit_model).parameters[name].default
-
-
-def host_pid() -> str:
-    return f"{socket.gethostname()}-{os.getpid()}"

@@ -12,25 +12,29 @@ from pathlib import Path
 
 from .._io import atomic_write_json
 from ._common import (
-    DataOptions,
-    Outputs,
     UsageError,
-    add_data_arguments,
-    check_folder,
     check_interrupted,
     check_run_options,
-    check_windows,
     data_info,
     fit_default,
     fit_json,
     float_option,
-    fresh_folder,
     int_option,
-    load_all,
-    load_data,
     print_json,
     progress,
+)
+from ._data import (
+    DataOptions,
+    add_data_arguments,
+    check_windows,
+    load_all,
+    load_data,
     slug,
+)
+from ._outputs import (
+    Outputs,
+    check_folder,
+    fresh_folder,
 )
 
 __all__ = ["select_command", "demo_command", "add_select_arguments", "add_demo_arguments"]

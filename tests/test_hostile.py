@@ -86,6 +86,13 @@ def renamed(**names):
     return make
 
 
+def dropped(*names):
+    def make(folder: Path) -> Path:
+        return csv(folder / "data.csv", frame().drop(columns=list(names)))
+
+    return make
+
+
 def with_rows(rows):
     def make(folder: Path) -> Path:
         return csv(folder / "data.csv", frame().iloc[rows])
@@ -295,6 +302,39 @@ CASES = [
         [*FIT, "--train", HALF, "--validate", "2024-01-01 12:00.."],
         ["--validate"],
     ),
+    (
+        "--train with a time zone",
+        good,
+        [*FIT, "--train", "2024-01-01T00:00+02:00.."],
+        ["--train", "time zone"],
+    ),
+    (
+        "--train mixing time zones",
+        good,
+        [*FIT, "--train", "2024-01-01T00:00+02:00..2024-01-02"],
+        ["--train", "time zone"],
+    ),
+    (
+        "--validate overlapping --train",
+        good,
+        [*FIT, "--train", HALF, "--validate", ".."],
+        ["--validate"],
+    ),
+    (
+        "--map to the time column",
+        renamed(T_zon="indoor"),
+        [*FIT, "--map", "T_zon=time"],
+        ["time column"],
+    ),
+    ("--map without a canonical name", good, [*FIT, "--map", "=T_zon"], ["--map"]),
+    ("empty --model", good, ["fit", "{data}", "--model", ""], ["no library model"]),
+    ("--models all, none fed", dropped("Q_hea", "I_glo_hor"), ["select", "{data}"], ["--models"]),
+    ("--starts above the limit", good, [*FIT, "--starts", "100001"], ["--starts"]),
+    ("--seed 1e30", good, [*FIT, "--seed", "1e30"], ["--seed"]),
+    ("--max-steps 1e7", good, [*FIT, "--max-steps", "1e7"], ["--max-steps"]),
+    ("bad input with --json", good, [*FIT, "--json", "--starts", "0"], ["--starts"]),
+    ("--plots name too long", good, [*FIT, "--plots", "p" * 300], ["--plots"]),
+    ("DATA is an empty string", None, ["fit", "", "--model", "Zon"], ["DATA"]),
     # -- output folders
     ("--plots is a file", a_file, [*FIT, "--plots", "{data}"], ["--plots", "file"]),
     ("--plots under a file", a_file, [*FIT, "--plots", "{data}/plots"], ["--plots"]),

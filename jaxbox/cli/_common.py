@@ -127,6 +127,7 @@ _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
     (re.compile(r"\bcolumns maps\b"), "--map maps"),
     (re.compile(r"\bpass time=\b"), "pass --time"),
     (re.compile(r"\bepoch="), "the epoch "),
+    (re.compile(r"\b(start|end|at)=(?=')"), r"\1 "),
 ]
 
 
@@ -236,7 +237,8 @@ def check_parameters(model, names, option: str) -> None:
 
 
 def period(text: str | None, option: str):
-    """``START..END`` (either side may be empty) as a pair of time stamps or ``None``."""
+    """``START..END`` (either side may be empty): the pair of its sides (``None`` for an empty
+    one), each checked to be a date or time; ``None`` without the option."""
     if text is None:
         return None
     import pandas as pd
@@ -247,10 +249,10 @@ def period(text: str | None, option: str):
             f"{option} {text!r} must look like START..END (either side may be empty), e.g. "
             "2024-01-01..2024-01-15"
         )
-    out = []
+    sides, stamps = [], []
     for side in (start.strip(), end.strip()):
         if not side:
-            out.append(None)
+            sides.append(None)
             continue
         try:
             stamp = pd.Timestamp(side)
@@ -258,10 +260,18 @@ def period(text: str | None, option: str):
             stamp = pd.NaT
         if stamp is pd.NaT:
             raise UsageError(f"{option} {text!r}: cannot read {side!r} as a date or time")
-        out.append(stamp)
-    if out[0] is not None and out[1] is not None and out[0] > out[1]:
-        raise UsageError(f"{option} {text!r}: the start is after the end")
-    return tuple(out)
+        sides.append(side)
+        stamps.append(stamp)
+    if len(stamps) == 2:
+        try:
+            reversed_ = stamps[0] > stamps[1]
+        except TypeError:  # one with a time zone, one without
+            raise UsageError(
+                f"{option} {text!r}: give both sides with a time zone or neither"
+            ) from None
+        if reversed_:
+            raise UsageError(f"{option} {text!r}: the start is after the end")
+    return tuple(sides)
 
 
 def resample_rule(text: str | None) -> str | None:

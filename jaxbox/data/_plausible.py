@@ -61,7 +61,7 @@ __all__ = [
 
 #: Plausible range (lo, hi) per canonical base name, in the canonical unit (°C, W, W/m²).
 PLAUSIBLE_RANGES: dict[str, tuple[float, float]] = {
-    "T_zon": (-30.0, 50.0),
+    "T_zon": (-30.0, 60.0),
     "T_amb": (-60.0, 60.0),
     "T_bou": (-50.0, 80.0),
     "T_cel": (-30.0, 50.0),
@@ -121,7 +121,7 @@ class Finding:
 
 def _overrides(overrides: object, names: Iterable[str]) -> dict[str, tuple[float, float]]:
     """Validate ``overrides`` (column or canonical base name -> (lo, hi))."""
-    given = check_mapping(overrides, "overrides", "{'T_zon': (-10, 60)}")
+    given = check_mapping(overrides, "overrides", "{'T_zon': (-10, 90)}")
     names = list(names)
     out = {}
     for key, pair in given.items():
@@ -538,7 +538,7 @@ def check_plausibility(
 
     Args:
         data: a :class:`~jaxbox.data.Dataset` (or a slice of one).
-        overrides: plausible range per column or canonical base name, ``{"T_zon": (-10, 60)}``
+        overrides: plausible range per column or canonical base name, ``{"T_zon": (-10, 90)}``
             (canonical units); replaces :data:`PLAUSIBLE_RANGES` for it and turns off the
             range-based unit heuristics (zone median in °F, heating in kW) for it.
         columns: the columns to check (default: every canonical column).

@@ -87,9 +87,10 @@ class Flag:
 
     Attributes:
         kind: ``failed``, ``not_converged``, ``at_bound``, ``non_physical``, ``time_constant``,
-            ``not_identifiable``, ``poorly_identifiable``, ``wide_interval``, ``no_intervals``
-            (invalidating) or
-            ``fast_dynamics``, ``multistart``, ``residuals`` (warnings).
+            ``heat_loss``, ``prediction``, ``implausible_data``, ``not_identifiable``,
+            ``poorly_identifiable``, ``wide_interval``, ``no_intervals`` (invalidating) or
+            ``fast_dynamics``, ``multistart``, ``residuals`` (warnings); ``at_bound`` and
+            ``implausible_data`` can be warnings too.
         parameters: the parameters concerned (may be empty).
         message: the reason in words.
         severe: True when it makes the model invalid.

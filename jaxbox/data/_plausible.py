@@ -42,6 +42,7 @@ import dataclasses
 import math
 import warnings
 from collections.abc import Callable, Iterable, Mapping
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -108,7 +109,7 @@ class Finding:
     Attributes:
         column: the column concerned.
         kind: ``infinite``, ``absurd``, ``kelvin``, ``fahrenheit``, ``range``, ``jump``,
-            ``spike``, ``stuck``, ``kilowatt`` (see :mod:`jaxbox.data`).
+            ``spike``, ``stuck``, ``kilowatt`` (see :mod:`jaxbox.data._plausible`).
         message: the problem, where, and what to do, in one line.
         severe: True for an error, False for a warning.
     """
@@ -188,7 +189,14 @@ class _Column:
         return f"overrides={{{self.name!r}: (lo, hi)}} (--range {self.name}=LO:HI)"
 
 
-def _infinite(c: _Column, frame: pd.DataFrame) -> list[Finding]:
+class _Options(NamedTuple):
+    """The tolerances of :func:`check_plausibility`."""
+
+    stuck_hours: float | None
+    spike_k: float
+
+
+def _infinite(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     bad = np.isinf(c.x)
     if not bad.any():
         return []
@@ -202,7 +210,7 @@ def _infinite(c: _Column, frame: pd.DataFrame) -> list[Finding]:
     ]
 
 
-def _absurd(c: _Column, frame: pd.DataFrame) -> list[Finding]:
+def _absurd(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     limit = ABSURD if signal_base(c.name) is not None else ABSURD_OTHER
     with np.errstate(invalid="ignore"):
         bad = np.abs(c.x) > limit
@@ -224,7 +232,7 @@ def _in(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
         return (values >= lo) & (values <= hi)
 
 
-def _kelvin(c: _Column, frame: pd.DataFrame) -> list[Finding]:
+def _kelvin(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if not c.temperature:
         return []
     with np.errstate(invalid="ignore"):
@@ -249,7 +257,7 @@ def _fahrenheit_like(c: _Column) -> np.ndarray:
         return (c.x > c.hi) & _in((c.x - 32.0) / 1.8, c.lo, c.hi)
 
 
-def _fahrenheit(c: _Column, frame: pd.DataFrame) -> list[Finding]:
+def _fahrenheit(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     """The whole column in °F: most samples too warm but plausible in °F, or a zone median
     above 40 °C."""
     if not c.temperature:
@@ -272,7 +280,7 @@ def _fahrenheit(c: _Column, frame: pd.DataFrame) -> list[Finding]:
     ]
 
 
-def _range(c: _Column, frame: pd.DataFrame) -> list[Finding]:
+def _range(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     with np.errstate(invalid="ignore"):
         bad = (c.x < c.lo) | (c.x > c.hi)
     if not bad.any():
@@ -296,7 +304,7 @@ def _range(c: _Column, frame: pd.DataFrame) -> list[Finding]:
     ]
 
 
-def _jump(c: _Column, frame: pd.DataFrame) -> list[Finding]:
+def _jump(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if not c.temperature or len(c.x) < 6:
         return []
     s = pd.Series(c.x)
@@ -328,12 +336,12 @@ def _robust_sigma(values: np.ndarray) -> float:
     return 1.4826 * float(np.median(np.abs(values - np.median(values))))
 
 
-def _spike(c: _Column, frame: pd.DataFrame, spike_k: float) -> list[Finding]:
+def _spike(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if len(c.x) < 5:
         return []
     if c.temperature:
         median = pd.Series(c.x).rolling(5, center=True, min_periods=3).median().to_numpy()
-        threshold = max(_SPIKE_FLOOR_K, spike_k * _robust_sigma(np.diff(c.x)))
+        threshold = max(_SPIKE_FLOOR_K, opts.spike_k * _robust_sigma(np.diff(c.x)))
         with np.errstate(invalid="ignore"):
             bad = np.abs(c.x - median) > threshold
         size = f"more than {threshold:.3g} K from their neighbours"
@@ -362,8 +370,8 @@ def _spike(c: _Column, frame: pd.DataFrame, spike_k: float) -> list[Finding]:
     ]
 
 
-def _stuck(c: _Column, frame: pd.DataFrame, stuck_hours: float | None) -> list[Finding]:
-    if not c.temperature or stuck_hours is None or len(c.x) < 3:
+def _stuck(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    if not c.temperature or opts.stuck_hours is None or len(c.x) < 3:
         return []
     same = np.diff(c.x) == 0.0
     if not same.any():
@@ -373,7 +381,7 @@ def _stuck(c: _Column, frame: pd.DataFrame, stuck_hours: float | None) -> list[F
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # samples s..e
     ns = c.index.asi8
     hours = (ns[ends] - ns[starts]) / 3.6e12
-    long = np.flatnonzero((hours >= stuck_hours) & (ends - starts >= 2))
+    long = np.flatnonzero((hours >= opts.stuck_hours) & (ends - starts >= 2))
     if long.size == 0:
         return []
     k = int(long[np.argmax(hours[long])])
@@ -389,7 +397,7 @@ def _stuck(c: _Column, frame: pd.DataFrame, stuck_hours: float | None) -> list[F
     ]
 
 
-def _kilowatt(c: _Column, frame: pd.DataFrame) -> list[Finding]:
+def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if c.overridden:
         return []
     base = signal_base(c.name)
@@ -491,6 +499,7 @@ def find_implausible(
                 f"no column {list_names(missing)} to check; available: {list_names(names)}."
             )
     index = pd.DatetimeIndex(frame.index)
+    opts = _Options(stuck_hours=stuck_hours, spike_k=float(spike_k))
     findings: list[Finding] = []
     for name in chosen:
         rng = plausible_range(name, ranges)
@@ -505,12 +514,7 @@ def find_implausible(
             overridden=name in ranges or signal_base(name) in ranges,
         )
         for check in _CHECKS:
-            if check is _spike:
-                found = check(column, frame, spike_k)
-            elif check is _stuck:
-                found = check(column, frame, stuck_hours)
-            else:
-                found = check(column, frame)
+            found = check(column, frame, opts)
             findings += found
             if any(f.severe for f in found):
                 break

@@ -249,6 +249,9 @@ CASES = [
         [*FIT, "--fix", "gA=1", "--bounds", "gA=0:2"],
         ["gA"],
     ),
+    ("--bounds of a capacity below 0", good, [*FIT, "--bounds", "C_zon=-5:-1"], ["C_zon"]),
+    ("--bounds of a resistance from 0", good, [*FIT, "--bounds", "R_wal=0:1"], ["R_wal"]),
+    ("--fix a resistance at 0", good, [*FIT, "--fix", "R_wal=0"], ["R_wal", "--fix"]),
     # -- run options
     ("--starts 0", good, [*FIT, "--starts", "0"], ["--starts"]),
     ("--starts -3", good, [*FIT, "--starts", "-3"], ["--starts"]),

@@ -16,6 +16,7 @@ from ._common import (
     bounds,
     check_interrupted,
     check_parameters,
+    check_positive,
     check_run_options,
     data_info,
     fit_default,
@@ -103,6 +104,7 @@ def fit_command(args) -> int:
     limits = bounds(args.bounds)
     check_parameters(model, fixed, "--fix")
     check_parameters(model, limits, "--bounds")
+    check_positive(fixed, limits)
     both = sorted(set(fixed) & set(limits))
     if both:
         raise UsageError(f"--fix and --bounds both give {both[0]}; a fixed parameter has no bounds")

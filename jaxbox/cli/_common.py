@@ -236,6 +236,20 @@ def check_parameters(model, names, option: str) -> None:
             )
 
 
+def check_positive(fixed: dict, limits: dict) -> None:
+    """Resistances ``R_*`` and capacities ``C_*`` are positive: a ``--fix`` value or a
+    ``--bounds`` lower bound at or below zero is refused (the fit would only fail)."""
+    for option, values in (("--fix", fixed), ("--bounds", limits)):
+        for name, value in values.items():
+            low = value[0] if isinstance(value, tuple) else value
+            if name.startswith(("R_", "C_")) and not low > 0:
+                kind = "resistance" if name.startswith("R_") else "capacity"
+                what = "value" if option == "--fix" else "lower bound"
+                raise UsageError(
+                    f"{option} {name}: a {kind} is positive; the {what} {low:g} is not"
+                )
+
+
 def period(text: str | None, option: str):
     """``START..END`` (either side may be empty): the pair of its sides (``None`` for an empty
     one), each checked to be a date or time; ``None`` without the option."""

@@ -122,7 +122,11 @@ def test_a_building_that_settles_within_minutes_is_not_valid(good):
     v = check_validity(fast, check_intervals=False)
     assert not v.valid
     assert any("slowest time constant" in r and "3.34 min" in r for r in v.reasons)
-    assert check_validity(fast, check_intervals=False, slowest_tau_range=(60.0, 1e8)).valid
+    assert any("total heat capacity 2e+04 J/K (C_zon)" in r for r in v.reasons)
+    loose = check_validity(
+        fast, check_intervals=False, slowest_tau_range=(60.0, 1e8), capacity_range=(1e4, 1e12)
+    )
+    assert loose.valid
 
 
 def test_unconverged_optimum_is_invalid(good):
@@ -298,5 +302,9 @@ def test_heating_in_kilowatts_is_flagged_by_the_heat_loss_coefficient(halves):
     # and the data check says the same of the data
     v = check_validity(res, check_intervals=False)
     assert any(f.kind == "implausible_data" and "looks like kW" in f.message for f in v.flags)
-    off = check_validity(res, check_data=False, ua_range=None, check_intervals=False)
-    assert not any(f.kind == "heat_loss" for f in off.flags)
+    (reason,) = [f.message for f in v.flags if f.kind == "capacity"]
+    assert "below 1e+05 J/K" in reason and "1000× too small" in reason
+    off = check_validity(
+        res, check_data=False, ua_range=None, capacity_range=None, check_intervals=False
+    )
+    assert not any(f.kind in ("heat_loss", "capacity") for f in off.flags)

@@ -20,6 +20,8 @@ turn (:data:`_CHECKS`) and collects the reasons:
 * ``heat_loss`` — the heat-loss coefficient UA (:func:`heat_loss_coefficients`: steady-state
   heat flow per kelvin of zone temperature, from A, B, C) outside ``ua_range`` (1 W/K … 1e5 W/K).
   A heating power in kW instead of W gives UA and capacities 1000× too small, and this reason;
+* ``capacity`` — the total heat capacity of the model's nodes outside ``capacity_range``
+  (1e5 … 1e12 J/K);
 * ``prediction`` — the validation RMSE of an output above ``max_rmse`` (5 K), above
   ``max_rmse_ratio`` (10) times its identification RMSE (when above ``rmse_floor``, 0.5 K),
   or not finite (needs ``validation=``);
@@ -45,6 +47,7 @@ import numpy as np
 from ..data import DataError, Dataset, Finding, find_implausible, signal_unit
 
 __all__ = [
+    "CAPACITY_RANGE",
     "MAX_RMSE",
     "MAX_RMSE_RATIO",
     "PHYSICAL_LIMITS",
@@ -68,6 +71,8 @@ MAX_RMSE_RATIO = 10.0
 RMSE_FLOOR = 0.5
 #: Plausible heat-loss coefficient UA [W/K] of a building (a room … a large block).
 UA_RANGE = (1.0, 1e5)
+#: Plausible total heat capacity [J/K] of the nodes of a building (a small room … a large block).
+CAPACITY_RANGE = (1e5, 1e12)
 #: Plausible slowest time constant [s] of a building: 10 minutes … 1 year.
 SLOWEST_TAU_RANGE = (600.0, _YEAR)
 
@@ -87,7 +92,7 @@ class Flag:
 
     Attributes:
         kind: ``failed``, ``not_converged``, ``at_bound``, ``non_physical``, ``time_constant``,
-            ``heat_loss``, ``prediction``, ``implausible_data``, ``not_identifiable``,
+            ``heat_loss``, ``capacity``, ``prediction``, ``implausible_data``, ``not_identifiable``,
             ``poorly_identifiable``, ``wide_interval``, ``no_intervals`` (invalidating) or
             ``fast_dynamics``, ``multistart``, ``residuals`` (warnings); ``at_bound`` and
             ``implausible_data`` can be warnings too.
@@ -292,6 +297,7 @@ class _Judged:
     max_rmse_ratio: float
     rmse_floor: float
     ua_range: tuple[float, float] | None
+    capacity_range: tuple[float, float] | None
     slowest_tau_range: tuple[float, float] | None
     check_data: bool
     data_overrides: Mapping[str, tuple[float, float]] | None
@@ -486,6 +492,31 @@ def _check_heat_loss(ctx: _Judged) -> list[Flag]:
     return flags
 
 
+def _check_capacity(ctx: _Judged) -> list[Flag]:
+    if ctx.capacity_range is None or not ctx.finite:
+        return []
+    names = [n.C for n in ctx.model.network.nodes if not getattr(n, "constant", False)]
+    if not names:
+        return []
+    total = float(sum(ctx.result.params[n] for n in names))
+    lo, hi = ctx.capacity_range
+    if lo <= total <= hi:
+        return []
+    what = f"total heat capacity {total:.3g} J/K ({' + '.join(names)})"
+    if total < lo:
+        heat = _heat_inputs(ctx.model)
+        kw = (
+            f"; with {heat[0]} in kW instead of W the capacities come out 1000× too small "
+            f"(scale={{'{heat[0]}': 1000}}, --scale {heat[0]}=1000)"
+            if heat
+            else ""
+        )
+        msg = f"{what} is below {lo:.3g} J/K, less than any building{kw}"
+    else:
+        msg = f"{what} is above {hi:.3g} J/K, more than any building: check the units of the data"
+    return [Flag("capacity", tuple(names), msg)]
+
+
 def _check_prediction(ctx: _Judged) -> list[Flag]:
     v = ctx.validation
     if v is None:
@@ -635,6 +666,7 @@ _CHECKS: tuple[Callable[[_Judged], list[Flag]], ...] = (
     _check_slowest_mode,
     _check_fast_dynamics,
     _check_heat_loss,
+    _check_capacity,
     _check_prediction,
     _check_data,
     _check_intervals,
@@ -693,6 +725,7 @@ def check_validity(
     max_rmse_ratio: float = MAX_RMSE_RATIO,
     rmse_floor: float = RMSE_FLOOR,
     ua_range: tuple[float, float] | None = UA_RANGE,
+    capacity_range: tuple[float, float] | None = CAPACITY_RANGE,
     slowest_tau_range: tuple[float, float] | None = SLOWEST_TAU_RANGE,
     check_data: bool = True,
     data_overrides: Mapping[str, tuple[float, float]] | None = None,
@@ -723,6 +756,8 @@ def check_validity(
             (default 0.5 K: a small error is fine whatever the ratio).
         ua_range: plausible heat-loss coefficient [W/K] (:func:`heat_loss_coefficients`;
             default 1 … 1e5 W/K); ``None`` skips the check.
+        capacity_range: plausible total heat capacity [J/K] of the model's nodes (default
+            1e5 … 1e12 J/K); ``None`` skips the check.
         slowest_tau_range: plausible slowest time constant [s] (default 10 min … 1 year);
             ``None`` skips the check.
         check_data: check the model's columns of the identification data (and of the
@@ -746,6 +781,7 @@ def check_validity(
         max_rmse_ratio=max_rmse_ratio,
         rmse_floor=rmse_floor,
         ua_range=ua_range,
+        capacity_range=capacity_range,
         slowest_tau_range=slowest_tau_range,
         check_data=check_data,
         data_overrides=data_overrides,

@@ -252,6 +252,9 @@ CASES = [
     ("--bounds of a capacity below 0", good, [*FIT, "--bounds", "C_zon=-5:-1"], ["C_zon"]),
     ("--bounds of a resistance from 0", good, [*FIT, "--bounds", "R_wal=0:1"], ["R_wal"]),
     ("--fix a resistance at 0", good, [*FIT, "--fix", "R_wal=0"], ["R_wal", "--fix"]),
+    ("--fix outside the range", good, [*FIT, "--fix", "C_zon=1e-30"], ["C_zon", "range"]),
+    ("--train of 3 samples", good, [*FIT, "--train", "..2024-01-01 03:00"], ["--train"]),
+    ("--validate of 2 samples", good, [*FIT, "--validate", "2024-01-02 23:00.."], ["--validate"]),
     # -- run options
     ("--starts 0", good, [*FIT, "--starts", "0"], ["--starts"]),
     ("--starts -3", good, [*FIT, "--starts", "-3"], ["--starts"]),

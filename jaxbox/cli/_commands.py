@@ -14,6 +14,7 @@ from pathlib import Path
 from ._common import (
     UsageError,
     bounds,
+    check_fixed_in_range,
     check_interrupted,
     check_parameters,
     check_positive,
@@ -105,6 +106,7 @@ def fit_command(args) -> int:
     check_parameters(model, fixed, "--fix")
     check_parameters(model, limits, "--bounds")
     check_positive(fixed, limits)
+    check_fixed_in_range(model, fixed)
     both = sorted(set(fixed) & set(limits))
     if both:
         raise UsageError(f"--fix and --bounds both give {both[0]}; a fixed parameter has no bounds")

@@ -236,6 +236,18 @@ def check_parameters(model, names, option: str) -> None:
             )
 
 
+def check_fixed_in_range(model, fixed: dict) -> None:
+    """A ``--fix`` value inside the parameter's range (its naming-convention bounds): beyond
+    it, the simulations would only fail (a capacity of 1e-30 J/K)."""
+    for name, value in fixed.items():
+        p = model.parameter(name)
+        if not p.lower <= value <= p.upper:
+            raise UsageError(
+                f"--fix {name}={value:g} lies outside the range of {name}, [{p.lower:g}, "
+                f"{p.upper:g}] {p.unit}"
+            )
+
+
 def check_positive(fixed: dict, limits: dict) -> None:
     """Resistances ``R_*`` and capacities ``C_*`` are positive: a ``--fix`` value or a
     ``--bounds`` lower bound at or below zero is refused (the fit would only fail)."""

@@ -26,6 +26,10 @@ from ._outputs import reason
 __all__ = ["DATA_HELP", "DataOptions", "add_data_arguments", "load_all", "load_data", "slug"]
 
 
+#: The fewest samples of an identification or validation period (the residual tests of
+#: :mod:`jaxbox.validate` need 4).
+MIN_SAMPLES = 4
+
 DATA_HELP = (
     "CSV file with a 'time' column and canonical columns (T_zon, T_amb, Q_hea, I_glo_hor, …), "
     "or a bundled dataset by its exact name: twinhouse_exp1:N2, twinhouse_exp1:O5 (add @10min "
@@ -211,6 +215,15 @@ def split_periods(data, opts: DataOptions):
                 f"{data.end}); shorten --train or give --validate"
             )
         val = data.slice(rest[0], None)
+    for window, what, option in (
+        (ident, "identification", "--train"),
+        (val, "validation", "--validate"),
+    ):
+        if len(window) < MIN_SAMPLES:
+            raise UsageError(
+                f"the {what} period ({window.start} .. {window.end}) holds {len(window)} "
+                f"sample(s); at least {MIN_SAMPLES} are needed: widen {option}"
+            )
     if val.start <= ident.end:
         raise UsageError(
             f"the validation period ({val.start} .. {val.end}) must start after the "

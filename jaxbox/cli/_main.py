@@ -11,6 +11,7 @@ Exit codes: 0 success; 2 bad input (one line ``error: …`` on stderr, no traceb
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import signal
 import sys
@@ -138,6 +139,10 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     print(f"warning: {cli_message(str(message))}", file=sys.stderr, flush=True)
 
 
+#: what diffrax says when an adaptive simulation runs out of steps
+_SOLVER_STEPS = "maximum number of solver steps was reached"
+
+
 def _error(text: str) -> None:
     print(f"error: {text}", file=sys.stderr, flush=True)
 
@@ -158,6 +163,9 @@ def main(argv: list[str] | None = None) -> int:
     """
     previous = signal.getsignal(signal.SIGINT)
     install_interrupt_handler()
+    # a failed simulation inside a compiled call is logged by JAX with a traceback before it
+    # is raised; the command reports it in one line
+    logging.getLogger("jax._src.callback").setLevel(logging.CRITICAL)
     try:
         return _run(argv)
     except KeyboardInterrupt:
@@ -178,6 +186,12 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as err:  # last resort, keeps the one-line contract
         if os.environ.get("JAXBOX_DEBUG"):
             raise
+        if _SOLVER_STEPS in str(err):  # an adaptive simulation gave up (a stiff model)
+            _error(
+                "a simulation needed more solver steps than allowed: the model is too stiff for "
+                "the data (very small capacities or resistances); narrow --bounds or --fix"
+            )
+            return 2
         _error(
             f"internal error ({type(err).__name__}: {cli_message(str(err))}); rerun with "
             "JAXBOX_DEBUG=1 for the traceback"

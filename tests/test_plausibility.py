@@ -501,3 +501,17 @@ def test_ranges_and_overrides():
 def test_window_check_takes_only_datasets():
     with pytest.raises(TypeError, match="takes a jaxbox Dataset"):
         check_plausibility(np.zeros((3, 2)))
+
+
+def test_every_way_into_a_dataset_refuses_infinities(base):
+    data = Dataset(base)
+    bad = data["T_zon"]
+    bad[3] = np.inf
+    with pytest.raises(DataError, match="column 'T_zon' has infinite values"):
+        data.with_columns(T_zon=bad)
+    with pytest.raises(DataError, match="column 'T_amb' has absurd values"):
+        Dataset.from_arrays(data.t, {"T_amb": np.full(N, 1e300)}, check=False)
+    frame = base.copy()
+    frame.iloc[5, 0] = -np.inf
+    with pytest.raises(DataError, match="'T_zon' has infinite"):
+        Dataset(frame, check=False)

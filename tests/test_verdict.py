@@ -250,6 +250,19 @@ def test_heat_loss_coefficient_of_two_states_against_a_hand_solution():
     assert output == "T_zon" and ua == pytest.approx(50.0, rel=1e-10)
 
 
+def test_heat_loss_coefficient_through_a_constant_ground_node():
+    """Zone to ambient (R_wal) and to a ground held at a constant temperature (R_gro), in
+    parallel: UA = 1/R_wal + 1/R_gro; the constant node is left out of the steady state."""
+    from jaxbox.models import RCNetwork
+    from jaxbox.models import components as c
+
+    net = c.wall(c.zone(RCNetwork("t")), capacity=False).add(c.heating)
+    model = c.ground(net, to=None, temperature=9.5).build()
+    p = model.defaults() | {"R_wal": 0.01, "R_gro": 0.04}
+    ((ua, output),) = heat_loss_coefficients(model, p).values()
+    assert output == "T_zon" and ua == pytest.approx(100.0 + 25.0, rel=1e-10)
+
+
 def test_a_good_fit_with_its_validation_is_valid(fitted_half, halves):
     v = check_validity(fitted_half, validation=validate(fitted_half, halves[1]))
     assert v.valid, v.reasons

@@ -563,6 +563,7 @@ def test_greybox_refuses_implausible_windows(dataset):
         ({"fixed": "gA=1"}, "fixed"),
         ({"bounds": [(0, 1)]}, "bounds"),
         ({"guess": [1.0, 2.0]}, "guess"),
+        ({"free": "R_wal"}, "free"),
         ({"train": "2024-01-01..2024-01-02"}, "train"),
     ],
 )

@@ -179,6 +179,11 @@ class GreyBox:
         model = get_model(model)
         fixed = check_mapping(fixed, "fixed")
         bounds = check_mapping(bounds, "bounds")
+        if free is not None and (isinstance(free, str | bytes) or not isinstance(free, Sequence)):
+            raise TypeError(
+                f"free must be a list of parameter names, e.g. free=['R_wal', 'C_zon'], got "
+                f"{free!r}"
+            )
         bad = [k for k in settings if k not in SETTINGS]
         if bad:
             raise TypeError(

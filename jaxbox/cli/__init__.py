@@ -12,9 +12,9 @@ def main(argv: list[str] | None = None) -> int:
 
     After Ctrl-C (exit 130) the process ends at once, without the interpreter's clean-up: JAX's
     compiler threads may still be running, and tearing the interpreter down under them can
-    crash it.
+    crash it (the signal handler itself ends it; see ``jaxbox.cli._common._on_sigint``).
     """
-    code = _main(argv)
+    code = _main(argv, exit_at_once=True)
     if code == 130:
         for stream in (sys.stdout, sys.stderr):
             try:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import signal
 import sys
@@ -32,7 +33,9 @@ __all__ = [
     "deferred_interrupt",
     "fit_default",
     "fit_json",
+    "forget_interrupt",
     "install_interrupt_handler",
+    "on_interrupt",
     "print_json",
     "progress",
 ]
@@ -46,21 +49,51 @@ class UsageError(ValueError):
 # ---- Ctrl-C ------------------------------------------------------------------------------------
 
 _INTERRUPTED = [False]
+#: end the process in the handler itself (the console script) instead of raising
+_EXIT_AT_ONCE = [False]
+#: what to undo when the process ends in the handler (partial outputs), newest last
+_CLEANUPS: list[Callable[[], None]] = []
 
 
 def _on_sigint(signum, frame) -> None:
+    """Ctrl-C. In the console script the process ends here and now: the partial outputs are
+    removed, one line is printed, exit 130. Raising :class:`KeyboardInterrupt` instead would
+    surface wherever the main thread happens to be, and JAX runs Python inside its C++ (garbage
+    collection callbacks that swallow it with a printed traceback, callbacks whose C++ caller
+    aborts the process on it). Called in-process, it raises :class:`KeyboardInterrupt`."""
     _INTERRUPTED[0] = True
-    raise KeyboardInterrupt
+    if not _EXIT_AT_ONCE[0]:
+        raise KeyboardInterrupt
+    for cleanup in reversed(_CLEANUPS):
+        cleanup()
+    try:
+        sys.stderr.write("error: interrupted\n")
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        pass
+    os._exit(130)
 
 
-def install_interrupt_handler() -> None:
-    """Ctrl-C raises :class:`KeyboardInterrupt` and is remembered, so that one swallowed deep
-    inside a library still stops the command at its next :func:`check_interrupted`."""
+def install_interrupt_handler(exit_at_once: bool = False) -> None:
+    """Take over Ctrl-C for a command (see :func:`_on_sigint`); a Ctrl-C is also remembered, so
+    that one swallowed deep inside a library still stops the command at its next
+    :func:`check_interrupted`."""
     _INTERRUPTED[0] = False
+    _EXIT_AT_ONCE[0] = exit_at_once
     try:
         signal.signal(signal.SIGINT, _on_sigint)
     except ValueError:  # not the main thread (an embedding application): leave it alone
         pass
+
+
+def on_interrupt(cleanup: Callable[[], None]) -> None:
+    """Run ``cleanup`` if the process ends on Ctrl-C (until :func:`forget_interrupt`)."""
+    _CLEANUPS.append(cleanup)
+
+
+def forget_interrupt(cleanup: Callable[[], None]) -> None:
+    if cleanup in _CLEANUPS:
+        _CLEANUPS.remove(cleanup)
 
 
 def check_interrupted() -> None:

@@ -154,15 +154,16 @@ def _os_error(err: OSError) -> str:
     return str(err)
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, *, exit_at_once: bool = False) -> int:
     """Entry point of the ``jaxbox`` console script; returns the exit code.
 
     0 success; 2 bad input, with one line ``error: …`` on stderr (no traceback); 130 Ctrl-C,
     with one line and no partial output file; 1 an unexpected internal error, with one line
-    (``JAXBOX_DEBUG=1`` shows the traceback).
+    (``JAXBOX_DEBUG=1`` shows the traceback). With ``exit_at_once`` (the console script) Ctrl-C
+    ends the process in the signal handler, after removing the partial outputs.
     """
     previous = signal.getsignal(signal.SIGINT)
-    install_interrupt_handler()
+    install_interrupt_handler(exit_at_once)
     # a failed simulation inside a compiled call is logged by JAX with a traceback before it
     # is raised; the command reports it in one line
     logging.getLogger("jax._src.callback").setLevel(logging.CRITICAL)

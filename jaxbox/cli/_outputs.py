@@ -11,7 +11,13 @@ from datetime import datetime
 from pathlib import Path
 
 from .._io import remove_stale_temporaries, temporary_prefix
-from ._common import UsageError, check_interrupted, deferred_interrupt
+from ._common import (
+    UsageError,
+    check_interrupted,
+    deferred_interrupt,
+    forget_interrupt,
+    on_interrupt,
+)
 
 __all__ = ["Outputs", "check_folder", "fresh_folder", "reason"]
 
@@ -92,9 +98,11 @@ class Outputs:
         self.committed = False
 
     def __enter__(self) -> Outputs:
+        on_interrupt(self.discard)
         return self
 
     def __exit__(self, kind, err, tb) -> None:
+        forget_interrupt(self.discard)
         if not self.committed:
             self.discard()
 

@@ -158,6 +158,16 @@ def test_arrays_are_read_only_from_inside_the_folder(saved, arrays, tmp_path):
         load_greybox(folder)
 
 
+def test_an_arrays_file_linking_outside_the_folder_is_refused(saved, tmp_path):
+    folder, doc = saved
+    (arrays,) = folder.glob("arrays-*.npz")
+    outside = tmp_path / "outside.npz"
+    arrays.rename(outside)
+    arrays.symlink_to(outside)
+    with pytest.raises(PersistError, match="outside the folder"):
+        load_greybox(folder)
+
+
 def _set(doc, path, value):
     doc = json.loads(json.dumps(doc))
     *head, last = path

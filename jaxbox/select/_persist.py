@@ -377,6 +377,8 @@ def _read(index: Path) -> tuple[dict, dict]:
             raise PersistError(f"{index}: not valid JSON ({err})") from None
         _check_index(doc, index)
         path = index.parent / doc["arrays"]
+        if path.is_symlink() and path.resolve().parent != index.parent.resolve():
+            raise PersistError(f"{index}: arrays {doc['arrays']!r} links outside the folder")
         try:
             with np.load(path, allow_pickle=False) as z:
                 arrays = {k: z[k] for k in z.files}

@@ -135,7 +135,8 @@ CASES = [
     ("empty file", text(""), FIT, ["empty"]),
     ("header only", text("time,T_zon,T_amb,Q_hea,I_glo_hor\n"), FIT, ["sample"]),
     ("one row", with_rows([0]), FIT, ["sample"]),
-    ("two rows", with_rows([0, 1]), FIT, ["samples"]),
+    ("two rows", with_rows([0, 1]), FIT, ["sample(s)", "more data"]),
+    ("seven rows: halves too short", with_rows(list(range(7))), FIT, ["3 sample(s)"]),
     ("binary garbage", text(bytes(range(256)) * 8), FIT, ["data.csv"]),
     (
         "latin-1 file",

@@ -183,12 +183,36 @@ def load_data(spec: str, opts: DataOptions | None = None):
 
 
 def split_periods(data, opts: DataOptions):
-    """Identification and validation datasets from the ``--train`` and ``--validate`` periods."""
-    from ..data import DataError
-
+    """Identification and validation datasets from the ``--train`` and ``--validate`` periods
+    (default: the halves), each of at least :data:`MIN_SAMPLES`, in this order."""
     train, valid = opts.train, opts.valid
     if train is None and valid is None:
-        return data.split()
+        ident, val = data.split()
+    else:
+        ident, val = _windows(data, opts)
+    windows = ((ident, "identification", "--train"), (val, "validation", "--validate"))
+    for window, what, option in windows:
+        if len(window) < MIN_SAMPLES:
+            fix = f"widen {option}" if _option_given(opts, option) else "give more data"
+            raise UsageError(
+                f"the {what} period ({window.start} .. {window.end}) holds {len(window)} "
+                f"sample(s); at least {MIN_SAMPLES} are needed: {fix}"
+            )
+    if val.start <= ident.end:
+        raise UsageError(
+            f"the validation period ({val.start} .. {val.end}) must start after the "
+            f"identification period ends ({ident.end}); adjust --train or --validate"
+        )
+    return ident, val
+
+
+def _option_given(opts: DataOptions, option: str) -> bool:
+    return (opts.train if option == "--train" else opts.valid) is not None
+
+
+def _windows(data, opts: DataOptions):
+    """The ``--train`` and ``--validate`` windows, one of them perhaps from the other."""
+    from ..data import DataError
 
     def cut(span, option, text):
         try:
@@ -196,6 +220,7 @@ def split_periods(data, opts: DataOptions):
         except DataError as err:
             raise UsageError(f"{option} {text}: {err}") from None
 
+    train, valid = opts.train, opts.valid
     val = cut(valid, "--validate", opts.valid_text) if valid is not None else None
     if train is not None:
         ident = cut(train, "--train", opts.train_text)
@@ -215,20 +240,6 @@ def split_periods(data, opts: DataOptions):
                 f"{data.end}); shorten --train or give --validate"
             )
         val = data.slice(rest[0], None)
-    for window, what, option in (
-        (ident, "identification", "--train"),
-        (val, "validation", "--validate"),
-    ):
-        if len(window) < MIN_SAMPLES:
-            raise UsageError(
-                f"the {what} period ({window.start} .. {window.end}) holds {len(window)} "
-                f"sample(s); at least {MIN_SAMPLES} are needed: widen {option}"
-            )
-    if val.start <= ident.end:
-        raise UsageError(
-            f"the validation period ({val.start} .. {val.end}) must start after the "
-            f"identification period ends ({ident.end}); adjust --train or --validate"
-        )
     return ident, val
 
 

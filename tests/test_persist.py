@@ -2,13 +2,16 @@
 
 import json
 import os
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
 
 from jaxbox.data import Dataset
 from jaxbox.models import get_model
-from jaxbox.select import GreyBox, load_greybox, save_greybox
+from jaxbox.select import GreyBox, PersistError, load_greybox, save_greybox
 from jaxbox.simulate import simulate_arrays
 from jaxbox.validate import validate
 
@@ -123,3 +126,239 @@ def test_load_rejects_other_files(tmp_path):
     (tmp_path / "greybox.json").write_text('{"format": "other"}')
     with pytest.raises(ValueError, match="not a saved GreyBox"):
         load_greybox(tmp_path)
+
+
+# -- a saved folder is not trusted -----------------------------------------------------------------
+
+
+@pytest.fixture()
+def saved(greybox, tmp_path):
+    """A saved GreyBox folder and its index as a dict."""
+    folder = tmp_path / "gb"
+    save_greybox(greybox, folder)
+    return folder, json.loads((folder / "greybox.json").read_text())
+
+
+def _rewrite(folder, doc):
+    (folder / "greybox.json").write_text(json.dumps(doc))
+
+
+@pytest.mark.parametrize(
+    "arrays", ["../elsewhere/arrays-0123456789abcdef.npz", "/etc/passwd", "greybox.json", "x.npz"]
+)
+def test_arrays_are_read_only_from_inside_the_folder(saved, arrays, tmp_path):
+    folder, doc = saved
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "arrays-0123456789abcdef.npz").write_bytes(
+        next(folder.glob("arrays-*.npz")).read_bytes()
+    )
+    _rewrite(folder, {**doc, "arrays": arrays})
+    with pytest.raises(PersistError, match="arrays"):
+        load_greybox(folder)
+
+
+def test_an_arrays_file_linking_outside_the_folder_is_refused(saved, tmp_path):
+    folder, doc = saved
+    (arrays,) = folder.glob("arrays-*.npz")
+    outside = tmp_path / "outside.npz"
+    arrays.rename(outside)
+    arrays.symlink_to(outside)
+    with pytest.raises(PersistError, match="outside the folder"):
+        load_greybox(folder)
+
+
+def _set(doc, path, value):
+    doc = json.loads(json.dumps(doc))
+    *head, last = path
+    target = doc
+    for key in head:
+        target = target[key]
+    if value is KeyError:
+        del target[last]
+    else:
+        target[last] = value
+    return doc
+
+
+@pytest.mark.parametrize(
+    "path, value, field",
+    [
+        (["name"], KeyError, "name"),
+        (["name"], 3, "name"),
+        (["train"], "2024-01-01", "train"),
+        (["train"], ["2024-01-01"], "train"),
+        (["valid"], 5, "valid"),
+        (["cases"], {"a": 1}, "cases"),
+        (["cases", 0], [], "cases[0]"),
+        (["cases", 0, "model"], KeyError, "cases[0].model"),
+        (["cases", 0, "model"], "NoSuchModel", "cases[0].model"),
+        (["cases", 0, "guess"], None, "cases[0].guess"),
+        (["cases", 0, "guess", "values"], [1, 2], "cases[0].guess.values"),
+        (["cases", 0, "fixed"], {"gA": "two"}, "cases[0].fixed"),
+        (["cases", 0, "bounds"], {"gA": [1]}, "cases[0].bounds"),
+        (["cases", 0, "starts"], "3", "cases[0].starts"),
+        (["cases", 0, "starts"], 0, "cases[0].starts"),
+        (["cases", 0, "seed"], 1.5, "cases[0].seed"),
+        (["cases", 0, "notes"], "a note", "cases[0].notes"),
+        (["cases", 0, "result"], [], "cases[0].result"),
+        (["cases", 0, "result", "arrays"], "case7", "cases[0].result.arrays"),
+        (["cases", 0, "result", "best"], 99, "cases[0].result.best"),
+        (["cases", 0, "result", "best"], True, "cases[0].result.best"),
+        (["cases", 0, "result", "params"], KeyError, "cases[0].result.params"),
+        (["cases", 0, "result", "params", "R_wal"], KeyError, "cases[0].result.params"),
+        (["cases", 0, "result", "status"], "converged", "cases[0].result.status"),
+        (["cases", 1, "name"], "Zon", "cases[1].name"),
+        (["cases", 0, "train"], ["2099-01-01", "2099-02-01"], "cases[0].train"),
+    ],
+)
+def test_a_malformed_index_gives_one_error_naming_the_field(saved, path, value, field):
+    folder, doc = saved
+    _rewrite(folder, _set(doc, path, value))
+    with pytest.raises(PersistError) as err:
+        load_greybox(folder)
+    assert field in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "content", ["", "{not json", "[1, 2]", '"text"', "null", b"\xff\xfe\x00binary"]
+)
+def test_a_damaged_index_is_a_persist_error(saved, content):
+    folder, _ = saved
+    index = folder / "greybox.json"
+    index.write_bytes(content if isinstance(content, bytes) else content.encode())
+    with pytest.raises(PersistError, match="greybox.json"):
+        load_greybox(folder)
+
+
+def test_damaged_or_missing_arrays(saved, tmp_path):
+    folder, doc = saved
+    (arrays,) = folder.glob("arrays-*.npz")
+    arrays.write_bytes(b"not a zip file")
+    with pytest.raises(PersistError, match="arrays"):
+        load_greybox(folder)
+    arrays.unlink()
+    with pytest.raises(PersistError, match="missing"):
+        load_greybox(folder)
+    with pytest.raises(PersistError, match="no saved GreyBox"):
+        load_greybox(tmp_path / "nothing-here")
+    # arrays of another save: the shapes do not agree with the index
+    np.savez(arrays, **{"data/values": np.zeros((3, 2))})
+    with pytest.raises(PersistError, match="data/time_ns"):
+        load_greybox(folder)
+
+
+def test_stale_temporaries_are_removed_by_the_next_save_and_load(greybox, tmp_path):
+    from jaxbox._io import temporary_prefix
+
+    folder = tmp_path / "gb"
+    save_greybox(greybox, folder)
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    pid = int(dead.stdout)
+    mine = temporary_prefix("greybox.json")
+    theirs = mine.replace(f"-{os.getpid()}.", f"-{pid}.")
+    (folder / f"{theirs}abc123.tmp").write_text("half a save")  # a save that was killed
+    (folder / f"{mine}def456.tmp").write_text("a save going on")  # this process: alive
+    old = folder / ".arrays-x.npz.tmp"  # an old format, a day old
+    old.write_text("x")
+    os.utime(old, (time.time() - 2 * 86400,) * 2)
+    load_greybox(folder)
+    left = sorted(p.name for p in folder.glob(".*.tmp"))
+    assert left == [f"{mine}def456.tmp"]
+    (folder / f"{theirs}abc123.tmp").write_text("half a save")
+    save_greybox(greybox, folder)
+    assert sorted(p.name for p in folder.glob(".*.tmp")) == [f"{mine}def456.tmp"]
+
+
+# -- concurrent and killed saves -------------------------------------------------------------------
+
+_SAVER = """
+import sys
+import numpy as np
+from jaxbox.data import Dataset
+from jaxbox.select import GreyBox, save_greybox
+
+folder, start = sys.argv[1], int(sys.argv[2])
+t = np.arange(48) * 3600.0
+k = start
+while True:
+    data = Dataset.from_arrays(
+        t, {"T_zon": 20 + 0.001 * k + np.sin(t / 4e4), "T_amb": 5 + np.cos(t / 4e4),
+            "Q_hea": np.full(48, 500.0), "I_glo_hor": np.zeros(48)}
+    )
+    gb = GreyBox(data, name=f"version {k}")
+    gb.add_case("Zon", name="not-run").notes.append(f"version {k}")
+    save_greybox(gb, folder)
+    print(k, flush=True)
+    k += 1
+"""
+
+
+def _version(gb) -> int:
+    k = int(gb.name.split()[-1])
+    assert gb["not-run"].notes == [f"version {k}"]  # index and arrays of one version
+    assert gb.data["T_zon"][0] == pytest.approx(20 + 0.001 * k)
+    return k
+
+
+def _saver(folder, start=0):
+    return subprocess.Popen(
+        [sys.executable, "-c", _SAVER, str(folder), str(start)],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "JAXBOX_CACHE": "0"},
+    )
+
+
+def test_kill_during_save_leaves_the_old_or_the_new_version(tmp_path):
+    """A save killed (SIGKILL) at random moments: the folder always loads, as the last
+    version completed or the one being saved; the next save removes what the killed one
+    left."""
+    folder = tmp_path / "gb"
+    rng = np.random.default_rng(0)
+    seen = []
+    for round_ in range(4):
+        proc = _saver(folder, start=1000 * round_)
+        first = proc.stdout.readline()  # one save done: the process runs its loop
+        assert first.strip() == str(1000 * round_)
+        time.sleep(rng.uniform(0.0, 0.3))
+        proc.kill()
+        done = [first, *proc.stdout.read().split()]
+        proc.wait()
+        last = int(done[-1])
+        k = _version(load_greybox(folder))
+        assert k in (last, last + 1)
+        seen.append(k)
+    assert len(list(folder.glob("arrays-*.npz"))) <= 3
+    proc = _saver(folder, start=9000)
+    proc.stdout.readline()
+    proc.stdout.readline()  # two saves: the leftovers of the killed ones are gone
+    proc.kill()
+    proc.wait()
+    assert not [p for p in folder.glob(".*.tmp")]
+    assert len(list(folder.glob("arrays-*.npz"))) <= 3
+    assert _version(load_greybox(folder)) >= 9001
+
+
+def test_a_reader_during_saves_sees_a_whole_version(tmp_path):
+    """One process saves over and over while this one loads over and over: every load gives a
+    complete version (its index and its arrays), never an error."""
+    folder = tmp_path / "gb"
+    proc = _saver(folder)
+    try:
+        proc.stdout.readline()
+        versions = []
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < 4.0:
+            versions.append(_version(load_greybox(folder)))
+    finally:
+        proc.kill()
+        proc.wait()
+    assert len(versions) > 20
+    assert versions == sorted(versions) and versions[-1] > versions[0]  # saves went on

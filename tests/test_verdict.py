@@ -13,9 +13,11 @@ from jaxbox.simulate import simulate_model
 from jaxbox.validate import (
     analyse_residuals,
     check_validity,
+    heat_loss_coefficients,
     multistart_view,
     time_constants,
     uncertainty,
+    validate,
 )
 
 N = 200
@@ -108,10 +110,23 @@ def test_custom_limits(good):
 
 
 def test_fast_time_constant_is_a_warning(good):
-    fast = dataclasses.replace(good, params={**good.params, "C_zon": 2e4})  # τ = 200 s < 1 h
+    fast = dataclasses.replace(good, params={**good.params, "C_zon": 2e5})  # τ = 2000 s < 1 h
     v = check_validity(fast, check_intervals=False)
     assert v.valid
     assert any("shorter than the sampling step" in w for w in v.warnings)
+
+
+def test_a_building_that_settles_within_minutes_is_not_valid(good):
+    """τ = 200 s as the slowest (here the only) mode: no building settles that fast."""
+    fast = dataclasses.replace(good, params={**good.params, "C_zon": 2e4})
+    v = check_validity(fast, check_intervals=False)
+    assert not v.valid
+    assert any("slowest time constant" in r and "3.34 min" in r for r in v.reasons)
+    assert any("total heat capacity 2e+04 J/K (C_zon)" in r for r in v.reasons)
+    loose = check_validity(
+        fast, check_intervals=False, slowest_tau_range=(60.0, 1e8), capacity_range=(1e4, 1e12)
+    )
+    assert loose.valid
 
 
 def test_unconverged_optimum_is_invalid(good):
@@ -200,3 +215,109 @@ def test_no_degrees_of_freedom_is_reported(good):
         uncertainty(short)
     v = check_validity(short)
     assert not v.valid and any("degrees of freedom" in r for r in v.reasons)
+
+
+# -- the prediction, the heat-loss coefficient and the data are judged too -----------------------
+
+
+@pytest.fixture(scope="module")
+def halves():
+    return _data().split()
+
+
+@pytest.fixture(scope="module")
+def fitted_half(halves):
+    return fit_model("Zon", halves[0], starts=_start())
+
+
+def _spiked(valid, size, at=50):
+    y = valid["T_zon"]
+    y[at] += size
+    return valid.with_columns(T_zon=y)
+
+
+def test_heat_loss_coefficient_of_one_zone_is_one_over_r(good):
+    ((name, (ua, output)),) = heat_loss_coefficients(good.model, good.params).items()
+    assert (name, output) == ("Q_hea", "T_zon")
+    assert ua == pytest.approx(1.0 / good.params["R_wal"], rel=1e-10)
+
+
+def test_heat_loss_coefficient_of_two_states_against_a_hand_solution():
+    """ZonWal: zone and wall in series to ambient, R/2 each: UA = 1/R whatever the capacities."""
+    model = get_model("ZonWal")
+    p = {"C_zon": 2e6, "C_wal": 3e7, "R_wal": 0.02, "gA": 2.0, "T_zon0": 20.0, "T_wal0": 15.0}
+    ((ua, output),) = heat_loss_coefficients(model, p).values()
+    assert output == "T_zon" and ua == pytest.approx(50.0, rel=1e-10)
+
+
+def test_heat_loss_coefficient_through_a_constant_ground_node():
+    """Zone to ambient (R_wal) and to a ground held at a constant temperature (R_gro), in
+    parallel: UA = 1/R_wal + 1/R_gro; the constant node is left out of the steady state."""
+    from jaxbox.models import RCNetwork
+    from jaxbox.models import components as c
+
+    net = c.wall(c.zone(RCNetwork("t")), capacity=False).add(c.heating)
+    model = c.ground(net, to=None, temperature=9.5).build()
+    p = model.defaults() | {"R_wal": 0.01, "R_gro": 0.04}
+    ((ua, output),) = heat_loss_coefficients(model, p).values()
+    assert output == "T_zon" and ua == pytest.approx(100.0 + 25.0, rel=1e-10)
+
+
+def test_a_good_fit_with_its_validation_is_valid(fitted_half, halves):
+    v = check_validity(fitted_half, validation=validate(fitted_half, halves[1]))
+    assert v.valid, v.reasons
+
+
+@pytest.mark.parametrize(
+    ("size", "words"),
+    [
+        (25.0, ["validation data: 'T_zon' has isolated spikes", "--train/--validate"]),
+        (290.0, ["validation RMSE of T_zon", "limit 5 K", "validation data:", "kelvin"]),
+    ],
+    ids=["spike", "kelvin spike"],
+)
+def test_a_spike_in_the_validation_data_is_not_valid(fitted_half, halves, size, words):
+    validation = validate(fitted_half, _spiked(halves[1], size))
+    v = check_validity(fitted_half, validation=validation, check_intervals=False)
+    assert not v.valid
+    text = " | ".join(v.reasons)
+    for word in words:
+        assert word in text, text
+
+
+def test_validation_error_far_above_identification_error(fitted_half, halves):
+    """One +25 K sample: 2.5 K validation RMSE, under the 5 K limit but > 10× identification."""
+    validation = validate(fitted_half, _spiked(halves[1], 25.0))
+    cross, auto = validation.rmse_cross["T_zon"], validation.rmse_auto["T_zon"]
+    assert cross / auto > 10 and cross < 5
+    v = check_validity(fitted_half, validation=validation, check_data=False, check_intervals=False)
+    assert [f.kind for f in v.flags if f.severe] == ["prediction"]
+    assert "identification RMSE" in v.reasons[0] and "limit 10×" in v.reasons[0]
+    loose = check_validity(
+        fitted_half,
+        validation=validation,
+        check_data=False,
+        check_intervals=False,
+        max_rmse_ratio=cross / auto * 1.01,
+    )
+    assert loose.valid
+
+
+def test_heating_in_kilowatts_is_flagged_by_the_heat_loss_coefficient(halves):
+    ident, valid = (h.with_columns(Q_hea=h["Q_hea"] / 1000) for h in halves)
+    res = fit_model("Zon", ident, starts=_start() * np.asarray([[1e-3, 1e3, 1, 1]]))
+    ua = heat_loss_coefficients(res.model, res.params)["Q_hea"][0]
+    assert ua < 1.0
+    v = check_validity(res, validation=validate(res, valid), check_data=False)
+    assert not v.valid
+    (reason,) = [f.message for f in v.flags if f.kind == "heat_loss"]
+    assert "below 1 W/K" in reason and "kW" in reason and "--scale Q_hea=1000" in reason
+    # and the data check says the same of the data
+    v = check_validity(res, check_intervals=False)
+    assert any(f.kind == "implausible_data" and "looks like kW" in f.message for f in v.flags)
+    (reason,) = [f.message for f in v.flags if f.kind == "capacity"]
+    assert "below 1e+05 J/K" in reason and "1000× too small" in reason
+    off = check_validity(
+        res, check_data=False, ua_range=None, capacity_range=None, check_intervals=False
+    )
+    assert not any(f.kind in ("heat_loss", "capacity") for f in off.flags)

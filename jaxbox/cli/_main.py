@@ -3,15 +3,23 @@
 Compiled solves are kept in JAX's persistent compilation cache between runs (see
 :func:`jaxbox.enable_compilation_cache`; ``JAXBOX_CACHE=0`` turns it off).
 
-Exit codes: 0 success; 2 bad input (one line ``error: …`` on stderr, no traceback); 1 an
-unexpected internal error (set ``JAXBOX_DEBUG=1`` for the traceback).
+Exit codes: 0 success; 2 bad input (one line ``error: …`` on stderr, no traceback); 130 Ctrl-C
+(one line, no partial output file); 1 an unexpected internal error (one line; set
+``JAXBOX_DEBUG=1`` for the traceback).
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import os
+import signal
 import sys
+import warnings
+
+from ._commands import add_fit_arguments, fit_command, models_command
+from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
+from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]
 
@@ -25,11 +33,16 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
 """
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from ._commands import add_data_arguments
-    from ._select import add_demo_arguments, add_select_arguments
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: a malformed command line raises :class:`UsageError`
+    (exit 2 with one ``error:`` line) instead of printing the usage block."""
 
-    parser = argparse.ArgumentParser(
+    def error(self, message: str):
+        raise UsageError(f"{message} (see {self.prog} --help)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
         prog="jaxbox",
         description=_DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -41,20 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
     p = sub.add_parser("fit", help="fit a model to data and cross-validate it")
-    add_data_arguments(p)
-    p.add_argument("--model", "-m", required=True, help="library model name (see `jaxbox models`)")
-    p.add_argument("--starts", type=int, default=16, help="number of starts (default 16)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the Latin hypercube (default 0)")
-    p.add_argument(
-        "--fix", action="append", default=[], metavar="P=VALUE", help="hold P at VALUE (SI)"
-    )
-    p.add_argument(
-        "--bounds", action="append", default=[], metavar="P=LO:HI", help="bounds of P (SI)"
-    )
-    p.add_argument("--simulator", choices=("exact", "diffrax"), default="exact")
-    p.add_argument("--max-steps", type=int, default=200, help="LM iterations per start")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--plots", metavar="DIR", help="write the validation plots (PNG) into DIR")
+    add_fit_arguments(p)
 
     p = sub.add_parser("select", help="forward selection over candidate models")
     add_select_arguments(p)
@@ -73,13 +73,26 @@ def _version() -> str:
 
 
 def _bad_input_errors() -> tuple[type[BaseException], ...]:
+    """Errors that mean bad input (exit 2): the library's ``ValueError`` subclasses that name
+    what to fix, a file that cannot be read or written, a problem too big for the memory."""
+    from .._x64 import PrecisionError
     from ..data import DataError
     from ..fit import FitError
     from ..models import ModelError
+    from ..select import PersistError
     from ..validate import ValidationError
-    from ._commands import UsageError
 
-    return (DataError, FitError, ModelError, ValidationError, UsageError, FileNotFoundError)
+    return (
+        DataError,
+        FitError,
+        ModelError,
+        ValidationError,
+        PersistError,
+        PrecisionError,
+        UsageError,
+        OSError,
+        MemoryError,
+    )
 
 
 def _compilation_cache() -> None:
@@ -96,8 +109,15 @@ def _compilation_cache() -> None:
         pass
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``jaxbox`` console script; returns the exit code."""
+_COMMANDS = {
+    "models": models_command,
+    "fit": fit_command,
+    "select": select_command,
+    "demo": demo_command,
+}
+
+
+def _run(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -105,28 +125,81 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     from .. import enable_x64
 
-    enable_x64()
-    _compilation_cache()
-    try:
-        from ._commands import run
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warning
+        enable_x64()
+        _compilation_cache()
+        code = _COMMANDS[args.command](args)
+    check_interrupted()  # a Ctrl-C some library swallowed still stops with 130
+    return code
 
-        return run(args)
-    except _bad_input_errors() as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line ``warning: …`` in command-line terms (no file, line, source)."""
+    print(f"warning: {cli_message(str(message))}", file=sys.stderr, flush=True)
+
+
+#: what diffrax says when an adaptive simulation runs out of steps
+_SOLVER_STEPS = "maximum number of solver steps was reached"
+
+
+def _error(text: str) -> None:
+    print(f"error: {text}", file=sys.stderr, flush=True)
+
+
+def _os_error(err: OSError) -> str:
+    if isinstance(err, FileNotFoundError | PermissionError | IsADirectoryError) or err.filename:
+        where = f"{err.filename}: " if err.filename else ""
+        return f"{where}{err.strerror or err}"
+    return str(err)
+
+
+def main(argv: list[str] | None = None, *, exit_at_once: bool = False) -> int:
+    """Entry point of the ``jaxbox`` console script; returns the exit code.
+
+    0 success; 2 bad input, with one line ``error: …`` on stderr (no traceback); 130 Ctrl-C,
+    with one line and no partial output file; 1 an unexpected internal error, with one line
+    (``JAXBOX_DEBUG=1`` shows the traceback). With ``exit_at_once`` (the console script) Ctrl-C
+    ends the process in the signal handler, after removing the partial outputs.
+    """
+    previous = signal.getsignal(signal.SIGINT)
+    install_interrupt_handler(exit_at_once)
+    # a failed simulation inside a compiled call is logged by JAX with a traceback before it
+    # is raised; the command reports it in one line
+    logging.getLogger("jax._src.callback").setLevel(logging.CRITICAL)
+    try:
+        return _run(argv)
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
-    except Exception as err:  # pragma: no cover - last resort, keeps the one-line contract
+    except _bad_input_errors() as err:
+        if isinstance(err, OSError) and not isinstance(err, UsageError):
+            _error(cli_message(_os_error(err)))
+        elif isinstance(err, MemoryError):
+            _error("out of memory; give fewer --starts or shorter periods")
+        else:
+            _error(cli_message(str(err)))
+        return 2
+    except Exception as err:  # last resort, keeps the one-line contract
         if os.environ.get("JAXBOX_DEBUG"):
             raise
-        print(
-            f"error: internal error ({type(err).__name__}: {err}); rerun with JAXBOX_DEBUG=1 "
-            "for the traceback",
-            file=sys.stderr,
+        if _SOLVER_STEPS in str(err):  # an adaptive simulation gave up (a stiff model)
+            _error(
+                "a simulation needed more solver steps than allowed: the model is too stiff for "
+                "the data (very small capacities or resistances); narrow --bounds or --fix"
+            )
+            return 2
+        _error(
+            f"internal error ({type(err).__name__}: {cli_message(str(err))}); rerun with "
+            "JAXBOX_DEBUG=1 for the traceback"
         )
         return 1
+    finally:
+        try:
+            signal.signal(signal.SIGINT, previous)
+        except (ValueError, TypeError):
+            pass

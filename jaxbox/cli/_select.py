@@ -6,20 +6,35 @@
 
 from __future__ import annotations
 
-import json
-import sys
 import time
+import warnings
+from pathlib import Path
 
-from .._io import atomic_write_json, to_jsonable
-from ._commands import (
+from .._io import atomic_write_json
+from ._common import (
     UsageError,
-    _data_info,
-    _out_dir,
-    _slug,
-    add_data_arguments,
+    check_interrupted,
+    check_run_options,
+    data_info,
+    fit_default,
     fit_json,
+    float_option,
+    int_option,
+    print_json,
+    progress,
+)
+from ._data import (
+    DataOptions,
+    add_data_arguments,
+    check_windows,
     load_all,
     load_data,
+    slug,
+)
+from ._outputs import (
+    Outputs,
+    check_folder,
+    fresh_folder,
 )
 
 __all__ = ["select_command", "demo_command", "add_select_arguments", "add_demo_arguments"]
@@ -49,58 +64,84 @@ def add_demo_arguments(p) -> None:
 
 
 def _common(p, patience: int = 1) -> None:
-    p.add_argument("--starts", type=int, default=8, help="starts per model (default 8)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the Latin hypercubes")
+    starts = _selection_default("starts")
+    p.add_argument(
+        "--starts", type=int_option, default=starts, help=f"starts per model (default {starts})"
+    )
+    p.add_argument("--seed", type=int_option, default=0, help="seed of the Latin hypercubes")
     p.add_argument(
         "--margin",
-        type=float,
+        type=float_option,
         default=0.0,
         help="relative improvement of the validation SE a model must bring (default 0)",
     )
     p.add_argument(
         "--patience",
-        type=int,
+        type=int_option,
         default=patience,
         help=f"stop after this many models in a row that do not improve (default {patience})",
     )
-    p.add_argument("--max-steps", type=int, default=200, help="LM iterations per start")
+    p.add_argument(
+        "--max-steps",
+        type=int_option,
+        default=None,
+        help=f"LM iterations per start (default {fit_default('max_steps')})",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (quiet)")
 
 
-def _say(args):
-    if getattr(args, "json", False):
-        return None
-    return lambda msg: print(msg, file=sys.stderr, flush=True)
+def _selection_default(name: str):
+    """A default of :func:`jaxbox.select.forward_selection` (no copy kept here)."""
+    import inspect
+
+    from ..select import forward_selection
+
+    return inspect.signature(forward_selection).parameters[name].default
 
 
-def _candidates(text: str):
-    from ..models import families
+def _candidates(text: str, data=None):
+    """The candidate models of ``--models``, checked (names known, fed by the data)."""
+    from ..data import DataError
+    from ..models import ModelError, families
+    from ..select import candidate_models
 
     text = (text or "all").strip()
-    if text == "all" or text in families():
-        return text
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    if not names:
-        raise UsageError("--models must name models (A,B,…), a family or 'all'")
-    return names
+    if text != "all" and text not in families():
+        names = [n.strip() for n in text.split(",") if n.strip()]
+        if not names:
+            raise UsageError("--models must name models (A,B,…), a family or 'all'")
+        text = names
+    try:
+        models = candidate_models(text, data)
+        if data is not None and not isinstance(text, str):  # named models: fed by the data?
+            for m in models:
+                data.require(list(m.inputs) + list(m.outputs), what=f"model {m.name}")
+    except (ModelError, DataError) as err:
+        raise UsageError(f"--models: {err}") from None
+    except ValueError as err:  # no candidate the data can feed
+        shown = text if isinstance(text, str) else ",".join(text)
+        raise UsageError(f"--models {shown}: {err}") from None
+    return models
 
 
-def _run_selection(sets, args, candidates):
+def _run_selection(sets, args, candidates, ranges=None):
     """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
     lock-step, each step's fits batched over the buildings."""
+    from ..data import DataWarning
     from ..select import GreyBox, forward_selection_many
 
-    if args.starts < 1:
-        raise UsageError(f"--starts must be at least 1, got {args.starts}")
-    boxes = [
-        GreyBox(
-            data,
-            train=(str(ident.start), str(ident.end)),
-            valid=(str(valid.start), str(valid.end)),
-            name=spec,
-        )
-        for spec, data, ident, valid in sets
-    ]
+    with warnings.catch_warnings():  # the windows' warnings were given once already
+        warnings.simplefilter("ignore", DataWarning)
+        boxes = [
+            GreyBox(
+                data,
+                train=(str(ident.start), str(ident.end)),
+                valid=(str(valid.start), str(valid.end)),
+                name=spec,
+                ranges=ranges,
+            )
+            for spec, data, ident, valid in sets
+        ]
     selections = forward_selection_many(
         boxes,
         candidates,
@@ -109,8 +150,9 @@ def _run_selection(sets, args, candidates):
         margin=args.margin,
         patience=args.patience,
         max_steps=args.max_steps,
-        progress=_say(args),
+        progress=progress(args),
     )
+    check_interrupted()
     return list(zip(boxes, selections, strict=True))
 
 
@@ -138,21 +180,26 @@ def _document(gb, sel, spec, ident, valid) -> dict:
             c.result,
             c.validation,
             timing={**c.result.timing, **c.timing},
-            data_info=_data_info(spec, ident, valid),
+            data_info=data_info(spec, ident, valid),
             valid=c.valid,
         )
     return doc
 
 
-def _write_outputs(gb, sel, doc, out) -> dict:
+def _stage_outputs(outputs: Outputs, gb, sel, doc, folder: Path) -> None:
+    """The selection document and the report staged for ``folder``; the GreyBox saved there at
+    commit (its own save is atomic). ``doc["files"]`` gets the final paths."""
     from ..report import write_report
 
-    paths = {
-        "selection": str(atomic_write_json(out / "selection.json", doc)),
-        "greybox": str(gb.save(out / "greybox")),
-        "report": str(write_report(gb, out / "report.html", sel)),
+    staged = outputs.folder(folder)
+    doc["files"] = {
+        "selection": str(folder / "selection.json"),
+        "greybox": str(folder / "greybox" / "greybox.json"),
+        "report": str(folder / "report.html"),
     }
-    return paths
+    write_report(gb, staged / "report.html", sel)
+    atomic_write_json(staged / "selection.json", doc)
+    outputs.after(lambda: gb.save(folder / "greybox"))
 
 
 def _print_table(gb, sel) -> None:
@@ -170,28 +217,31 @@ def _print_table(gb, sel) -> None:
 def select_command(args) -> int:
     """``jaxbox select DATA…``: forward selection; ``--json`` prints the table and the
     accepted model's fit document (with several DATA: ``{"buildings": [document, …]}``)."""
-
+    check_run_options(args)
+    opts = DataOptions(args)
+    out = check_folder(args.out, "--out")
     sets = [
         (spec, data.slice(ident.start, valid.end), ident, valid)
-        for spec, data, ident, valid in load_all(args)
+        for spec, data, ident, valid in load_all(args, opts)
     ]
-    candidates = _candidates(args.models)
-    t0 = time.perf_counter()
-    outcomes = _run_selection(sets, args, candidates)
-    elapsed = time.perf_counter() - t0
-    docs = []
-    out = _out_dir(args.out) if args.out else None
-    for (spec, _, ident, valid), (gb, sel) in zip(sets, outcomes, strict=True):
-        doc = _document(gb, sel, spec, ident, valid)
-        doc["elapsed_s"] = elapsed
-        if out is not None:
-            folder = out if len(sets) == 1 else out / _slug(spec, args.data)
-            folder.mkdir(parents=True, exist_ok=True)
-            doc["files"] = _write_outputs(gb, sel, doc, folder)
-        docs.append(doc)
+    candidates = _candidates(args.models, sets[0][1])
+    for _, data, _, _ in sets[1:]:
+        _candidates(args.models, data)
+    with Outputs() as outputs:
+        t0 = time.perf_counter()
+        outcomes = _run_selection(sets, args, candidates, opts.ranges)
+        elapsed = time.perf_counter() - t0
+        docs = []
+        for (spec, _, ident, valid), (gb, sel) in zip(sets, outcomes, strict=True):
+            doc = _document(gb, sel, spec, ident, valid)
+            doc["elapsed_s"] = elapsed
+            if out is not None:
+                folder = out if len(sets) == 1 else out / slug(spec, opts.specs)
+                _stage_outputs(outputs, gb, sel, doc, folder)
+            docs.append(doc)
+        outputs.commit()
     if args.json:
-        body = docs[0] if len(docs) == 1 else {"buildings": docs, "elapsed_s": elapsed}
-        print(json.dumps(to_jsonable(body), indent=2, allow_nan=False))
+        print_json(docs[0] if len(docs) == 1 else {"buildings": docs, "elapsed_s": elapsed})
         return 0
     for (gb, sel), doc in zip(outcomes, docs, strict=True):
         if len(docs) > 1:
@@ -207,24 +257,27 @@ def demo_command(args) -> int:
     house, the table on stdout, an HTML report (and the saved GreyBox) in ``--out``."""
     from ..datasets import CITATION
 
-    out = _out_dir(args.out)
+    check_run_options(args)
+    out = check_folder(args.out or str(fresh_folder()), "--out")
     spec = f"twinhouse_exp1:{args.house}"
     data = load_data(spec)
     ident, valid = data.split()
-    say = _say(args) or (lambda msg: None)
+    check_windows(ident, valid)
+    say = progress(args)
     say(
         f"jaxbox demo: twin house {args.house} (IEA EBC Annex 58, Holzkirchen 2013), "
         f"{len(data)} hourly samples; identification {ident.start} .. {ident.end}, "
         f"validation {valid.start} .. {valid.end}"
     )
-    t0 = time.perf_counter()
-    ((gb, sel),) = _run_selection([(spec, data, ident, valid)], args, "exp1")
-    doc = _document(gb, sel, spec, ident, valid)
-    doc["elapsed_s"] = time.perf_counter() - t0
-    doc["files"] = _write_outputs(gb, sel, doc, out)
-    atomic_write_json(out / "selection.json", doc)
+    with Outputs() as outputs:
+        t0 = time.perf_counter()
+        ((gb, sel),) = _run_selection([(spec, data, ident, valid)], args, "exp1")
+        doc = _document(gb, sel, spec, ident, valid)
+        doc["elapsed_s"] = time.perf_counter() - t0
+        _stage_outputs(outputs, gb, sel, doc, out)
+        outputs.commit()
     if args.json:
-        print(json.dumps(to_jsonable({**doc, "out": str(out)}), indent=2, allow_nan=False))
+        print_json({**doc, "out": str(out)})
         return 0
     _print_table(gb, sel)
     print()

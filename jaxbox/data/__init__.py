@@ -3,10 +3,26 @@
 pandas is used here (and in :mod:`jaxbox.datasets`) only; everything downstream receives numpy
 arrays from :meth:`Dataset.array`. Signals use canonical names with fixed units (°C, W, W/m²),
 listed in :data:`SIGNALS`.
+
+:func:`load` refuses what is always wrong (unparseable or duplicate time stamps and columns,
+text in number columns, infinities, absurd magnitudes, a temperature column in kelvin);
+:func:`check_plausibility` (or :meth:`Dataset.check_plausible`) judges the periods actually used
+for identification and validation: physical ranges per kind of signal, kelvin/°F/kW mix-ups in
+part of a column, spikes, jumps and stuck sensors. :func:`as_dataset` turns what a user passes
+as data (a Dataset, a DataFrame, a path) into a Dataset.
 """
 
+from ._args import check_mapping as check_mapping
+from ._checks import check_finite as check_finite
 from ._dataset import Dataset as Dataset
 from ._errors import DataError as DataError
+from ._errors import DataWarning as DataWarning
+from ._load import as_dataset as as_dataset
 from ._load import load as load
+from ._plausible import PLAUSIBLE_RANGES as PLAUSIBLE_RANGES
+from ._plausible import Finding as Finding
+from ._plausible import check_plausibility as check_plausibility
+from ._plausible import find_implausible as find_implausible
+from ._plausible import plausible_range as plausible_range
 from ._signals import SIGNALS as SIGNALS
 from ._signals import signal_unit as signal_unit

@@ -7,6 +7,7 @@ gives the line number, for a DataFrame the position).
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections.abc import Callable
 
@@ -18,6 +19,7 @@ from ._signals import is_temperature, signal_base
 
 __all__ = [
     "Where",
+    "check_finite",
     "check_kelvin",
     "check_missing",
     "check_order",
@@ -25,10 +27,13 @@ __all__ = [
     "irregular_position",
     "median_step",
     "parse_time",
+    "rows_text",
     "to_float",
 ]
 
 Where = Callable[[int], str]
+
+_COMMA_NUMBER = re.compile(r"^\s*[-+]?\d*,\d+\s*$")
 
 #: Relative tolerance on the sampling step (float seconds round to the nanosecond).
 _STEP_RTOL = 1e-6
@@ -36,6 +41,10 @@ _STEP_RTOL = 1e-6
 _STEP_ATOL = 1e-6
 #: A temperature column with a median above this [°C] is taken to be in kelvin.
 _KELVIN_MEDIAN = 150.0
+#: Magnitude above which a value of a canonical signal (°C, W, W/m²) is absurd.
+ABSURD = 1e9
+#: Magnitude above which a value of any other column is absurd.
+ABSURD_OTHER = 1e30
 
 
 def _position(i: int) -> str:
@@ -203,9 +212,9 @@ def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:
             i = int(bad[0])
             value = column.iloc[i]
             hint = (
-                " (a decimal comma? read the file with pd.read_csv(..., decimal=',') and pass "
-                "the DataFrame)"
-                if isinstance(value, str) and value.strip().replace(",", "", 1).isdigit()
+                " (a decimal comma? pass decimal=',', on the command line --decimal ',', with "
+                "sep=';' / --sep ';' when commas also separate the columns)"
+                if isinstance(value, str) and _COMMA_NUMBER.match(value)
                 else ""
             )
             raise DataError(
@@ -249,4 +258,38 @@ def check_kelvin(frame: pd.DataFrame) -> None:
             raise DataError(
                 f"column {name!r} looks like kelvin (median {median:.1f}); convert to °C "
                 "(subtract 273.15)."
+            )
+
+
+def rows_text(index: pd.Index, mask: np.ndarray, limit: int = 3) -> str:
+    """``"at 2013-08-21 03:00:00, ... (12 samples in all)"``: the first ``limit`` time stamps
+    where ``mask`` is true, and their count."""
+    hits = np.flatnonzero(np.asarray(mask, dtype=bool))
+    shown = ", ".join(str(index[i]) for i in hits[:limit])
+    more = f", ... ({hits.size} samples in all)" if hits.size > limit else ""
+    return f"at {shown}{more}"
+
+
+def check_finite(frame: pd.DataFrame) -> None:
+    """No infinite value and no absurd magnitude (above :data:`ABSURD` for a canonical signal,
+    :data:`ABSURD_OTHER` for another column), whatever the other checks: name the column and
+    the time stamps."""
+    for name in frame.columns:
+        values = frame[name].to_numpy(dtype=np.float64)
+        infinite = np.isinf(values)
+        if infinite.any():
+            raise DataError(
+                f"column {name!r} has infinite values {rows_text(frame.index, infinite)}; an "
+                "infinity is not a measurement: set those samples to NaN and fill the gap or "
+                "slice it away."
+            )
+        limit = ABSURD if signal_base(str(name)) is not None else ABSURD_OTHER
+        with np.errstate(invalid="ignore"):
+            huge = np.abs(values) > limit
+        if huge.any():
+            first = float(values[np.flatnonzero(huge)[0]])
+            raise DataError(
+                f"column {name!r} has absurd values (e.g. {first:.3g}, beyond ±{limit:.0e}) "
+                f"{rows_text(frame.index, huge)}; an error code of the logger? set them to NaN "
+                "and fill or slice them away (a unit off by a factor: scale=, --scale)."
             )

@@ -11,6 +11,7 @@ import pandas as pd
 
 from ._checks import (
     Where,
+    check_finite,
     check_kelvin,
     check_missing,
     check_order,
@@ -20,6 +21,7 @@ from ._checks import (
     to_float,
 )
 from ._errors import DataError, list_names
+from ._plausible import check_plausibility
 from ._resample import resample_mean
 
 if TYPE_CHECKING:
@@ -40,13 +42,19 @@ def _names(names: str | Iterable[str]) -> list[str]:
 
 
 def validated_frame(
-    frame: pd.DataFrame, *, check: bool, regular: bool = True, where: Where = _position
+    frame: pd.DataFrame,
+    *,
+    check: bool,
+    regular: bool = True,
+    where: Where = _position,
+    scale: Mapping[str, float] | None = None,
 ) -> pd.DataFrame:
     """A fresh float64 copy of ``frame`` (DatetimeIndex named ``time``) after the checks.
 
     Always: unique string column names, strictly increasing time stamps, numeric values, at
-    least two samples. With ``check``: no NaN, no temperature in kelvin and, with ``regular``,
-    a constant sampling step.
+    least two samples, no infinite value or absurd magnitude. With ``check``: no NaN, no
+    temperature in kelvin and, with ``regular``, a constant sampling step. ``scale`` (column ->
+    factor) multiplies columns before the value checks.
     """
     if not isinstance(frame, pd.DataFrame):
         raise DataError(
@@ -73,6 +81,9 @@ def validated_frame(
     if check and regular:
         check_regular(index, where)
     values = to_float(frame.set_axis(columns, axis=1).set_axis(index, axis=0), where)
+    for name, factor in (scale or {}).items():
+        values[name] = values[name] * factor
+    check_finite(values)
     if check:
         check_missing(values)
         check_kelvin(values)
@@ -176,6 +187,7 @@ class Dataset:
                 )
             frame[str(name)] = array
         added = frame[[str(name) for name in new]]
+        check_finite(added)
         check_missing(added)
         check_kelvin(added)
         return Dataset._new(frame, self._step)
@@ -345,6 +357,35 @@ class Dataset:
         return (
             Dataset._new(frame.iloc[:first].copy(), self._step),
             Dataset._new(frame.iloc[first:].copy(), self._step),
+        )
+
+    def check_plausible(
+        self,
+        *,
+        overrides: Mapping[str, tuple[float, float]] | None = None,
+        columns: str | Iterable[str] | None = None,
+        what: str | None = None,
+        stuck_hours: float | None = 24.0,
+        spike_k: float = 10.0,
+        warn: bool = True,
+    ) -> tuple[str, ...]:
+        """Refuse physically implausible signals; return the warnings.
+
+        See :func:`jaxbox.data.check_plausibility` (ranges per kind of signal with
+        ``overrides={column: (lo, hi)}``, kelvin/°F/kW mix-ups, spikes, jumps, stuck sensors).
+        Apply it to the windows actually used, e.g. ``ident.check_plausible()``.
+
+        Raises:
+            DataError: naming the column, the time stamps and what to do.
+        """
+        return check_plausibility(
+            self,
+            overrides=overrides,
+            columns=columns,
+            what=what,
+            stuck_hours=stuck_hours,
+            spike_k=spike_k,
+            warn=warn,
         )
 
     def plot(self, columns: str | Iterable[str] | None = None, ax: Axes | None = None) -> Figure:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["DataError", "list_names"]
+__all__ = ["DataError", "DataWarning", "list_names"]
 
 
 class DataError(ValueError):
@@ -10,6 +10,10 @@ class DataError(ValueError):
 
     The message names the offending column, row or timestamp and says how to fix it.
     """
+
+
+class DataWarning(UserWarning):
+    """Data that may be wrong but could be right (e.g. a heating power that may be in kW)."""
 
 
 def list_names(names: object, limit: int = 20) -> str:

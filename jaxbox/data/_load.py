@@ -2,24 +2,99 @@
 
 from __future__ import annotations
 
+import bz2
 import difflib
+import gzip
+import itertools
+import lzma
+import math
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
 import pandas as pd
 
+from ._args import check_mapping
 from ._checks import parse_time
 from ._dataset import Dataset, validated_frame
 from ._errors import DataError, list_names
 from ._signals import signal_base
 
-__all__ = ["load"]
+__all__ = ["as_dataset", "load"]
 
 _TIME_NAMES = ("time",)
 
 
-def _read_csv(path: Path) -> pd.DataFrame:
+def _head_lines(path: Path, n: int = 20) -> list[str]:
+    """The first ``n`` lines of a text file (decompressed by extension); [] if unreadable."""
+    opener = {".gz": gzip.open, ".bz2": bz2.open, ".xz": lzma.open, ".lzma": lzma.open}.get(
+        path.suffix.lower()
+    )
+    if path.suffix.lower() in (".zip", ".zst", ".tar"):
+        return []
+    try:
+        handle = (
+            opener(path, "rt", encoding="utf-8", errors="replace")
+            if opener is not None
+            else open(path, encoding="utf-8", errors="replace")  # noqa: SIM115
+        )
+        with handle as f:
+            return [line.rstrip("\r\n") for line in itertools.islice(f, n)]
+    except (OSError, EOFError, ValueError):
+        return []
+
+
+_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+\s*$")
+
+
+def _sniff(path: Path, sep: str | None, decimal: str | None) -> None:
+    """Refuse semicolon/tab files read with the default separator, and decimal commas in a
+    comma-separated file, saying which option reads them."""
+    lines = [line for line in _head_lines(path) if line.strip()]
+    if not lines:
+        return
+    header, rows = lines[0], lines[1:]
+    name = path.name
+    if sep is None and "," not in header:
+        for char, text, option in ((";", "semicolons", "';'"), ("\t", "tabs", "'\\t'")):
+            if char in header:
+                comma = any(
+                    _DECIMAL_COMMA.match(field) for row in rows for field in row.split(char)
+                )
+                both = " and decimal commas" if comma else ""
+                extra = " --decimal ','" if comma else ""
+                keyword = ", decimal=','" if comma else ""
+                raise DataError(
+                    f"{name!r} separates its columns with {text}{both}, not commas: pass "
+                    f"sep={option}{keyword} (command line: --sep {option}{extra})."
+                )
+    if (sep or ",") == "," and '"' not in header:
+        width = header.count(",")
+        wider = [i for i, row in enumerate(rows) if '"' not in row and row.count(",") > width]
+        if wider and all(rows[i].rstrip(", ").count(",") <= width for i in wider):
+            raise DataError(
+                f"{name!r}: line {wider[0] + 2} ends with more separators than the header has "
+                "columns (trailing commas); remove them from the file."
+            )
+        if wider and len(wider) >= max(1, len(rows) // 2):
+            fields = rows[wider[0]].count(",") + 1
+            raise DataError(
+                f"{name!r}: line {wider[0] + 2} has {fields} comma-separated fields but the "
+                f"header has {width + 1}: decimal commas in a comma-separated file cannot be "
+                "read; export with ';' between columns and pass sep=';', decimal=',' (command "
+                "line: --sep ';' --decimal ',')."
+            )
+    if (decimal or ".") == "." and sep not in (None, ","):
+        for row in rows:
+            if any(_DECIMAL_COMMA.match(field) for field in row.split(sep)):
+                raise DataError(
+                    f"{name!r} writes numbers with a decimal comma: pass decimal=',' (command "
+                    "line: --decimal ',')."
+                )
+
+
+def _read_csv(path: Path, sep: str | None = None, decimal: str | None = None) -> pd.DataFrame:
     if not path.exists():
         raise DataError(
             f"file not found: {str(path)!r} (relative paths are taken from the current "
@@ -27,21 +102,39 @@ def _read_csv(path: Path) -> pd.DataFrame:
         )
     if path.is_dir():
         raise DataError(f"{str(path)!r} is a directory; give the path of a CSV file.")
+    options = {"sep": sep or ",", "decimal": decimal or "."}
+    if options["sep"] == options["decimal"]:
+        raise DataError(
+            f"the column separator and the decimal mark are both {options['sep']!r}; with "
+            "decimal=',' pass sep=';' (command line: --sep ';' --decimal ',')."
+        )
+    _sniff(path, sep, decimal)
     try:
-        return pd.read_csv(path)
+        names = pd.read_csv(path, header=None, nrows=1, dtype=str, **options)
+        frame = pd.read_csv(path, **options)
     except pd.errors.EmptyDataError:
         raise DataError(f"the file {str(path)!r} is empty; give a CSV with a header.") from None
     except pd.errors.ParserError as error:
         first = str(error).strip().splitlines()[0]
         raise DataError(
-            f"cannot read {str(path)!r} as CSV ({first}); check the separator and quoting, or "
-            "read it with pandas yourself and pass the DataFrame."
+            f"cannot read {str(path)!r} as CSV ({first}); check the separator (sep=, command "
+            "line --sep) and quoting, or read it with pandas yourself and pass the DataFrame."
         ) from None
     except UnicodeDecodeError:
         raise DataError(
             f"{str(path)!r} is not UTF-8 text; read it with pd.read_csv(..., encoding=...) and "
             "pass the DataFrame."
         ) from None
+    header = [str(name) for name in names.iloc[0].tolist()] if len(names) else []
+    seen: set[str] = set()
+    for column in header:
+        if column in seen:
+            raise DataError(
+                f"two columns are named {column!r} in {path.name}; rename or drop one of them "
+                "in the file."
+            )
+        seen.add(column)
+    return frame
 
 
 def _time_values(
@@ -66,6 +159,12 @@ def _time_values(
     extra = " and the DataFrame index (not a DatetimeIndex)" if from_frame else ""
     likely = [name for name in names if any(k in name.lower() for k in ("time", "date", "stamp"))]
     hint = f" (perhaps {list_names(likely, 5)}?)" if likely else ""
+    for char, option in ((";", "';'"), ("\t", "'\\t'")):
+        if len(names) == 1 and char in names[0]:
+            raise DataError(
+                f"the data have one column {names[0][:60]!r}: a file separated by {option}? "
+                f"read it with sep={option} (command line: --sep {option})."
+            )
     raise DataError(
         f"no time column found (tried {tried}{extra}); pass time='your_time_column'{hint}; "
         f"columns: {list_names(names)}."
@@ -118,6 +217,31 @@ def _renaming(
     return renaming
 
 
+def _factors(scale: Mapping[str, float] | None, names: list[str]) -> dict[str, float]:
+    """Validate ``scale`` (column -> factor) against the column names after mapping."""
+    factors = check_mapping(scale, "scale", "{'Q_hea': 1000}")
+    out = {}
+    for name, factor in factors.items():
+        if name not in names:
+            close = difflib.get_close_matches(str(name), names, n=3, cutoff=0.6)
+            hint = f" (did you mean {list_names(close)}?)" if close else ""
+            raise DataError(
+                f"scale names column {name!r}, but there is none{hint}; scale applies after "
+                f"columns= (canonical names); available: {list_names(names)}."
+            )
+        try:
+            value = float(factor)
+        except (TypeError, ValueError):
+            value = float("nan")
+        if isinstance(factor, bool) or not math.isfinite(value) or value == 0.0:
+            raise DataError(
+                f"scale factor of {name!r} must be a finite non-zero number, got {factor!r}; "
+                "e.g. scale={'Q_hea': 1000} (command line: --scale Q_hea=1000) for kW to W."
+            )
+        out[str(name)] = value
+    return out
+
+
 def load(
     source: str | os.PathLike[str] | pd.DataFrame,
     *,
@@ -126,6 +250,9 @@ def load(
     resample: str | None = None,
     check: bool = True,
     epoch: str | pd.Timestamp = "1970-01-01",
+    sep: str | None = None,
+    decimal: str | None = None,
+    scale: Mapping[str, float] | None = None,
 ) -> Dataset:
     """Load monitoring data into a checked :class:`Dataset`.
 
@@ -144,6 +271,16 @@ def load(
         check: also require a regular step, no NaN and no temperature in kelvin. Parseable,
             strictly increasing time stamps and numeric values are always required.
         epoch: time of ``0`` for a numeric time column.
+        sep: column separator of a CSV file (default ``","``; e.g. ``";"`` or ``"\\t"``). A
+            file separated by semicolons or tabs read without it is refused with this advice.
+        decimal: decimal mark of a CSV file (default ``"."``; ``","`` with ``sep=";"``).
+        scale: canonical column name (after ``columns``) -> factor multiplying its values,
+            e.g. ``{"Q_hea": 1000}`` for heating power logged in kW. Applied before the checks.
+
+    Always refused (whatever ``check``): duplicate column names, infinite values and absurd
+    magnitudes (see :func:`jaxbox.data.check_finite`). The physical plausibility of the
+    signals in the periods actually used is checked by
+    :func:`jaxbox.data.check_plausibility`.
 
     Raises:
         DataError: for any problem with the input; the message names the column, row or
@@ -159,7 +296,7 @@ def load(
 
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
-        raw = _read_csv(path)
+        raw = _read_csv(path, sep, decimal)
         label = path.name
 
         def where(i: int) -> str:
@@ -185,7 +322,42 @@ def load(
     frame = raw.drop(columns=[time_column]) if time_column is not None else raw
     frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)
     frame = frame.set_axis(index, axis=0)
+    factors = _factors(scale, [str(name) for name in frame.columns])
     dataset = Dataset._new(
-        validated_frame(frame, check=check, regular=resample is None, where=where)
+        validated_frame(frame, check=check, regular=resample is None, where=where, scale=factors)
     )
     return dataset if resample is None else dataset.resample(resample)
+
+
+def as_dataset(obj: object, *, what: str = "data", **load_kwargs: object) -> Dataset:
+    """The :class:`Dataset` for what a user passed as data.
+
+    Accepts a :class:`Dataset` (returned as it is, or passed through :func:`load` when
+    ``load_kwargs`` are given), a pandas DataFrame with a DatetimeIndex or a ``time`` column,
+    or the path of a CSV file (``str`` or ``os.PathLike``), both read with :func:`load`.
+
+    Args:
+        obj: the data.
+        what: what the argument is, for the messages (``"data"``, ``"valid"``...).
+        load_kwargs: keyword arguments of :func:`load` (``columns``, ``resample``, ``sep``...).
+
+    Raises:
+        TypeError: ``obj`` is something else (a numpy array, ``None``, a list, a dict...); the
+            message says what it takes.
+        DataError: from :func:`load`.
+    """
+    if isinstance(obj, Dataset):
+        return load(obj.frame, **load_kwargs) if load_kwargs else obj  # type: ignore[arg-type]
+    if isinstance(obj, (pd.DataFrame, str, os.PathLike)):
+        return load(obj, **load_kwargs)  # type: ignore[arg-type]
+    got = "None" if obj is None else f"a {type(obj).__module__}.{type(obj).__qualname__}"
+    got = got.replace("builtins.", "")
+    hint = ""
+    if hasattr(obj, "shape") and hasattr(obj, "dtype"):
+        hint = "; for arrays use jaxbox.data.Dataset.from_arrays(time_s, {'T_zon': ..., ...})"
+    elif isinstance(obj, Mapping):
+        hint = "; for a dict of columns use jaxbox.data.Dataset.from_arrays(time_s, columns)"
+    raise TypeError(
+        f"{what} must be a jaxbox Dataset, a pandas DataFrame with a DatetimeIndex or a 'time' "
+        f"column, or the path of a CSV file; got {got}{hint}."
+    )

@@ -29,7 +29,9 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike, Float
 
+from .._compiled import cached
 from .._x64 import require_x64
 from ._problem import FitError, Problem, problem_arrays
 from ._result import BOUND_TOLERANCE
@@ -37,8 +39,6 @@ from ._result import BOUND_TOLERANCE
 __all__ = ["FitSensitivity", "fit_sensitivity"]
 
 HESSIANS = ("exact", "gauss-newton")
-
-_CACHE: dict = {}
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -67,19 +67,19 @@ class FitSensitivity:
 
     names: tuple[str, ...]
     units: tuple[str, ...]
-    params: np.ndarray
+    params: Float[np.ndarray, " free"]
     outputs: tuple[str, ...]
-    t: np.ndarray
-    values: np.ndarray
+    t: Float[np.ndarray, " samples"]
+    values: Float[np.ndarray, "free samples outputs"]
     inputs: tuple[str, ...]
-    input_values: np.ndarray | None
+    input_values: Float[np.ndarray, "free samples inputs"] | None
     held: tuple[str, ...]
     hessian: str
-    hessian_matrix: np.ndarray
+    hessian_matrix: Float[np.ndarray, "free free"]
     condition: float
     positive_definite: bool
 
-    def __getitem__(self, name: str) -> np.ndarray:
+    def __getitem__(self, name: str) -> Float[np.ndarray, "samples outputs"]:
         """``dθ̂/dy`` [N, n_outputs] of one parameter."""
         try:
             return self.values[self.names.index(name)]
@@ -88,14 +88,18 @@ class FitSensitivity:
                 f"{name!r} is not a free parameter; free parameters: {', '.join(self.names)}"
             ) from None
 
-    def relative(self) -> np.ndarray:
+    def relative(self) -> Float[np.ndarray, "free samples outputs"]:
         """``(dθ̂_i/dy_jk) / |θ̂_i|`` [n_free, N, n_outputs] in 1/K (``nan`` where θ̂_i = 0)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             return (
                 self.values / np.where(self.params != 0, np.abs(self.params), np.nan)[:, None, None]
             )
 
-    def predicted_change(self, dy, du=None) -> dict[str, float]:
+    def predicted_change(
+        self,
+        dy: Float[ArrayLike, "samples outputs"] | Float[ArrayLike, " samples"],
+        du: Float[ArrayLike, "samples inputs"] | None = None,
+    ) -> dict[str, float]:
         """First-order change of each estimate for a change of the data.
 
         Args:
@@ -119,7 +123,9 @@ class FitSensitivity:
             out = out + np.einsum("ikl,kl->i", self.input_values, du)
         return {n: float(v) for n, v in zip(self.names, out, strict=True)}
 
-    def covariance(self, sigma2) -> np.ndarray:
+    def covariance(
+        self, sigma2: float | Float[ArrayLike, " outputs"]
+    ) -> Float[np.ndarray, "free free"]:
         """Covariance of the estimates for independent measurement noise of variance ``sigma2``.
 
         ``Σ_k Σ_j σ_j² (dθ̂/dy_jk)(dθ̂/dy_jk)ᵀ`` [SI²]; ``sigma2`` is one variance [K²] or one per
@@ -153,11 +159,21 @@ class FitSensitivity:
         )
 
 
-def _functions(problem: Problem):
-    key = (*problem.structure_key, problem.simulator, problem.sim_options)
-    fns = _CACHE.get(key)
-    if fns is not None:
-        return fns
+def _functions(problem: Problem, n_samples: int) -> dict:
+    """The compiled derivatives of ``problem``'s structure over ``n_samples`` samples, kept in
+    the ``"sensitivity"`` room of :mod:`jaxbox._compiled` (built on a miss)."""
+    key = (
+        "sensitivity",
+        *problem.structure_key,
+        problem.simulator,
+        problem.sim_options,
+        n_samples,
+    )
+    return cached(key, lambda: _build_functions(problem))[0]
+
+
+def _build_functions(problem: Problem) -> dict:
+    """``derivatives`` (∂ŷ/∂q and the exact Hessian of the cost) and ``inputs`` (∂²C/∂u∂q)."""
 
     def cost(q, scale, fixed_values, t, u, y, sqrt_w):
         e = (problem.simulate(q * scale, fixed_values, t, u) - y) * sqrt_w
@@ -187,8 +203,7 @@ def _functions(problem: Problem):
         grad_u = jax.grad(cost, argnums=4)
         return jax.jacfwd(grad_u)(q, scale, fixed_values, t, u, y, sqrt_w)  # [N, m, n]
 
-    fns = _CACHE[key] = {"derivatives": jax.jit(derivatives), "inputs": jax.jit(mixed_inputs)}
-    return fns
+    return {"derivatives": jax.jit(derivatives), "inputs": jax.jit(mixed_inputs)}
 
 
 def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> FitSensitivity:
@@ -225,7 +240,7 @@ def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> 
     args = tuple(
         jnp.asarray(a, dtype=float) for a in (p_hat / scale, scale, fixed_values, t, u, y, sqrt_w)
     )
-    fns = _functions(problem)
+    fns = _functions(problem, len(t))
     J, H = (np.asarray(a) for a in fns["derivatives"](*args))
     w2 = np.asarray(sqrt_w) ** 2  # q_j / N per output
     if hessian == "gauss-newton":

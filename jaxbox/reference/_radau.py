@@ -23,6 +23,7 @@ import dataclasses
 from functools import cache
 
 import numpy as np
+from jaxtyping import Float
 from numpy.polynomial import legendre as leg
 
 __all__ = ["RadauIIA", "radau_iia", "MAX_POINTS"]
@@ -46,10 +47,10 @@ class RadauIIA:
     """
 
     n_c: int
-    c: np.ndarray
-    b: np.ndarray
-    A: np.ndarray
-    D: np.ndarray
+    c: Float[np.ndarray, " points"]
+    b: Float[np.ndarray, " points"]
+    A: Float[np.ndarray, "points points"]
+    D: Float[np.ndarray, "points points+1"]
 
     @property
     def order(self) -> int:
@@ -60,7 +61,7 @@ class RadauIIA:
         return self.n_c
 
     @property
-    def tau(self) -> np.ndarray:
+    def tau(self) -> Float[np.ndarray, " points+1"]:
         """The interpolation points of the state polynomial: ``(0, c_1, …, c_{n_c})``."""
         return np.concatenate([[0.0], self.c])
 

@@ -15,13 +15,17 @@ model is the valid case with the lowest cross-validation SE.
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+import pandas as pd
 
+from ..data import Dataset
 from ..models import RCModel, get_model, list_models
-from ._greybox import Case, GreyBox, Progress, _quiet, run_cases
+from ._cases import Case, Progress, quiet, run_cases
+from ._greybox import GreyBox
 from ._guess import state_ranges
 
 __all__ = ["Selection", "forward_selection", "forward_selection_many", "candidate_models"]
@@ -223,8 +227,23 @@ class _Climb:
         )
 
 
+_TAKES = (
+    "a GreyBox, a jaxbox Dataset, a pandas DataFrame with a time index or the path of a CSV file"
+)
+
+
+def _as_greybox(obj, what: str) -> GreyBox:
+    """A GreyBox as it is, or a new one (default periods) on data given as a Dataset, a
+    DataFrame or a path."""
+    if isinstance(obj, GreyBox):
+        return obj
+    if isinstance(obj, Dataset | pd.DataFrame | str | os.PathLike):
+        return GreyBox(obj, name=str(obj) if isinstance(obj, str | os.PathLike) else "building")
+    raise TypeError(f"{what} takes {_TAKES}; got {type(obj).__name__}")
+
+
 def forward_selection(
-    greybox: GreyBox,
+    greybox,
     candidates: str | Sequence[str | RCModel] = "all",
     *,
     starts: int = 8,
@@ -240,7 +259,9 @@ def forward_selection(
 
     Args:
         greybox: the building (data, identification and validation periods); the cases are
-            added to it.
+            added to it. Data alone (a :class:`~jaxbox.data.Dataset`, a DataFrame with a time
+            index or a CSV path) gets a new GreyBox with the default periods (halves), found
+            in :attr:`Selection.greybox`.
         candidates: model names/models, a library family (``"exp1"``…), or ``"all"`` (every
             library model the data can feed).
         starts: starts per case (the guess plus Latin-hypercube samples), fitted in one call.
@@ -260,7 +281,7 @@ def forward_selection(
         :class:`Selection` (the cases are in ``greybox.cases``).
     """
     return forward_selection_many(
-        [greybox],
+        [_as_greybox(greybox, "forward_selection")],
         candidates,
         starts=starts,
         seed=seed,
@@ -274,7 +295,7 @@ def forward_selection(
 
 
 def forward_selection_many(
-    greyboxes: Sequence[GreyBox],
+    greyboxes: Sequence,
     candidates: str | Sequence[str | RCModel] = "all",
     *,
     starts: int = 8,
@@ -297,7 +318,15 @@ def forward_selection_many(
     Returns:
         One :class:`Selection` per GreyBox, in order (``elapsed_s``: the whole run).
     """
-    say = progress or _quiet
+    say = progress or quiet
+    if isinstance(greyboxes, GreyBox | str | bytes | Mapping) or not isinstance(
+        greyboxes, Sequence
+    ):
+        raise TypeError(
+            f"forward_selection_many takes a list of buildings (each {_TAKES}); got "
+            f"{type(greyboxes).__name__}"
+        )
+    greyboxes = [_as_greybox(gb, "forward_selection_many") for gb in greyboxes]
     if not greyboxes:
         raise ValueError("forward selection needs at least one GreyBox")
     for gb in greyboxes:
@@ -305,9 +334,9 @@ def forward_selection_many(
             raise ValueError(
                 f"forward selection needs validation data; give the GreyBox {gb.name!r} valid=…"
             )
-    if not 0.0 <= margin < 1.0:
+    if not isinstance(margin, int | float) or not 0.0 <= margin < 1.0:
         raise ValueError(f"margin must be in [0, 1), got {margin}")
-    if patience < 1:
+    if not isinstance(patience, int) or patience < 1:
         raise ValueError(f"patience must be at least 1, got {patience}")
     models = candidate_models(candidates, greyboxes[0].data)
     for gb in greyboxes[1:]:

@@ -1,286 +1,45 @@
 """One building's identification: :class:`GreyBox` holds every attempt, a :class:`Case`.
 
-A :class:`Case` is one identification attempt: a model structure, its identification and
-validation slices of the building's data, an initial guess and where it came from, the solver
-settings, and once run the fit, its post-simulation validation and its validity verdict. A
-:class:`GreyBox` owns the data and the cases, compares them in a table and a figure, runs forward
-selection (:meth:`GreyBox.select`) and saves itself (:meth:`GreyBox.save`, :meth:`GreyBox.load`).
+A :class:`GreyBox` owns the data and the cases, compares them in a table and a figure, and saves
+itself (:meth:`GreyBox.save`, :meth:`GreyBox.load`, or :func:`save_greybox` and
+:func:`load_greybox`). Forward selection over its cases is :func:`jaxbox.select.forward_selection`
+(a module above this one: the class does not import the functions that use it).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import time
-from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from ..data import DataError, as_dataset, check_mapping, check_plausibility
 from ..models import RCModel, get_model
-from ._guess import Guess, lhs_starts, manual_guess, naming_guess, parent_guess
+from ._cases import SETTINGS, Case, Progress, fmt_se
+from ._guess import Guess, manual_guess, naming_guess, parent_guess
+from ._persist import read_greybox, save_greybox
 
-__all__ = ["Case", "GreyBox", "Progress", "run_cases"]
-
-Progress = Callable[[str], None]
-
-#: Solver settings a case passes on to :func:`jaxbox.fit.fit`.
-SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simulator")
-
-
-def _quiet(msg: str) -> None:
-    pass
+__all__ = ["GreyBox", "load_greybox"]
 
 
 def _period(data) -> tuple[str, str]:
     return (str(data.start), str(data.end))
 
 
-@dataclasses.dataclass(eq=False)
-class Case:
-    """One identification attempt of a :class:`GreyBox`.
-
-    Attributes:
-        name: unique name within the GreyBox (the model name by default).
-        model: the model structure.
-        ident: identification data (a slice of the GreyBox's data).
-        valid: validation data directly following ``ident`` (or ``None``).
-        guess: the initial guess and its source (naming, parent, manual).
-        free, fixed, bounds: the estimation problem (see :func:`jaxbox.fit.fit`; SI units).
-        starts: number of starts (the guess plus Latin-hypercube samples), fitted in one call.
-        seed: seed of the Latin hypercube.
-        settings: solver settings (``max_steps``, ``rtol``, ``atol``, ``concentration``,
-            ``weights``, ``simulator``).
-        parent: name of the case the guess was inherited from.
-        notes: what happened on the way (a retry with narrowed bounds, …).
-        result: the :class:`~jaxbox.fit.FitResult` once run.
-        validation: its :class:`~jaxbox.validate.Validation` (auto and cross).
-        verdict: its :class:`~jaxbox.validate.Verdict`.
-        timing: ``fit_s``, ``validate_s``, ``verdict_s`` [s] of the run.
-    """
-
-    name: str
-    model: RCModel
-    ident: Any
-    valid: Any
-    guess: Guess
-    free: tuple[str, ...] | None = None
-    fixed: dict = dataclasses.field(default_factory=dict)
-    bounds: dict = dataclasses.field(default_factory=dict)
-    starts: int = 8
-    seed: int | None = 0
-    settings: dict = dataclasses.field(default_factory=dict)
-    parent: str | None = None
-    notes: list = dataclasses.field(default_factory=list)
-    result: Any = None
-    validation: Any = None
-    verdict: Any = None
-    timing: dict = dataclasses.field(default_factory=dict)
-
-    # -- running ---------------------------------------------------------------------------------
-
-    def start_values(self) -> np.ndarray:
-        """The starts [S, n_free] this case fits (the guess first), reproducible for its seed."""
-        _, x0 = lhs_starts(
-            self.model,
-            self.ident,
-            self._guess_in_bounds(),
-            self.starts,
-            free=self.free,
-            fixed=self.fixed,
-            bounds=self.bounds,
-            seed=self.seed,
-            concentration=self.settings.get("concentration", 4.0),
+def _pair(value, name: str):
+    """A ``(start, end)`` period argument: a pair of time stamps (either may be ``None``)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+        raise TypeError(
+            f"{name} must be a (start, end) pair of time stamps (either may be None), got {value!r}"
         )
-        return x0
-
-    def _guess_in_bounds(self) -> dict:
-        out = {}
-        for n, v in self.guess.values.items():
-            if n in self.fixed:
-                continue
-            spec = self.model.parameter(n)
-            lo, hi = self.bounds.get(n, (spec.lower, spec.upper))
-            out[n] = float(np.clip(v, lo, hi))
-        return out
-
-    def run(self, progress: Progress | None = None) -> Case:
-        """Fit every start in one batched call, post-simulate, and judge validity."""
-        return run_cases([self], progress)[0]
-
-    def _request(self) -> dict:
-        """The :func:`jaxbox.fit.fit_batch` request of this case."""
-        opts = {k: v for k, v in self.settings.items() if k in SETTINGS}
-        return {
-            "model": self.model,
-            "data": self.ident,
-            "free": self.free,
-            "fixed": self.fixed or None,
-            "bounds": self.bounds or None,
-            "guess": self._guess_in_bounds(),
-            "starts": self.start_values(),
-            "seed": self.seed,
-            **opts,
-        }
-
-    def _complete(self, result, fit_s: float, say: Progress) -> Case:
-        """Post-simulate a fitted case and judge it."""
-        from ..validate import check_validity, uncertainty, validate
-
-        self.result = result
-        t1 = time.perf_counter()
-        self.validation = validate(self.result, self.valid)
-        t2 = time.perf_counter()
-        try:
-            unc = uncertainty(self.result)
-        except ValueError:
-            unc = None
-        self.verdict = check_validity(self.result, unc, check_intervals=unc is not None)
-        t3 = time.perf_counter()
-        self.timing = {
-            "fit_s": fit_s,
-            "compile_s": float(self.result.timing.get("compile_s", 0.0)),
-            "validate_s": t2 - t1,
-            "verdict_s": t3 - t2,
-        }
-        if self.result.timing.get("batch", 1) > 1:
-            self.timing["batch"] = int(self.result.timing["batch"])
-        say(
-            f"  {self.name}: {self.result.starts.status_summary()}; RMSE auto "
-            f"{self.se_auto:.3f} K, cross {_fmt(self.se_cross)} K, "
-            f"{'valid' if self.is_valid else 'not valid'} ({fit_s + t3 - t1:.1f} s)"
-        )
-        return self
-
-    def judge(self, **options) -> Case:
-        """Judge validity again with other :func:`~jaxbox.validate.check_validity` options."""
-        from ..validate import check_validity
-
-        self._require_run()
-        self.verdict = check_validity(self.result, **options)
-        return self
-
-    def _require_run(self) -> None:
-        if self.result is None:
-            raise ValueError(f"case {self.name!r} has not been run yet; call case.run()")
-
-    # -- summaries -------------------------------------------------------------------------------
-
-    @property
-    def done(self) -> bool:
-        return self.result is not None
-
-    @property
-    def n_params(self) -> int:
-        """Number of free parameters (initial states included)."""
-        if self.result is not None:
-            return len(self.result.free)
-        if self.free is not None:
-            return len(self.free)
-        return len([n for n in self.model.param_names if n not in self.fixed])
-
-    @property
-    def se_auto(self) -> float:
-        """Simulation error Σ q RMSE on the identification data [K] (nan before running)."""
-        return float("nan") if self.validation is None else float(self.validation.se_auto)
-
-    @property
-    def se_cross(self) -> float:
-        """Simulation error on the validation data [K] (nan without validation data)."""
-        v = self.validation
-        return float("nan") if v is None or v.se_cross is None else float(v.se_cross)
-
-    @property
-    def is_valid(self) -> bool:
-        return bool(self.verdict is not None and self.verdict.valid)
-
-    @property
-    def reasons(self) -> tuple[str, ...]:
-        return () if self.verdict is None else tuple(self.verdict.reasons)
-
-    def row(self) -> dict:
-        """One row of :meth:`GreyBox.table`."""
-        v = self.validation
-        out = {
-            "case": self.name,
-            "model": self.model.name,
-            "n_params": self.n_params,
-            "guess": self.guess.source + (f" ({self.parent})" if self.parent else ""),
-            "starts": self.starts,
-            "se_auto": self.se_auto,
-            "se_cross": self.se_cross,
-            "valid": self.is_valid if self.verdict is not None else None,
-            "reasons": "; ".join(self.reasons),
-            "notes": "; ".join(self.notes),
-        }
-        if v is not None:
-            for o, r in v.rmse_auto.items():
-                out[f"rmse_auto_{o}"] = float(r)
-            for o, r in (v.rmse_cross or {}).items():
-                out[f"rmse_cross_{o}"] = float(r)
-        return out
-
-    def __repr__(self) -> str:
-        state = (
-            f"se_auto={self.se_auto:.4g}, se_cross={self.se_cross:.4g}, valid={self.is_valid}"
-            if self.done
-            else "not run"
-        )
-        return f"Case({self.name!r}, model={self.model.name!r}, {state})"
+    return tuple(value)
 
 
-def run_cases(
-    cases: Sequence[Case],
-    progress: Progress | None = None,
-    *,
-    catch: bool = False,
-    labels: Sequence[str] | None = None,
-) -> list[Case]:
-    """Run several cases together: every start of every case in as few compiled calls as the
-    shapes allow (one, for cases of the same shape — e.g. one model on several buildings).
-
-    Args:
-        cases: cases not run yet (of one or several GreyBoxes).
-        progress: called with one line of text per step.
-        catch: record a case that fails (every start failed, non-finite post-simulation) in its
-            ``notes`` and go on, instead of raising.
-        labels: a prefix per case for the progress lines (e.g. the building).
-
-    Returns:
-        The cases, run (a failed one, with ``catch``, has no result).
-    """
-    from ..fit import FitError, fit_batch
-
-    say = progress or _quiet
-    labels = list(labels) if labels is not None else [""] * len(cases)
-    tell = [(lambda msg, lab=lab: say(f"{lab}{msg}")) if lab else say for lab in labels]
-    requests = []
-    for case, told in zip(cases, tell, strict=True):
-        req = case._request()
-        told(
-            f"  {case.name}: {len(req['starts'])} starts in one batch "
-            f"({len(req['starts'][0])} free parameters) …"
-        )
-        requests.append(req)
-    t0 = time.perf_counter()
-    outcomes = fit_batch(requests, errors="return")
-    fit_s = (time.perf_counter() - t0) / max(1, len(cases))
-    for case, outcome, told in zip(cases, outcomes, tell, strict=True):
-        try:
-            if isinstance(outcome, FitError):
-                raise outcome
-            case._complete(outcome, fit_s, told)
-        except (ValueError, FloatingPointError) as err:  # FitError, non-finite post-simulation
-            if not catch:
-                raise
-            case.result = case.validation = case.verdict = None
-            case.notes.append(f"failed: {err}")
-            told(f"  {case.name}: failed ({err})")
-    return list(cases)
-
-
-def _fmt(x: float) -> str:
-    return "n/a" if not np.isfinite(x) else f"{x:.3f}"
+def _after(data, ident):
+    """The samples of ``data`` after ``ident`` (``None`` when there are none)."""
+    rest = data.index[data.index > ident.end]
+    return data.slice(rest[0], None) if len(rest) else None
 
 
 class GreyBox:
@@ -293,31 +52,53 @@ class GreyBox:
         valid: validation period ``(start, end)``; default everything after ``train``. Pass
             ``valid=False`` for no validation data.
         name: a label for tables and reports (the building).
+        ranges: plausible range per column, ``{"T_zon": (lo, hi)}`` in canonical units, where
+            the defaults of :func:`jaxbox.data.check_plausibility` do not fit the building
+            (the identification and validation windows are checked when the data are
+            attached).
     """
 
-    def __init__(self, data, *, train=None, valid=None, name: str = "building") -> None:
+    def __init__(
+        self,
+        data,
+        *,
+        train=None,
+        valid=None,
+        name: str = "building",
+        ranges: Mapping[str, tuple[float, float]] | None = None,
+    ) -> None:
+        data = as_dataset(data, what="the data of a GreyBox")
         self.data = data
         self.name = str(name)
+        self.ranges = {
+            str(k): (float(lo), float(hi))
+            for k, (lo, hi) in check_mapping(ranges, "ranges").items()
+        }
         if train is None and valid is None:
             ident, val = data.split()
-            self.train = _period(ident)
-            self.valid_period = _period(val)
         else:
-            ident = data.slice(*train) if train is not None else None
-            if ident is None:
-                first = data.slice(*valid)
+            if train is not None:
+                ident = data.slice(*_pair(train, "train"))
+            else:
+                first = data.slice(*_pair(valid, "valid"))
                 before = data.index[data.index < first.start]
                 if len(before) == 0:
-                    raise ValueError("no data before the validation period to identify on")
+                    raise DataError(
+                        f"no data before the validation period (from {first.start}) to identify "
+                        f"on; the data start at {data.start}. Give train=(start, end)."
+                    )
                 ident = data.slice(None, before[-1])
-            self.train = _period(ident)
             if valid is False:
-                self.valid_period = None
+                val = None
             elif valid is not None:
-                self.valid_period = _period(data.slice(*valid))
+                val = data.slice(*_pair(valid, "valid"))
             else:
-                rest = data.index[data.index > ident.end]
-                self.valid_period = (str(rest[0]), str(data.end)) if len(rest) else None
+                val = _after(data, ident)
+        check_plausibility(ident, overrides=self.ranges, what="identification data")
+        if val is not None:
+            check_plausibility(val, overrides=self.ranges, what="validation data")
+        self.train = _period(ident)
+        self.valid_period = None if val is None else _period(val)
         self.cases: dict[str, Case] = {}
 
     # -- data ------------------------------------------------------------------------------------
@@ -396,17 +177,23 @@ class GreyBox:
                 ``atol``, ``concentration``, ``weights``, ``simulator``).
         """
         model = get_model(model)
+        fixed = check_mapping(fixed, "fixed")
+        bounds = check_mapping(bounds, "bounds")
+        if free is not None and (isinstance(free, str | bytes) or not isinstance(free, Sequence)):
+            raise TypeError(
+                f"free must be a list of parameter names, e.g. free=['R_wal', 'C_zon'], got "
+                f"{free!r}"
+            )
         bad = [k for k in settings if k not in SETTINGS]
         if bad:
             raise TypeError(
                 f"unknown setting(s) {', '.join(bad)}; settings are {', '.join(SETTINGS)}"
             )
-        ident = self.data.slice(*train) if train is not None else self.ident
+        ident = self.data.slice(*_pair(train, "train")) if train is not None else self.ident
         if valid is not None:
-            val = self.data.slice(*valid)
+            val = self.data.slice(*_pair(valid, "valid"))
         elif train is not None:
-            rest = self.data.index[self.data.index > ident.end]
-            val = self.data.slice(rest[0], None) if len(rest) else None
+            val = _after(self.data, ident)
         else:
             val = self.valid
         ident.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
@@ -423,7 +210,8 @@ class GreyBox:
             p._require_run()
             g = parent_guess(model, ident, p.result.params, parent)
         else:
-            raise ValueError(
+            error = ValueError if isinstance(guess, str) else TypeError
+            raise error(
                 f"unknown guess {guess!r}; give 'naming', 'parent' (with parent=), a dict of "
                 "values or a Guess"
             )
@@ -458,12 +246,6 @@ class GreyBox:
         finite = [c for c in done if np.isfinite(key(c))]
         return min(finite, key=key) if finite else None
 
-    def select(self, candidates="all", **options):
-        """Forward selection over ``candidates``; see :func:`jaxbox.select.forward_selection`."""
-        from ._forward import forward_selection
-
-        return forward_selection(self, candidates, **options)
-
     # -- comparison ------------------------------------------------------------------------------
 
     def table(self) -> pd.DataFrame:
@@ -487,7 +269,7 @@ class GreyBox:
             valid = "-" if c.verdict is None else ("yes" if c.is_valid else "no")
             reasons = "; ".join(_short(r) for r in c.reasons)
             lines.append(
-                f"{c.name:<{width}} {c.n_params:>4} {_fmt(c.se_auto):>8} {_fmt(c.se_cross):>9} "
+                f"{c.name:<{width}} {c.n_params:>4} {fmt_se(c.se_auto):>8} {fmt_se(c.se_cross):>9} "
                 f"{valid:>6}  {reasons}"
             )
         return "\n".join(lines)
@@ -547,21 +329,40 @@ class GreyBox:
 
     # -- persistence -----------------------------------------------------------------------------
 
-    def save(self, path) -> Any:
-        """Save as plain JSON + NPZ into folder ``path``, atomically; see
-        :func:`jaxbox.select.save_greybox`."""
-        from ._persist import save_greybox
-
+    def save(self, path) -> Path:
+        """Save as plain JSON + NPZ into folder ``path``, atomically; see :func:`save_greybox`."""
         return save_greybox(self, path)
 
     @classmethod
-    def load(cls, path) -> GreyBox:
-        """Load a GreyBox saved with :meth:`save`."""
-        from ._persist import load_greybox
-
-        return load_greybox(path)
+    def load(cls, path, *, models: Mapping[str, RCModel] | None = None) -> GreyBox:
+        """Load a GreyBox saved with :meth:`save`; see :func:`load_greybox`."""
+        saved = read_greybox(path, models=check_mapping(models, "models"))
+        gb = cls(
+            saved.data, train=saved.train, valid=saved.valid, name=saved.name, ranges=saved.ranges
+        )
+        gb.cases = {case.name: case for case in saved.cases}
+        return gb
 
 
 def _short(reason: str, width: int = 90) -> str:
     head = reason.split(":")[0]
     return head if len(head) <= width else head[: width - 1] + "…"
+
+
+def load_greybox(path, *, models: Mapping[str, RCModel] | None = None) -> GreyBox:
+    """Load a GreyBox saved with :func:`save_greybox` (its folder or its ``greybox.json``).
+
+    Args:
+        path: the folder (or the index file in it).
+        models: ``{name: RCModel}`` for cases whose model is not in the library.
+
+    The fits are rebuilt from the stored values (no refit): parameters, costs and every start's
+    outcome are identical, so validating them again gives identical numbers. The validation and
+    verdict are recomputed on load. A save running at the same time is not seen half-done: the
+    previous or the new version is loaded.
+
+    Raises:
+        PersistError: the folder holds no saved GreyBox, or a damaged one (the message names
+            the file and the field).
+    """
+    return GreyBox.load(path, models=models)

@@ -1,4 +1,4 @@
-"""Save and load a :class:`GreyBox` as plain JSON + NPZ (no pickle), written atomically.
+"""Save and load a GreyBox as plain JSON + NPZ (no pickle), written atomically.
 
 A saved GreyBox is a folder with
 
@@ -10,35 +10,247 @@ A saved GreyBox is a folder with
   start values, final values, costs and iteration counts (plain arrays, loaded with
   ``allow_pickle=False``).
 
-Every file is written to a temporary file and renamed over the target; the arrays file is named
-by the digest of its content and written first, the index last, and stale arrays files are
-removed only after the new index is in place. A save interrupted at any point leaves the
-previous save intact and loadable.
+Saving writes the arrays under a new name (the digest of their content), then replaces the index
+that names them (both atomically: a temporary file renamed over the target), and only then
+removes the arrays files older than the previous version. A save interrupted at any point leaves
+the previous save intact and loadable; a reader that loads while another process saves gets the
+previous or the new version (it reads the index, then the arrays it names, and starts again if a
+save removed them meanwhile). Temporary files of a save that was killed are removed by the next
+save or load.
+
+Loading trusts nothing in the folder: the index is checked against its schema (one
+:class:`PersistError` naming the field for each problem), the arrays file it names must be a
+plain ``arrays-<digest>.npz`` inside the folder, and the arrays must have the shapes the index
+implies.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import json
+import math
+import re
+import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .._io import atomic_write_bytes, atomic_write_json
-from ..data import Dataset
-from ..models import RCModel, get_model
-from ._greybox import Case, GreyBox
+from .._io import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
+from ..data import DataError, Dataset
+from ..models import ModelError, RCModel, get_model
+from ._cases import Case
 from ._guess import Guess
 
-__all__ = ["save_greybox", "load_greybox", "FORMAT"]
+__all__ = ["FORMAT", "PersistError", "Saved", "read_greybox", "save_greybox"]
 
 FORMAT = "jaxbox.greybox/1"
 INDEX = "greybox.json"
+#: the only names an index may give its arrays file: a plain file inside the folder
+_ARRAYS_NAME = re.compile(r"arrays-[0-9a-f]{16}\.npz")
+#: attempts of a load that finds its arrays removed by a concurrent save
+_ATTEMPTS = 5
 
 
-def _arrays(gb: GreyBox) -> dict[str, np.ndarray]:
+class PersistError(ValueError):
+    """A saved GreyBox cannot be read: no index, another format, a field missing or of the wrong
+    type, an arrays file outside the folder or damaged. The message names the file and the
+    field."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Saved:
+    """The parts of a saved GreyBox, read back (see :meth:`GreyBox.load`)."""
+
+    name: str
+    data: Dataset
+    train: tuple
+    valid: tuple | bool
+    cases: list
+    ranges: dict
+
+
+# ---- the schema of the index -------------------------------------------------------------------
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _is_str(v) -> bool:
+    return isinstance(v, str)
+
+
+def _is_period(v) -> bool:
+    return isinstance(v, list) and len(v) == 2 and all(isinstance(x, str) for x in v)
+
+
+def _list_of(check: Callable) -> Callable:
+    return lambda v: isinstance(v, list) and all(check(x) for x in v)
+
+
+def _dict_of(check: Callable) -> Callable:
+    return lambda v: isinstance(v, dict) and all(check(x) for x in v.values())
+
+
+def _or_none(check: Callable) -> Callable:
+    return lambda v: v is None or check(v)
+
+
+_TYPES: dict[str, Callable] = {
+    "a string": _is_str,
+    "an integer": lambda v: isinstance(v, int) and not isinstance(v, bool),
+    "a number": _is_number,
+    "true or false": lambda v: isinstance(v, bool),
+    "a list": lambda v: isinstance(v, list),
+    "an object": lambda v: isinstance(v, dict),
+    "a [start, end] pair of time stamps": _is_period,
+    "a list of strings": _list_of(_is_str),
+    "an object of numbers": _dict_of(_is_number),
+    "an object of numbers or nulls": _dict_of(_or_none(_is_number)),
+    "an object of [lower, upper] pairs": _dict_of(
+        lambda v: isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)
+    ),
+}
+
+#: field -> (expected type, may be null); fields marked optional may be missing
+_TOP = {
+    "format": ("a string", False),
+    "name": ("a string", False),
+    "train": ("a [start, end] pair of time stamps", False),
+    "valid": ("a [start, end] pair of time stamps", True),
+    "arrays": ("a string", False),
+    "cases": ("a list", False),
+    "ranges": ("an object of [lower, upper] pairs", False),
+}
+_TOP_OPTIONAL = {"ranges"}
+_CASE = {
+    "name": ("a string", False),
+    "model": ("a string", False),
+    "train": ("a [start, end] pair of time stamps", False),
+    "valid": ("a [start, end] pair of time stamps", True),
+    "guess": ("an object", False),
+    "free": ("a list of strings", True),
+    "fixed": ("an object of numbers", False),
+    "bounds": ("an object of [lower, upper] pairs", False),
+    "starts": ("an integer", False),
+    "seed": ("an integer", True),
+    "settings": ("an object", False),
+    "parent": ("a string", True),
+    "notes": ("a list of strings", False),
+    "timing": ("an object of numbers", True),
+    "result": ("an object", True),
+}
+_CASE_OPTIONAL = {"timing"}
+_GUESS = {
+    "values": ("an object of numbers", False),
+    "source": ("a string", False),
+    "parent": ("a string", True),
+    "inherited": ("a list of strings", False),
+}
+_GUESS_OPTIONAL = {"parent", "inherited"}
+_RESULT = {
+    "arrays": ("a string", False),
+    "params": ("an object of numbers or nulls", False),
+    "free": ("a list of strings", False),
+    "cost": ("a number", True),
+    "converged": ("true or false", False),
+    "best": ("an integer", False),
+    "status": ("a list of strings", False),
+    "timing": ("an object", False),
+    "settings": ("an object", False),
+    "validation": ("an object", True),
+    "verdict": ("an object", True),
+}
+_RESULT_OPTIONAL = {"validation", "verdict"}
+
+
+def _check_fields(doc, schema: dict, where: str, fail, optional=frozenset()) -> None:
+    if not isinstance(doc, dict):
+        fail(where or "the index", "must be a JSON object")
+    for key, (kind, nullable) in schema.items():
+        field = f"{where}.{key}" if where else key
+        if key not in doc:
+            if key in optional:
+                continue
+            fail(field, "is missing")
+        value = doc[key]
+        if value is None and nullable:
+            continue
+        if not _TYPES[kind](value):
+            shown = json.dumps(value)
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            fail(field, f"must be {kind}{' or null' if nullable else ''}, got {shown}")
+
+
+def _check_index(doc, index: Path) -> None:
+    """The index against its schema: one :class:`PersistError` naming the first bad field."""
+
+    def fail(field: str, problem: str):
+        raise PersistError(f"{index}: {field} {problem}")
+
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+        raise PersistError(f"{index} is not a saved GreyBox (format {got!r}, expected {FORMAT!r})")
+    _check_fields(doc, _TOP, "", fail, _TOP_OPTIONAL)
+    if not _ARRAYS_NAME.fullmatch(doc["arrays"]):
+        fail(
+            "arrays",
+            f"must name a file arrays-<16 hex digits>.npz in the folder, got {doc['arrays']!r}",
+        )
+    names = set()
+    for i, case in enumerate(doc["cases"]):
+        where = f"cases[{i}]"
+        _check_fields(case, _CASE, where, fail, _CASE_OPTIONAL)
+        _check_fields(case["guess"], _GUESS, f"{where}.guess", fail, _GUESS_OPTIONAL)
+        if case["name"] in names:
+            fail(f"{where}.name", f"{case['name']!r} is given to two cases")
+        names.add(case["name"])
+        if case["starts"] < 1:
+            fail(f"{where}.starts", f"must be at least 1, got {case['starts']}")
+        result = case["result"]
+        if result is not None:
+            _check_fields(result, _RESULT, f"{where}.result", fail, _RESULT_OPTIONAL)
+            if result["arrays"] != f"case{i}":
+                fail(f"{where}.result.arrays", f"must be 'case{i}', got {result['arrays']!r}")
+            n = len(result["status"])
+            if not 0 <= result["best"] < max(n, 1):
+                fail(f"{where}.result.best", f"must index one of the {n} starts")
+
+
+def _check_arrays(arrays: dict, doc: dict, path: Path) -> None:
+    """The arrays the index implies, with consistent shapes."""
+
+    def need(key: str, ndim: int, kind: str) -> np.ndarray:
+        if key not in arrays:
+            raise PersistError(f"{path}: the array {key!r} is missing")
+        a = arrays[key]
+        if a.ndim != ndim or a.dtype.kind not in kind:
+            raise PersistError(f"{path}: the array {key!r} has the wrong shape or type")
+        return a
+
+    values = need("data/values", 2, "f")
+    times = need("data/time_ns", 1, "iu")
+    columns = need("data/columns", 1, "U")
+    if len(times) != values.shape[0] or len(columns) != values.shape[1]:
+        raise PersistError(f"{path}: the data arrays do not agree in shape")
+    for i, case in enumerate(doc["cases"]):
+        result = case["result"]
+        if result is None:
+            continue
+        key, n = result["arrays"], len(result["status"])
+        initial = need(f"{key}/initial", 2, "f")
+        params = need(f"{key}/params", 2, "f")
+        cost = need(f"{key}/cost", 1, "f")
+        steps = need(f"{key}/steps", 1, "iu")
+        if not (len(initial) == len(params) == len(cost) == len(steps) == n):
+            raise PersistError(f"{path}: the arrays of cases[{i}] do not hold its {n} starts")
+
+
+def _arrays(gb) -> dict[str, np.ndarray]:
     frame = gb.data.frame
     out = {
         "data/values": frame.to_numpy(dtype=np.float64),
@@ -92,19 +304,22 @@ def _case_doc(i: int, case: Case) -> dict:
     return doc
 
 
-def save_greybox(gb: GreyBox, path) -> Path:
-    """Save ``gb`` with all its cases into folder ``path`` (created if needed), atomically.
+def save_greybox(gb, path) -> Path:
+    """Save GreyBox ``gb`` with all its cases into folder ``path`` (created if needed),
+    atomically: a reader sees the previous or the new version, a save interrupted at any point
+    leaves the previous one.
 
     Returns:
         The path of the index file ``greybox.json``.
     """
     folder = Path(path)
     folder.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(folder)
     buf = io.BytesIO()
     np.savez_compressed(buf, **_arrays(gb))
     blob = buf.getvalue()
-    digest = hashlib.sha256(blob).hexdigest()[:16]
-    arrays_name = f"arrays-{digest}.npz"
+    arrays_name = f"arrays-{hashlib.sha256(blob).hexdigest()[:16]}.npz"
+    previous = _named_arrays(folder / INDEX)
     atomic_write_bytes(folder / arrays_name, blob)
     doc = {
         "format": FORMAT,
@@ -112,112 +327,178 @@ def save_greybox(gb: GreyBox, path) -> Path:
         "train": list(gb.train),
         "valid": None if gb.valid_period is None else list(gb.valid_period),
         "arrays": arrays_name,
+        "ranges": {k: list(v) for k, v in getattr(gb, "ranges", {}).items()},
         "cases": [_case_doc(i, c) for i, c in enumerate(gb.cases.values())],
     }
     index = atomic_write_json(folder / INDEX, doc)
+    # the previous version's arrays stay one save longer, for a reader that has just read the
+    # previous index; older ones go
+    keep = {arrays_name, previous}
     for old in folder.glob("arrays-*.npz"):
-        if old.name != arrays_name:
+        if old.name not in keep:
             old.unlink(missing_ok=True)
     return index
 
 
-def _model(name: str, models) -> RCModel:
-    if models and name in models:
-        return get_model(models[name])
-    return get_model(name)
+def _named_arrays(index: Path) -> str | None:
+    """The arrays file the index names, if it is readable and names one."""
+    try:
+        name = json.loads(index.read_text(encoding="utf-8")).get("arrays")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return name if isinstance(name, str) and _ARRAYS_NAME.fullmatch(name) else None
 
 
-def load_greybox(path, *, models: dict | None = None) -> GreyBox:
-    """Load a GreyBox saved with :func:`save_greybox` (folder or its ``greybox.json``).
+def _model(name: str, models, where: str, index: Path) -> RCModel:
+    try:
+        if models and name in models:
+            return get_model(models[name])
+        return get_model(name)
+    except ModelError as err:
+        raise PersistError(
+            f"{index}: {where} {err}; pass models={{{name!r}: model}} for a model that is not in "
+            "the library"
+        ) from None
 
-    Args:
-        path: the folder (or the index file in it).
-        models: ``{name: RCModel}`` for cases whose model is not in the library.
 
-    The fits are rebuilt from the stored values (no refit): parameters, costs and every start's
-    outcome are identical, so validating them again gives identical numbers. The validation and
-    verdict are recomputed on load.
+def _read(index: Path) -> tuple[dict, dict]:
+    """The index and the arrays it names, consistent with each other: read again when a save
+    going on elsewhere removed the arrays between the two reads."""
+    for attempt in range(_ATTEMPTS):
+        try:
+            text = index.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise PersistError(f"no saved GreyBox at {index.parent} (no {INDEX} there)") from None
+        except (OSError, UnicodeDecodeError) as err:
+            raise PersistError(f"{index}: cannot be read ({err})") from None
+        try:
+            doc = json.loads(text)
+        except ValueError as err:
+            raise PersistError(f"{index}: not valid JSON ({err})") from None
+        _check_index(doc, index)
+        path = index.parent / doc["arrays"]
+        if path.is_symlink() and path.resolve().parent != index.parent.resolve():
+            raise PersistError(f"{index}: arrays {doc['arrays']!r} links outside the folder")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                arrays = {k: z[k] for k in z.files}
+        except FileNotFoundError:
+            if attempt + 1 < _ATTEMPTS:
+                continue  # a save replaced the index and removed these arrays meanwhile
+            raise PersistError(f"{index}: the arrays file {doc['arrays']!r} is missing") from None
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
+            raise PersistError(f"{path}: not a readable arrays file ({err})") from None
+        _check_arrays(arrays, doc, path)
+        return doc, arrays
+    raise AssertionError("unreachable")
+
+
+def read_greybox(path, *, models: dict | None = None) -> Saved:
+    """The parts of a GreyBox saved with :func:`save_greybox` (folder or its ``greybox.json``);
+    :meth:`GreyBox.load` builds the GreyBox from them.
+
+    Raises:
+        PersistError: no saved GreyBox there, or a damaged one (the message names the field).
     """
-    from ..fit import FitResult, StartReport, make_problem
-    from ..validate import check_validity, uncertainty, validate
-
     p = Path(path)
-    index = p if p.is_file() else p / INDEX
-    doc = json.loads(index.read_text(encoding="utf-8"))
-    if doc.get("format") != FORMAT:
-        raise ValueError(f"{index} is not a saved GreyBox (format {doc.get('format')!r})")
-    with np.load(index.parent / doc["arrays"], allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    frame = pd.DataFrame(
-        arrays["data/values"],
-        index=pd.DatetimeIndex(pd.to_datetime(arrays["data/time_ns"], unit="ns"), name="time"),
-        columns=[str(c) for c in arrays["data/columns"]],
-    )
-    data = Dataset(frame)
-    gb = GreyBox(
-        data,
+    index = p if p.name == INDEX and not p.is_dir() else p / INDEX
+    remove_stale_temporaries(index.parent)
+    doc, arrays = _read(index)
+    try:
+        frame = pd.DataFrame(
+            arrays["data/values"],
+            index=pd.DatetimeIndex(pd.to_datetime(arrays["data/time_ns"], unit="ns"), name="time"),
+            columns=[str(c) for c in arrays["data/columns"]],
+        )
+        data = Dataset(frame)
+    except (DataError, ValueError) as err:
+        raise PersistError(f"{index}: the saved data cannot be read back ({err})") from None
+    cases = [_case(i, cd, data, arrays, models, index) for i, cd in enumerate(doc["cases"])]
+    return Saved(
+        name=doc["name"],
+        data=data,
         train=tuple(doc["train"]),
         valid=False if doc["valid"] is None else tuple(doc["valid"]),
-        name=doc["name"],
+        cases=cases,
+        ranges={k: tuple(v) for k, v in doc.get("ranges", {}).items()},
     )
-    for cd in doc["cases"]:
-        model = _model(cd["model"], models)
+
+
+def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
+    """One saved case, its fit rebuilt from the stored values and validated again."""
+    from ..fit import FitError, FitResult, StartReport, make_problem
+    from ..validate import check_validity, uncertainty, validate
+
+    where = f"cases[{i}]"
+    model = _model(cd["model"], models, f"{where}.model:", index)
+    try:
         ident = data.slice(*cd["train"])
         valid = None if cd["valid"] is None else data.slice(*cd["valid"])
-        case = Case(
-            name=cd["name"],
-            model=model,
-            ident=ident,
-            valid=valid,
-            guess=Guess.from_dict(cd["guess"]),
-            free=None if cd["free"] is None else tuple(cd["free"]),
-            fixed={k: float(v) for k, v in cd["fixed"].items()},
-            bounds={k: (float(a), float(b)) for k, (a, b) in cd["bounds"].items()},
-            starts=int(cd["starts"]),
-            seed=cd["seed"],
-            settings=dict(cd["settings"]),
-            parent=cd["parent"],
-            notes=list(cd["notes"]),
-            timing=dict(cd.get("timing") or {}),
+    except DataError as err:
+        raise PersistError(f"{index}: {where}.train/valid: {err}") from None
+    case = Case(
+        name=cd["name"],
+        model=model,
+        ident=ident,
+        valid=valid,
+        guess=Guess.from_dict(cd["guess"]),
+        free=None if cd["free"] is None else tuple(cd["free"]),
+        fixed={k: float(v) for k, v in cd["fixed"].items()},
+        bounds={k: (float(a), float(b)) for k, (a, b) in cd["bounds"].items()},
+        starts=int(cd["starts"]),
+        seed=cd["seed"],
+        settings=dict(cd["settings"]),
+        parent=cd["parent"],
+        notes=list(cd["notes"]),
+        timing=dict(cd.get("timing") or {}),
+    )
+    rd = cd["result"]
+    if rd is None:
+        return case
+    missing = [n for n in model.param_names if n not in rd["params"]]
+    if missing:
+        raise PersistError(f"{index}: {where}.result.params lacks {', '.join(missing)}")
+    try:
+        opts = {k: v for k, v in case.settings.items() if k in ("weights", "simulator")}
+        problem = make_problem(
+            model,
+            ident,
+            free=case.free,
+            fixed=case.fixed or None,
+            bounds=case.bounds or None,
+            guess=case._guess_in_bounds(),
+            **opts,
         )
-        rd = cd["result"]
-        if rd is not None:
-            guess = {n: v for n, v in case._guess_in_bounds().items()}
-            opts = {k: v for k, v in case.settings.items() if k in ("weights", "simulator")}
-            problem = make_problem(
-                model,
-                ident,
-                free=case.free,
-                fixed=case.fixed or None,
-                bounds=case.bounds or None,
-                guess=guess,
-                **opts,
-            )
-            key = rd["arrays"]
-            report = StartReport(
-                initial=arrays[f"{key}/initial"],
-                params=arrays[f"{key}/params"],
-                cost=arrays[f"{key}/cost"],
-                steps=arrays[f"{key}/steps"],
-                status=tuple(rd["status"]),
-            )
-            case.result = FitResult(
-                problem=problem,
-                data=ident,
-                params={n: float(rd["params"][n]) for n in model.param_names},
-                cost=float(rd["cost"]),
-                converged=bool(rd["converged"]),
-                best=int(rd["best"]),
-                starts=report,
-                timing=dict(rd["timing"]),
-                settings=dict(rd["settings"]),
-            )
-            case.validation = validate(case.result, valid)
-            if rd.get("verdict") is not None:
-                try:
-                    unc = uncertainty(case.result)
-                except ValueError:
-                    unc = None
-                case.verdict = check_validity(case.result, unc, check_intervals=unc is not None)
-        gb.cases[case.name] = case
-    return gb
+    except (FitError, ModelError, DataError) as err:
+        raise PersistError(f"{index}: {where} cannot be set up again ({err})") from None
+    key = rd["arrays"]
+    report = StartReport(
+        initial=arrays[f"{key}/initial"],
+        params=arrays[f"{key}/params"],
+        cost=arrays[f"{key}/cost"],
+        steps=arrays[f"{key}/steps"],
+        status=tuple(rd["status"]),
+    )
+    case.result = FitResult(
+        problem=problem,
+        data=ident,
+        params={n: _float(rd["params"][n]) for n in model.param_names},
+        cost=_float(rd["cost"]),
+        converged=bool(rd["converged"]),
+        best=int(rd["best"]),
+        starts=report,
+        timing=dict(rd["timing"]),
+        settings=dict(rd["settings"]),
+    )
+    case.validation = validate(case.result, valid)
+    if rd.get("verdict") is not None:
+        try:
+            unc = uncertainty(case.result)
+        except ValueError:
+            unc = None
+        case.verdict = check_validity(case.result, unc, check_intervals=unc is not None)
+    return case
+
+
+def _float(v) -> float:
+    return math.nan if v is None else float(v)

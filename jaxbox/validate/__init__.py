@@ -35,8 +35,15 @@ from ._uncertainty import Combination as Combination
 from ._uncertainty import Uncertainty as Uncertainty
 from ._uncertainty import sensitivities as sensitivities
 from ._uncertainty import uncertainty as uncertainty
+from ._verdict import CAPACITY_RANGE as CAPACITY_RANGE
+from ._verdict import MAX_RMSE as MAX_RMSE
+from ._verdict import MAX_RMSE_RATIO as MAX_RMSE_RATIO
 from ._verdict import PHYSICAL_LIMITS as PHYSICAL_LIMITS
+from ._verdict import RMSE_FLOOR as RMSE_FLOOR
+from ._verdict import SLOWEST_TAU_RANGE as SLOWEST_TAU_RANGE
+from ._verdict import UA_RANGE as UA_RANGE
 from ._verdict import Flag as Flag
 from ._verdict import Verdict as Verdict
 from ._verdict import check_validity as check_validity
+from ._verdict import heat_loss_coefficients as heat_loss_coefficients
 from ._verdict import time_constants as time_constants

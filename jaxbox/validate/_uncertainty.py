@@ -40,8 +40,10 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import ArrayLike, Bool, Float
 from scipy import stats
 
+from .._compiled import cached
 from .._x64 import require_x64
 
 __all__ = ["Uncertainty", "Combination", "uncertainty", "sensitivities"]
@@ -111,13 +113,13 @@ class Uncertainty:
 
     names: tuple[str, ...]
     units: tuple[str, ...]
-    values: np.ndarray
-    std: np.ndarray
-    ci95: np.ndarray
-    rel_ci: np.ndarray
-    cov: np.ndarray
-    correlation: np.ndarray
-    identifiable: np.ndarray
+    values: Float[np.ndarray, " params"]
+    std: Float[np.ndarray, " params"]
+    ci95: Float[np.ndarray, "params 2"]
+    rel_ci: Float[np.ndarray, " params"]
+    cov: Float[np.ndarray, "params params"]
+    correlation: Float[np.ndarray, "params params"]
+    identifiable: Bool[np.ndarray, " params"]
     level: float
     t_quantile: float
     dof: int
@@ -127,9 +129,9 @@ class Uncertainty:
     collinearity: float
     combinations: tuple[Combination, ...]
     free: tuple[str, ...]
-    cov_free: np.ndarray
-    jacobian: np.ndarray
-    singular_values: np.ndarray
+    cov_free: Float[np.ndarray, "free free"]
+    jacobian: Float[np.ndarray, "rows free"]
+    singular_values: Float[np.ndarray, " free"]
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -226,26 +228,32 @@ def _pair_or_none(pair):
     return [lo, hi] if np.isfinite(lo) and np.isfinite(hi) else None
 
 
-_JAC: dict = {}
+def _jacobian_fn(problem, n_samples: int):
+    """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]) for N =
+    ``n_samples``, kept in the ``"uncertainty"`` room of :mod:`jaxbox._compiled`."""
+    key = (
+        "uncertainty",
+        *problem.structure_key,
+        problem.simulator,
+        problem.sim_options,
+        n_samples,
+    )
+    return cached(key, lambda: _build_jacobian_fn(problem))[0]
 
 
-def _jacobian_fn(problem):
-    """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]); cached."""
-    key = (*problem.structure_key, problem.simulator, problem.sim_options)
-    fn = _JAC.get(key)
-    if fn is None:
+def _build_jacobian_fn(problem):
+    def f(p, fixed_values, t, u):
+        return problem.simulate(p, fixed_values, t, u)
 
-        def f(p, fixed_values, t, u):
-            return problem.simulate(p, fixed_values, t, u)
+    def both(p, fixed_values, t, u):
+        return f(p, fixed_values, t, u), jax.jacfwd(f)(p, fixed_values, t, u)
 
-        def both(p, fixed_values, t, u):
-            return f(p, fixed_values, t, u), jax.jacfwd(f)(p, fixed_values, t, u)
-
-        fn = _JAC[key] = jax.jit(both)
-    return fn
+    return jax.jit(both)
 
 
-def sensitivities(result, params=None):
+def sensitivities(
+    result, params: Float[ArrayLike, " free"] | None = None
+) -> tuple[Float[np.ndarray, "samples outputs"], Float[np.ndarray, "samples outputs free"]]:
     """Exact sensitivities of the simulated outputs to the free parameters.
 
     Forward-mode autodiff through the fit's own simulator (``result.problem.simulate``) on the
@@ -267,7 +275,7 @@ def sensitivities(result, params=None):
         params = [result.params[n] for n in problem.free]
     p = jnp.asarray(np.asarray(params, dtype=float))
     fixed_values = jnp.asarray([v for _, v in problem.fixed], dtype=float)
-    ysim, J = _jacobian_fn(problem)(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
+    ysim, J = _jacobian_fn(problem, len(t))(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
     return np.asarray(ysim), np.asarray(J)
 
 

@@ -1,8 +1,11 @@
 """The validity verdict of a fit: is this model acceptable, and if not, why not.
 
 Following the reference study, a single model is *valid* when its optimum was found, its
-parameters are physically reasonable and not on their bounds, and their confidence intervals are
-reasonable. Every failed check adds a flag with a readable reason naming the parameters:
+parameters are physically reasonable and not on their bounds, their confidence intervals are
+reasonable, and it predicts: the data it was judged on are plausible and the validation error is
+not far above the identification error. Each check is one small function of a
+context (``_Judged``) returning a list of :class:`Flag`; :func:`check_validity` runs them in
+turn (:data:`_CHECKS`) and collects the reasons:
 
 * ``failed`` / ``not_converged`` — the best start did not return a finite, converged optimum;
 * ``at_bound`` — a free parameter ended at or near one of its bounds (position in the bounds, in
@@ -12,26 +15,66 @@ reasonable. Every failed check adds a flag with a readable reason naming the par
 * ``non_physical`` — a value outside broad physical limits (``limits``: non-positive or absurd
   resistances and capacities, negative apertures…);
 * ``time_constant`` — a time constant ``τ = −1/Re λ`` of the state matrix outside
-  ``tau_range`` (seconds … years), or an unstable eigenvalue;
+  ``tau_range`` (seconds … years), an unstable eigenvalue, or a slowest time constant outside
+  ``slowest_tau_range`` (10 min … 1 year: no building settles faster or slower);
+* ``heat_loss`` — the heat-loss coefficient UA (:func:`heat_loss_coefficients`: steady-state
+  heat flow per kelvin of zone temperature, from A, B, C) outside ``ua_range`` (1 W/K … 1e5 W/K).
+  A heating power in kW instead of W gives UA and capacities 1000× too small, and this reason;
+* ``capacity`` — the total heat capacity of the model's nodes outside ``capacity_range``
+  (1e5 … 1e12 J/K);
+* ``prediction`` — the validation RMSE of an output above ``max_rmse`` (5 K), above
+  ``max_rmse_ratio`` (10) times its identification RMSE (when above ``rmse_floor``, 0.5 K),
+  or not finite (needs ``validation=``);
+* ``implausible_data`` — the identification or validation data of the model's columns fail
+  :func:`jaxbox.data.check_plausibility` (spikes, kelvin, kW, stuck sensors, ranges…);
 * ``not_identifiable`` / ``poorly_identifiable`` — a parameter combination the data do not
   determine (:func:`~jaxbox.validate.uncertainty`);
 * ``wide_interval`` — a confidence interval wider than ``± max_rel_ci`` of the value.
 
 Non-fatal observations (a time constant shorter than the sampling step, a global optimum
-reached by a single start, non-white residuals) are returned as ``warnings``.
+reached by a single start, non-white residuals, data that may be wrong) are returned as
+``warnings``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
-__all__ = ["Verdict", "Flag", "check_validity", "time_constants", "PHYSICAL_LIMITS"]
+from ..data import DataError, Dataset, Finding, find_implausible, signal_unit
+
+__all__ = [
+    "CAPACITY_RANGE",
+    "MAX_RMSE",
+    "MAX_RMSE_RATIO",
+    "PHYSICAL_LIMITS",
+    "RMSE_FLOOR",
+    "SLOWEST_TAU_RANGE",
+    "UA_RANGE",
+    "Flag",
+    "Verdict",
+    "check_validity",
+    "heat_loss_coefficients",
+    "time_constants",
+]
 
 _YEAR = 365.25 * 86400.0
+
+#: Largest plausible RMSE [K] of a temperature output, on identification or validation data.
+MAX_RMSE = 5.0
+#: Largest plausible ratio of the validation RMSE to the identification RMSE ...
+MAX_RMSE_RATIO = 10.0
+#: ... applied above this validation RMSE [K].
+RMSE_FLOOR = 0.5
+#: Plausible heat-loss coefficient UA [W/K] of a building (a room … a large block).
+UA_RANGE = (1.0, 1e5)
+#: Plausible total heat capacity [J/K] of the nodes of a building (a small room … a large block).
+CAPACITY_RANGE = (1e5, 1e12)
+#: Plausible slowest time constant [s] of a building: 10 minutes … 1 year.
+SLOWEST_TAU_RANGE = (600.0, _YEAR)
 
 #: Broad physical limits per parameter-name prefix (SI): values outside are absurd for a building.
 PHYSICAL_LIMITS: dict[str, tuple[float, float]] = {
@@ -49,9 +92,10 @@ class Flag:
 
     Attributes:
         kind: ``failed``, ``not_converged``, ``at_bound``, ``non_physical``, ``time_constant``,
-            ``not_identifiable``, ``poorly_identifiable``, ``wide_interval``, ``no_intervals``
-            (invalidating) or
-            ``fast_dynamics``, ``multistart``, ``residuals`` (warnings).
+            ``heat_loss``, ``capacity``, ``prediction``, ``implausible_data``, ``not_identifiable``,
+            ``poorly_identifiable``, ``wide_interval``, ``no_intervals`` (invalidating) or
+            ``fast_dynamics``, ``multistart``, ``residuals`` (warnings); ``at_bound`` and
+            ``implausible_data`` can be warnings too.
         parameters: the parameters concerned (may be empty).
         message: the reason in words.
         severe: True when it makes the model invalid.
@@ -130,25 +174,31 @@ def _fmt_time(seconds: float) -> str:
         return f"{seconds / 3600:.3g} h"
     if seconds < _YEAR:
         return f"{seconds / 86400:.3g} d"
-    return f"{seconds / _YEAR:.3g} years"
+    years = f"{seconds / _YEAR:.3g}"
+    return f"{years} year{'' if years == '1' else 's'}"
 
 
 def _fmt(value: float, unit: str) -> str:
     return f"{value:.4g} {unit}".rstrip()
 
 
-_STATE_MATRIX: dict = {}
+_STATE_SPACE: dict = {}
 
 
-def _state_matrix(model, params) -> np.ndarray:
-    """The state matrix A [1/s] at ``params`` (jitted once per model)."""
-    fn = _STATE_MATRIX.get(model)
+def _state_space(model, params) -> tuple[np.ndarray, ...]:
+    """(A, B, C, D) at ``params`` as numpy arrays (jitted once per model)."""
+    fn = _STATE_SPACE.get(model)
     if fn is None:
         import jax
 
-        fn = _STATE_MATRIX[model] = jax.jit(lambda theta: model.state_space(theta)[0])
+        fn = _STATE_SPACE[model] = jax.jit(model.state_space)
     theta = {k: np.asarray(v, dtype=float) for k, v in params.items()}
-    return np.asarray(fn(theta), dtype=float)
+    return tuple(np.asarray(m, dtype=float) for m in fn(theta))
+
+
+def _state_matrix(model, params) -> np.ndarray:
+    """The state matrix A [1/s] at ``params``."""
+    return _state_space(model, params)[0]
 
 
 def time_constants(model, params: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -179,126 +229,187 @@ def _limit(name: str, limits: Mapping[str, tuple[float, float]]):
     return None if best is None else best[1]
 
 
-def check_validity(
-    result,
-    uncertainty=None,
-    *,
-    max_rel_ci: float = 0.5,
-    bound_tol: float = 0.01,
-    tau_range: tuple[float, float] = (1.0, 10 * _YEAR),
-    limits: Mapping[str, tuple[float, float]] | None = None,
-    residuals=None,
-    check_intervals: bool = True,
-) -> Verdict:
-    """The validity verdict of a fit, with reasons.
+def _heat_inputs(model) -> list[str]:
+    """Inputs that are heat flows [W]: the heating ``Q_hea*`` if any, else every W input."""
+    watts = [u for u in model.inputs if signal_unit(u) == "W"]
+    heating = [u for u in watts if u.startswith("Q_hea")]
+    return heating or watts
 
-    Args:
-        result: a :class:`~jaxbox.fit.FitResult`.
-        uncertainty: its :class:`~jaxbox.validate.Uncertainty` (computed when ``None`` and
-            ``check_intervals``).
-        max_rel_ci: widest acceptable confidence interval, as a fraction of the value
-            (half-width; 0.5 accepts ``θ̂ ± 50 %``).
-        bound_tol: a free parameter within this fraction of its range (in the transform's
-            scale: logarithmic for R and C) from a bound is *near* the bound.
-        tau_range: acceptable time constants [s] (default 1 s … 10 years).
-        limits: physical limits per parameter name or name prefix (SI), merged over
-            :data:`PHYSICAL_LIMITS`; the lower limit of ``R_`` is exclusive.
-        residuals: an optional :class:`~jaxbox.validate.ResidualAnalysis`; non-white residuals
-            add a warning (never invalidate).
-        check_intervals: skip the interval and identifiability checks when False.
+
+def heat_loss_coefficients(model, params: Mapping[str, float]) -> dict[str, tuple[float, str]]:
+    """Heat-loss coefficient UA [W/K] seen by each heat input, from the state space.
+
+    At steady state ``0 = A x + B u``, so the outputs move by ``G = C (−A)⁻¹ B + D`` per unit of
+    input (nodes held at a constant temperature left out). For a heat input ``Q`` [W] (the
+    heating ``Q_hea*``, or every input in W when there is none) entering the zone of output
+    ``y``, ``G_yQ`` [K/W] is the zone's temperature rise per watt with every temperature input
+    held: its inverse is the heat flow per kelvin from the zone to ambient and boundaries, UA.
+    The output that the input warms most is used.
 
     Returns:
-        :class:`Verdict` (truthy when valid).
+        ``{input: (UA [W/K], output)}``; empty when the model has no heat input or its state
+        matrix is singular. UA is ``inf`` when the input does not warm any output and negative
+        when it cools one.
     """
-    model = result.model
-    specs = {s.name: s for s in model.parameters}
-    lims = dict(PHYSICAL_LIMITS)
-    lims.update(limits or {})
-    flags: list[Flag] = []
+    inputs = _heat_inputs(model)
+    if not inputs:
+        return {}
+    A, B, C, D = _state_space(model, params)
+    dyn = [i for i, n in enumerate(model.network.nodes) if not getattr(n, "constant", False)]
+    A, B, C = A[np.ix_(dyn, dyn)], B[dyn], C[:, dyn]
+    try:
+        G = C @ np.linalg.solve(-A, B) + D
+    except np.linalg.LinAlgError:
+        return {}
+    if not np.all(np.isfinite(G)):
+        return {}
+    out = {}
+    for u in inputs:
+        j = model.inputs.index(u)
+        k = int(np.argmax(G[:, j]))
+        gain = float(G[k, j])
+        out[u] = (1.0 / gain if gain != 0 else math.inf, model.outputs[k])
+    return out
 
-    # -- optimum -------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class _Judged:
+    """What every check reads: the fit, what was derived from it once, and the options of
+    :func:`check_validity`."""
+
+    result: object
+    specs: dict
+    finite: bool
+    failed: bool
+    tau: np.ndarray
+    A: np.ndarray | None
+    uncertainty: object
+    no_intervals: str | None
+    # the options of check_validity
+    max_rel_ci: float
+    bound_tol: float
+    tau_range: tuple[float, float]
+    limits: dict
+    residuals: object
+    check_intervals: bool
+    validation: object
+    max_rmse: float
+    max_rmse_ratio: float
+    rmse_floor: float
+    ua_range: tuple[float, float] | None
+    capacity_range: tuple[float, float] | None
+    slowest_tau_range: tuple[float, float] | None
+    check_data: bool
+    data_overrides: Mapping[str, tuple[float, float]] | None
+
+    @property
+    def model(self):
+        return self.result.model
+
+
+def _check_optimum(ctx: _Judged) -> list[Flag]:
+    result = ctx.result
     status = result.starts.status[result.best]
-    values = np.asarray([result.params[n] for n in model.param_names], dtype=float)
-    if status == "nonfinite" or not math.isfinite(result.cost) or not np.all(np.isfinite(values)):
-        flags.append(
+    if status == "nonfinite" or not math.isfinite(result.cost) or not ctx.finite:
+        return [
             Flag("failed", (), "the optimum is not finite: the fit failed; check data and bounds")
-        )
-    elif status.startswith("failed"):
-        flags.append(Flag("failed", (), f"the best start failed ({status}); the fit is not usable"))
-    elif not result.converged:
+        ]
+    if status.startswith("failed"):
+        return [Flag("failed", (), f"the best start failed ({status}); the fit is not usable")]
+    if not result.converged:
         steps = int(result.starts.steps[result.best])
-        flags.append(
+        return [
             Flag(
                 "not_converged",
                 (),
                 f"the best start stopped at the step cap ({steps} iterations) without "
                 "converging: raise max_steps, add starts or check the bounds",
             )
-        )
+        ]
+    return []
 
-    # -- bounds ----------------------------------------------------------------------------------
-    tau, _ = time_constants(model, result.params) if np.all(np.isfinite(values)) else ([], [])
-    tau = np.asarray(tau, dtype=float)
-    A = _state_matrix(model, result.params) if np.all(np.isfinite(values)) else None
-    nodes = list(model.network.nodes)
+
+def _excludes_bound(ctx: _Judged, name: str, bound: float) -> str | None:
+    """The interval of ``name`` when it excludes ``bound`` (in words), else None."""
+    unc = ctx.uncertainty
+    if unc is None or name not in unc.names:
+        return None
+    lo, hi = unc.ci95[unc.names.index(name)]
+    if np.isfinite(lo) and np.isfinite(hi) and not lo <= bound <= hi:
+        return f"its {round(100 * unc.level)} % interval [{lo:.4g}, {hi:.4g}]"
+    return None
+
+
+def _check_bounds(ctx: _Judged) -> list[Flag]:
+    result, specs = ctx.result, ctx.specs
+    nodes = list(ctx.model.network.nodes)
     with np.errstate(invalid="ignore", divide="ignore"):  # a non-physical value: nan position
         pos = result.bound_position()
-    bounds = result.bounds
-    near: dict[str, tuple[int, float]] = {}  # "near" (not "at") a bound: flag index, bound
+    flags = []
     for n in result.free:
         x = pos.get(n, float("nan"))
-        if not np.isfinite(x):
+        if not np.isfinite(x) or ctx.bound_tol <= x <= 1 - ctx.bound_tol:
             continue
-        if x < bound_tol or x > 1 - bound_tol:
-            side = "lower" if x < 0.5 else "upper"
-            lo, hi = bounds[n]
-            b = lo if side == "lower" else hi
-            unit = specs[n].unit
-            on = "at" if min(x, 1 - x) < 1e-3 else "near"
-            if specs[n].is_initial_state:
-                node = next((i for i, m in enumerate(nodes) if m.T0 == n), None)
-                extra = ""
-                if node is not None and A is not None and A[node, node] < 0:
-                    extra = f" (its own time constant is {_fmt_time(-1.0 / A[node, node])})"
-                msg = (
-                    f"initial temperature {n} = {_fmt(result.params[n], unit)} is pinned {on} its "
-                    f"{side} bound {_fmt(b, unit)}{extra}: a slow state started at a limit "
+        side = "lower" if x < 0.5 else "upper"
+        lo, hi = result.bounds[n]
+        b = lo if side == "lower" else hi
+        unit = specs[n].unit
+        on = "at" if min(x, 1 - x) < 1e-3 else "near"
+        if specs[n].is_initial_state:
+            node = next((i for i, m in enumerate(nodes) if m.T0 == n), None)
+            extra = ""
+            if node is not None and ctx.A is not None and ctx.A[node, node] < 0:
+                extra = f" (its own time constant is {_fmt_time(-1.0 / ctx.A[node, node])})"
+            flags.append(
+                Flag(
+                    "at_bound",
+                    (n,),
+                    f"initial temperature {n} = {_fmt(result.params[n], unit)} is pinned {on} "
+                    f"its {side} bound {_fmt(b, unit)}{extra}: a slow state started at a limit "
                     "biases the energy balance; narrow its bounds from physical insight (e.g. "
-                    "between the zone and ambient or boundary temperatures) or fix it"
+                    "between the zone and ambient or boundary temperatures) or fix it",
                 )
-            else:
-                msg = (
-                    f"{n} = {_fmt(result.params[n], unit)} is {on} its {side} bound "
-                    f"{_fmt(b, unit)}: the bounds cut the optimum; the model structure does not "
-                    "suit the data, or the bound is too tight"
-                )
-                if on == "near":
-                    near[n] = (len(flags), b)
-            flags.append(Flag("at_bound", (n,), msg))
+            )
+            continue
+        msg = (
+            f"{n} = {_fmt(result.params[n], unit)} is {on} its {side} bound {_fmt(b, unit)}: the "
+            "bounds cut the optimum; the model structure does not suit the data, or the bound "
+            "is too tight"
+        )
+        # near (not at) a bound but significantly away from it: a warning, not a reason
+        interval = _excludes_bound(ctx, n, b) if on == "near" and ctx.check_intervals else None
+        if interval is not None:
+            msg += f" ({interval} excludes the bound, so the estimate stands)"
+        flags.append(Flag("at_bound", (n,), msg, severe=interval is None))
+    return flags
 
-    # -- physical values ---------------------------------------------------------------------
-    for n in model.param_names:
-        v = result.params[n]
-        rng = _limit(n, lims)
+
+def _check_physical(ctx: _Judged) -> list[Flag]:
+    flags = []
+    for n in ctx.model.param_names:
+        v = ctx.result.params[n]
+        rng = _limit(n, ctx.limits)
         if rng is None or not np.isfinite(v):
             continue
         lo, hi = rng
-        unit = specs[n].unit
-        bad_low = v <= lo if n.startswith("R_") and lo == 0 else v < lo
-        if bad_low or v > hi:
+        unit = ctx.specs[n].unit
+        open_low = n.startswith("R_") and lo == 0
+        if (v <= lo if open_low else v < lo) or v > hi:
             flags.append(
                 Flag(
                     "non_physical",
                     (n,),
                     f"{n} = {_fmt(v, unit)} is not physical for a building (expected "
-                    f"{'>' if n.startswith('R_') and lo == 0 else '≥'} {lo:g} and ≤ {hi:g} "
-                    f"{unit})",
+                    f"{'>' if open_low else '≥'} {lo:g} and ≤ {hi:g} {unit})",
                 )
             )
+    return flags
 
-    # -- time constants ----------------------------------------------------------------------
-    tmin, tmax = tau_range
-    for t in tau:
+
+def _check_time_constants(ctx: _Judged) -> list[Flag]:
+    tmin, tmax = ctx.tau_range
+    flags = []
+    for t in ctx.tau:
         if not np.isfinite(t) or t <= 0:
             flags.append(
                 Flag(
@@ -317,61 +428,207 @@ def check_validity(
                     f"{_fmt_time(tmax)}: not physical for a building",
                 )
             )
-    step = float(result.data.step)
-    fast = [t for t in tau if np.isfinite(t) and 0 < t < step and tmin <= t]
-    if fast:
-        flags.append(
-            Flag(
-                "fast_dynamics",
-                (),
-                f"time constant {_fmt_time(min(fast))} is shorter than the sampling step "
-                f"{_fmt_time(step)}: the data do not resolve it",
-                severe=False,
-            )
+    return flags
+
+
+def _check_slowest_mode(ctx: _Judged) -> list[Flag]:
+    tau = ctx.tau
+    if ctx.slowest_tau_range is None or tau.size == 0 or not np.all(np.isfinite(tau) & (tau > 0)):
+        return []  # no modes, or a non-decaying one (flagged above)
+    slowest = float(np.max(tau))
+    lo, hi = ctx.slowest_tau_range
+    tmin, tmax = ctx.tau_range
+    if lo <= slowest <= hi or not tmin <= slowest <= tmax:  # in range, or flagged above
+        return []
+    how = "fast" if slowest < lo else "slowly"
+    return [
+        Flag(
+            "time_constant",
+            (),
+            f"the slowest time constant {_fmt_time(slowest)} lies outside {_fmt_time(lo)} … "
+            f"{_fmt_time(hi)}: no building settles that {how}; check the units of the data "
+            "(kW for W, °F for °C) and the bounds",
         )
+    ]
 
-    # -- intervals and identifiability ---------------------------------------------------------
-    if check_intervals and uncertainty is None and not any(f.kind == "failed" for f in flags):
-        from ._uncertainty import uncertainty as _uncertainty
 
-        try:
-            uncertainty = _uncertainty(result)
-        except ValueError as err:  # no degrees of freedom left
-            flags.append(Flag("no_intervals", (), f"no confidence intervals: {err}"))
-    if check_intervals and uncertainty is not None:
-        for c in uncertainty.combinations:
-            kind = "not_identifiable" if c.singular else "poorly_identifiable"
-            flags.append(Flag(kind, c.parameters, c.text))
-        pct = round(100 * uncertainty.level)
-        # near (not at) a bound but significantly away from it: a warning, not a reason
-        for n, (k, b) in near.items():
-            if n not in uncertainty.names:
+def _check_fast_dynamics(ctx: _Judged) -> list[Flag]:
+    step = float(ctx.result.data.step)
+    tmin = ctx.tau_range[0]
+    fast = [t for t in ctx.tau if np.isfinite(t) and 0 < t < step and tmin <= t]
+    if not fast:
+        return []
+    return [
+        Flag(
+            "fast_dynamics",
+            (),
+            f"time constant {_fmt_time(min(fast))} is shorter than the sampling step "
+            f"{_fmt_time(step)}: the data do not resolve it",
+            severe=False,
+        )
+    ]
+
+
+def _check_heat_loss(ctx: _Judged) -> list[Flag]:
+    if ctx.ua_range is None or not ctx.finite:
+        return []
+    lo, hi = ctx.ua_range
+    flags = []
+    for u, (ua, y) in heat_loss_coefficients(ctx.model, ctx.result.params).items():
+        if lo <= ua <= hi:
+            continue
+        what = f"heat-loss coefficient UA = {ua:.3g} W/K (steady-state {u} per K of {y})"
+        if not ua > 0:
+            msg = f"{what} is not positive: {u} cools the zone at steady state; not physical"
+        elif ua < lo:
+            msg = (
+                f"{what} is below {lo:g} W/K, less than any building: with {u} in kW instead "
+                f"of W, UA and the capacities come out 1000× too small; load it with "
+                f"scale={{'{u}': 1000}} (--scale {u}=1000)"
+            )
+        else:
+            msg = f"{what} is above {hi:g} W/K, more than any building: check the units of {u}"
+        flags.append(Flag("heat_loss", (), msg))
+    return flags
+
+
+def _check_capacity(ctx: _Judged) -> list[Flag]:
+    if ctx.capacity_range is None or not ctx.finite:
+        return []
+    names = [n.C for n in ctx.model.network.nodes if not getattr(n, "constant", False)]
+    if not names:
+        return []
+    total = float(sum(ctx.result.params[n] for n in names))
+    lo, hi = ctx.capacity_range
+    if lo <= total <= hi:
+        return []
+    what = f"total heat capacity {total:.3g} J/K ({' + '.join(names)})"
+    if total < lo:
+        heat = _heat_inputs(ctx.model)
+        kw = (
+            f"; with {heat[0]} in kW instead of W the capacities come out 1000× too small "
+            f"(scale={{'{heat[0]}': 1000}}, --scale {heat[0]}=1000)"
+            if heat
+            else ""
+        )
+        msg = f"{what} is below {lo:.3g} J/K, less than any building{kw}"
+    else:
+        msg = f"{what} is above {hi:.3g} J/K, more than any building: check the units of the data"
+    return [Flag("capacity", tuple(names), msg)]
+
+
+def _check_prediction(ctx: _Judged) -> list[Flag]:
+    v = ctx.validation
+    if v is None:
+        return []
+    flags = []
+    for name, auto in v.rmse_auto.items():
+        cross = None if v.rmse_cross is None else v.rmse_cross.get(name)
+        for period, value in (("identification", auto), ("validation", cross)):
+            if value is None:
                 continue
-            lo, hi = uncertainty.ci95[uncertainty.names.index(n)]
-            if np.isfinite(lo) and np.isfinite(hi) and not lo <= b <= hi:
-                f = flags[k]
-                flags[k] = dataclasses.replace(
-                    f,
-                    message=f"{f.message} (its {pct} % interval [{lo:.4g}, {hi:.4g}] excludes "
-                    "the bound, so the estimate stands)",
-                    severe=False,
-                )
-        for i, n in enumerate(uncertainty.names):
-            r = uncertainty.rel_ci[i]
-            if np.isfinite(uncertainty.std[i]) and r > max_rel_ci:
+            if not math.isfinite(value) or value > ctx.max_rmse:
                 flags.append(
                     Flag(
-                        "wide_interval",
-                        (n,),
-                        f"{n}: the {pct} % confidence interval is ±{100 * r:.3g} % of its value "
-                        f"(more than ±{100 * max_rel_ci:.3g} %): the data hardly determine it",
+                        "prediction",
+                        (),
+                        f"the {period} RMSE of {name} is {value:.4g} K (limit {ctx.max_rmse:g} "
+                        "K): the model does not reproduce the data, or the data are corrupt "
+                        "(spikes, units; see jaxbox.data.check_plausibility)",
                     )
                 )
+        if cross is None or not math.isfinite(cross) or cross > ctx.max_rmse:
+            continue
+        ratio = cross / auto if auto > 0 else math.inf
+        if ratio > ctx.max_rmse_ratio and cross > ctx.rmse_floor:
+            flags.append(
+                Flag(
+                    "prediction",
+                    (),
+                    f"the validation RMSE of {name} is {cross:.3g} K, {ratio:.3g}× its "
+                    f"identification RMSE {auto:.3g} K (limit {ctx.max_rmse_ratio:g}×): the "
+                    "model does not predict unseen data, or the validation data are corrupt",
+                )
+            )
+    return flags
 
-    # -- warnings ------------------------------------------------------------------------------
-    st = result.starts
-    if st.n > 1 and st.n_at_best() == 1:
+
+def _validation_dataset(validation):
+    """The validation window (measured inputs and outputs) as a Dataset, or None."""
+    if validation is None or validation.y_cross is None or validation.u_cross is None:
+        return None
+    signals = {n: validation.u_cross[:, j] for j, n in enumerate(validation.inputs)}
+    signals.update({n: validation.y_cross[:, j] for j, n in enumerate(validation.outputs)})
+    return Dataset.from_arrays(validation.index_cross, signals, check=False)
+
+
+def _check_data(ctx: _Judged) -> list[Flag]:
+    if not ctx.check_data:
+        return []
+    model = ctx.model
+    columns = list(dict.fromkeys([*model.inputs, *model.outputs]))
+    flags = []
+    for what, get in (
+        ("identification data", lambda: ctx.result.data),
+        ("validation data", lambda: _validation_dataset(ctx.validation)),
+    ):
+        try:
+            data = get()
+            if data is None:
+                continue
+            found = find_implausible(
+                data,
+                columns=[c for c in columns if c in data],
+                overrides=ctx.data_overrides,
+            )
+        except DataError as err:
+            found = [Finding("", "data", str(err))]
+        errors = [f for f in found if f.severe]
+        for f in errors[:1] + [f for f in found if not f.severe]:
+            flags.append(
+                Flag(
+                    "implausible_data",
+                    (),
+                    f"{what}: {f.message}"
+                    + (f" ({len(errors) - 1} more problem(s))" if f.severe and errors[1:] else ""),
+                    severe=f.severe,
+                )
+            )
+    return flags
+
+
+def _check_intervals(ctx: _Judged) -> list[Flag]:
+    if not ctx.check_intervals:
+        return []
+    if ctx.no_intervals is not None:
+        return [Flag("no_intervals", (), f"no confidence intervals: {ctx.no_intervals}")]
+    unc = ctx.uncertainty
+    if unc is None:
+        return []
+    flags = []
+    for c in unc.combinations:
         flags.append(
+            Flag("not_identifiable" if c.singular else "poorly_identifiable", c.parameters, c.text)
+        )
+    pct = round(100 * unc.level)
+    for i, n in enumerate(unc.names):
+        r = unc.rel_ci[i]
+        if np.isfinite(unc.std[i]) and r > ctx.max_rel_ci:
+            flags.append(
+                Flag(
+                    "wide_interval",
+                    (n,),
+                    f"{n}: the {pct} % confidence interval is ±{100 * r:.3g} % of its value "
+                    f"(more than ±{100 * ctx.max_rel_ci:.3g} %): the data hardly determine it",
+                )
+            )
+    return flags
+
+
+def _check_multistart(ctx: _Judged) -> list[Flag]:
+    st = ctx.result.starts
+    if st.n > 1 and st.n_at_best() == 1:
+        return [
             Flag(
                 "multistart",
                 (),
@@ -379,22 +636,157 @@ def check_validity(
                 "trust the global optimum; add starts",
                 severe=False,
             )
-        )
-    if residuals is not None:
-        for o in residuals:
-            if not o.white:
-                flags.append(
-                    Flag(
-                        "residuals",
-                        (),
-                        f"residuals of {o.name} are not white (Ljung–Box p = "
-                        f"{o.ljung_box.p_value:.2g}, cumulated periodogram p = "
-                        f"{o.periodogram.p_value:.2g}): dynamics or inputs are missing, and "
-                        "the confidence intervals, which assume white residuals, are too narrow",
-                        severe=False,
-                    )
-                )
+        ]
+    return []
 
+
+def _check_residuals(ctx: _Judged) -> list[Flag]:
+    if ctx.residuals is None:
+        return []
+    return [
+        Flag(
+            "residuals",
+            (),
+            f"residuals of {o.name} are not white (Ljung–Box p = {o.ljung_box.p_value:.2g}, "
+            f"cumulated periodogram p = {o.periodogram.p_value:.2g}): dynamics or inputs are "
+            "missing, and the confidence intervals, which assume white residuals, are too narrow",
+            severe=False,
+        )
+        for o in ctx.residuals
+        if not o.white
+    ]
+
+
+#: The checks in the order their flags are reported.
+_CHECKS: tuple[Callable[[_Judged], list[Flag]], ...] = (
+    _check_optimum,
+    _check_bounds,
+    _check_physical,
+    _check_time_constants,
+    _check_slowest_mode,
+    _check_fast_dynamics,
+    _check_heat_loss,
+    _check_capacity,
+    _check_prediction,
+    _check_data,
+    _check_intervals,
+    _check_multistart,
+    _check_residuals,
+)
+
+
+def _judged(result, uncertainty, **options) -> _Judged:
+    """The context of the checks: derived quantities computed once, uncertainty resolved."""
+    model = result.model
+    values = np.asarray([result.params[n] for n in model.param_names], dtype=float)
+    finite = bool(np.all(np.isfinite(values)))
+    status = result.starts.status[result.best]
+    failed = (
+        status == "nonfinite"
+        or status.startswith("failed")
+        or not math.isfinite(result.cost)
+        or not finite
+    )
+    tau = np.asarray(time_constants(model, result.params)[0] if finite else [], dtype=float)
+    A = _state_matrix(model, result.params) if finite else None
+    no_intervals = None
+    if options["check_intervals"] and uncertainty is None and not failed:
+        from ._uncertainty import uncertainty as _uncertainty
+
+        try:
+            uncertainty = _uncertainty(result)
+        except ValueError as err:  # no degrees of freedom left
+            no_intervals = str(err)
+    return _Judged(
+        result=result,
+        specs={s.name: s for s in model.parameters},
+        finite=finite,
+        failed=failed,
+        tau=tau,
+        A=A,
+        uncertainty=uncertainty if options["check_intervals"] else None,
+        no_intervals=no_intervals,
+        **options,
+    )
+
+
+def check_validity(
+    result,
+    uncertainty=None,
+    *,
+    max_rel_ci: float = 0.5,
+    bound_tol: float = 0.01,
+    tau_range: tuple[float, float] = (1.0, 10 * _YEAR),
+    limits: Mapping[str, tuple[float, float]] | None = None,
+    residuals=None,
+    check_intervals: bool = True,
+    validation=None,
+    max_rmse: float = MAX_RMSE,
+    max_rmse_ratio: float = MAX_RMSE_RATIO,
+    rmse_floor: float = RMSE_FLOOR,
+    ua_range: tuple[float, float] | None = UA_RANGE,
+    capacity_range: tuple[float, float] | None = CAPACITY_RANGE,
+    slowest_tau_range: tuple[float, float] | None = SLOWEST_TAU_RANGE,
+    check_data: bool = True,
+    data_overrides: Mapping[str, tuple[float, float]] | None = None,
+) -> Verdict:
+    """The validity verdict of a fit, with reasons.
+
+    Args:
+        result: a :class:`~jaxbox.fit.FitResult`.
+        uncertainty: its :class:`~jaxbox.validate.Uncertainty` (computed when ``None`` and
+            ``check_intervals``).
+        max_rel_ci: widest acceptable confidence interval, as a fraction of the value
+            (half-width; 0.5 accepts ``θ̂ ± 50 %``).
+        bound_tol: a free parameter within this fraction of its range (in the transform's
+            scale: logarithmic for R and C) from a bound is *near* the bound.
+        tau_range: acceptable time constants [s] (default 1 s … 10 years).
+        limits: physical limits per parameter name or name prefix (SI), merged over
+            :data:`PHYSICAL_LIMITS`; the lower limit of ``R_`` is exclusive.
+        residuals: an optional :class:`~jaxbox.validate.ResidualAnalysis`; non-white residuals
+            add a warning (never invalidate).
+        check_intervals: skip the interval and identifiability checks when False.
+        validation: the :class:`~jaxbox.validate.Validation` of ``result`` (from
+            :func:`~jaxbox.validate.validate`); without it the prediction is not judged and
+            only the identification data are checked for plausibility.
+        max_rmse: largest plausible RMSE [K] of an output, on identification or validation
+            data (default 5 K).
+        max_rmse_ratio: largest validation RMSE as a multiple of the identification RMSE
+            (default 10), applied when the validation RMSE is above ``rmse_floor`` [K]
+            (default 0.5 K: a small error is fine whatever the ratio).
+        ua_range: plausible heat-loss coefficient [W/K] (:func:`heat_loss_coefficients`;
+            default 1 … 1e5 W/K); ``None`` skips the check.
+        capacity_range: plausible total heat capacity [J/K] of the model's nodes (default
+            1e5 … 1e12 J/K); ``None`` skips the check.
+        slowest_tau_range: plausible slowest time constant [s] (default 10 min … 1 year);
+            ``None`` skips the check.
+        check_data: check the model's columns of the identification data (and of the
+            validation data, with ``validation``) with :func:`jaxbox.data.find_implausible`.
+        data_overrides: plausible ranges per column for that check (``{"T_zon": (lo, hi)}``).
+
+    Returns:
+        :class:`Verdict` (truthy when valid).
+    """
+    ctx = _judged(
+        result,
+        uncertainty,
+        max_rel_ci=max_rel_ci,
+        bound_tol=bound_tol,
+        tau_range=tau_range,
+        limits={**PHYSICAL_LIMITS, **(limits or {})},
+        residuals=residuals,
+        check_intervals=check_intervals,
+        validation=validation,
+        max_rmse=max_rmse,
+        max_rmse_ratio=max_rmse_ratio,
+        rmse_floor=rmse_floor,
+        ua_range=ua_range,
+        capacity_range=capacity_range,
+        slowest_tau_range=slowest_tau_range,
+        check_data=check_data,
+        data_overrides=data_overrides,
+    )
+    flags = [flag for check in _CHECKS for flag in check(ctx)]
     reasons = tuple(f.message for f in flags if f.severe)
     warnings = tuple(f.message for f in flags if not f.severe)
     return Verdict(
@@ -402,5 +794,5 @@ def check_validity(
         reasons=reasons,
         warnings=warnings,
         flags=tuple(flags),
-        time_constants=np.asarray(tau, dtype=float),
+        time_constants=ctx.tau,
     )

@@ -1,0 +1,297 @@
+"""DATA on the command line: the options that read and split it, checked before anything is
+loaded (:class:`DataOptions`); bundled datasets by their exact names, anything else a path;
+loading, splitting into the ``--train``/``--validate`` windows and checking them
+(:func:`load_all`)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from ._common import (
+    UsageError,
+    bounds,
+    check_interrupted,
+    cli_message,
+    pairs,
+    period,
+    resample_rule,
+    scale,
+    separator,
+)
+from ._outputs import reason
+
+__all__ = ["DATA_HELP", "DataOptions", "add_data_arguments", "load_all", "load_data", "slug"]
+
+
+#: The fewest samples of an identification or validation period (the residual tests of
+#: :mod:`jaxbox.validate` need 4).
+MIN_SAMPLES = 4
+
+DATA_HELP = (
+    "CSV file with a 'time' column and canonical columns (T_zon, T_amb, Q_hea, I_glo_hor, …), "
+    "or a bundled dataset by its exact name: twinhouse_exp1:N2, twinhouse_exp1:O5 (add @10min "
+    "for 10-minute data)"
+)
+
+
+def add_data_arguments(p) -> None:
+    """DATA and the options that read and split it (shared by ``fit`` and ``select``)."""
+    p.add_argument(
+        "data",
+        metavar="DATA",
+        nargs="+",
+        help=DATA_HELP + "; several DATA of the same length are fitted together in one batch",
+    )
+    p.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="CANONICAL=COLUMN",
+        help="take canonical signal CANONICAL from your column COLUMN (repeatable)",
+    )
+    p.add_argument(
+        "--time",
+        "--time-column",
+        dest="time",
+        metavar="COLUMN",
+        help="name of the time column (default: time)",
+    )
+    p.add_argument("--sep", metavar="CHAR", help="column separator of the CSV (default ',')")
+    p.add_argument(
+        "--decimal", metavar="CHAR", help="decimal mark of the CSV: '.' (default) or ','"
+    )
+    p.add_argument(
+        "--scale",
+        action="append",
+        default=[],
+        metavar="COLUMN=FACTOR",
+        help="multiply canonical column COLUMN by FACTOR, e.g. Q_hea=1000 for kW (repeatable)",
+    )
+    p.add_argument(
+        "--range",
+        action="append",
+        default=[],
+        metavar="COLUMN=LO:HI",
+        help="plausible range of COLUMN where the default does not fit, e.g. T_zon=-10:60 "
+        "(repeatable)",
+    )
+    p.add_argument(
+        "--resample", metavar="RULE", help="resample first, e.g. 1h (mean, right-closed)"
+    )
+    p.add_argument(
+        "--train", metavar="START..END", help="identification period (default: first half)"
+    )
+    p.add_argument("--validate", metavar="START..END", help="validation period (default: the rest)")
+
+
+class DataOptions:
+    """The checked data options of a command line (before anything is loaded)."""
+
+    def __init__(self, args) -> None:
+        self.specs = list(args.data)
+        self.columns = pairs(args.map, "--map", "T_zon=living_temp")
+        self.time = args.time
+        if self.time is not None and not self.time.strip():
+            raise UsageError("--time is empty; give the name of the time column")
+        self.sep = separator(args.sep, "--sep")
+        self.decimal = separator(args.decimal, "--decimal", ".,")
+        if self.sep is not None and self.sep == (self.decimal or "."):
+            raise UsageError(
+                f"--sep and --decimal are both {self.sep!r}; with --decimal ',' use --sep ';'"
+            )
+        self.scale = scale(args.scale)
+        self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
+        self.resample = resample_rule(args.resample)
+        self.train_text, self.valid_text = args.train, args.validate
+        self.train = period(args.train, "--train")
+        self.valid = period(args.validate, "--validate")
+        self._check_specs()
+
+    @property
+    def csv_options(self) -> dict:
+        return {
+            "--map": self.columns,
+            "--time": self.time,
+            "--sep": self.sep,
+            "--decimal": self.decimal,
+            "--scale": self.scale,
+        }
+
+    def _check_specs(self) -> None:
+        from ..datasets import NAMES, is_bundled
+
+        seen: dict[object, str] = {}
+        for spec in self.specs:
+            if not spec.strip():
+                raise UsageError("a DATA argument is empty; give a CSV file or a bundled name")
+            if is_bundled(spec):
+                used = [k for k, v in self.csv_options.items() if v]
+                if used:
+                    raise UsageError(
+                        f"{used[0]} applies to CSV files, not to the bundled dataset {spec}"
+                    )
+                key: object = spec
+            else:
+                path = Path(spec)
+                try:
+                    exists, is_dir = path.exists(), path.is_dir()
+                except (OSError, ValueError) as err:
+                    raise UsageError(f"DATA {spec!r}: {reason(err)}") from None
+                if not exists:
+                    hint = ""
+                    if spec.split(":")[0].split("@")[0] in {n.split(":")[0] for n in NAMES}:
+                        hint = f"; bundled datasets are named exactly {', '.join(NAMES)}"
+                    raise UsageError(
+                        f"DATA {spec!r}: file not found (relative paths are taken from "
+                        f"{os.getcwd()!r}){hint}"
+                    )
+                if is_dir:
+                    raise UsageError(f"DATA {spec!r} is a folder; give the path of a CSV file")
+                if not os.access(path, os.R_OK):
+                    raise UsageError(f"DATA {spec!r}: the file cannot be read (permissions)")
+                st = path.stat()
+                key = (st.st_dev, st.st_ino)
+            if key in seen:
+                same = "" if seen[key] == spec else f" (as {seen[key]!r} and {spec!r})"
+                raise UsageError(f"the same DATA is given twice{same}; give each dataset once")
+            seen[key] = spec
+
+
+def load_data(spec: str, opts: DataOptions | None = None):
+    """A dataset from a CSV path or a bundled name (exactly ``twinhouse_exp1:N2[@10min]``)."""
+    from ..data import load
+    from ..datasets import bundled, is_bundled
+
+    if is_bundled(spec):
+        data = bundled(spec)
+        rule = opts.resample if opts else None
+        return data.resample(rule) if rule else data
+    if opts is None:
+        return load(spec)
+    return load(
+        spec,
+        time=opts.time,
+        columns=opts.columns or None,
+        resample=opts.resample,
+        sep=opts.sep,
+        decimal=opts.decimal,
+        scale=opts.scale or None,
+    )
+
+
+def split_periods(data, opts: DataOptions):
+    """Identification and validation datasets from the ``--train`` and ``--validate`` periods
+    (default: the halves), each of at least :data:`MIN_SAMPLES`, in this order."""
+    train, valid = opts.train, opts.valid
+    if train is None and valid is None:
+        ident, val = data.split()
+    else:
+        ident, val = _windows(data, opts)
+    windows = ((ident, "identification", "--train"), (val, "validation", "--validate"))
+    for window, what, option in windows:
+        if len(window) < MIN_SAMPLES:
+            fix = f"widen {option}" if _option_given(opts, option) else "give more data"
+            raise UsageError(
+                f"the {what} period ({window.start} .. {window.end}) holds {len(window)} "
+                f"sample(s); at least {MIN_SAMPLES} are needed: {fix}"
+            )
+    if val.start <= ident.end:
+        raise UsageError(
+            f"the validation period ({val.start} .. {val.end}) must start after the "
+            f"identification period ends ({ident.end}); adjust --train or --validate"
+        )
+    return ident, val
+
+
+def _option_given(opts: DataOptions, option: str) -> bool:
+    return (opts.train if option == "--train" else opts.valid) is not None
+
+
+def _windows(data, opts: DataOptions):
+    """The ``--train`` and ``--validate`` windows, one of them perhaps from the other."""
+    from ..data import DataError
+
+    def cut(span, option, text):
+        try:
+            return data.slice(*span)
+        except DataError as err:
+            raise UsageError(f"{option} {text}: {err}") from None
+
+    train, valid = opts.train, opts.valid
+    val = cut(valid, "--validate", opts.valid_text) if valid is not None else None
+    if train is not None:
+        ident = cut(train, "--train", opts.train_text)
+    else:
+        before = data.index[data.index < val.start]
+        if len(before) == 0:
+            raise UsageError(
+                f"--validate {opts.valid_text}: no data before the validation period to identify "
+                f"on (the data start at {data.start}); give --train or start --validate later"
+            )
+        ident = data.slice(None, before[-1])
+    if val is None:
+        rest = data.index[data.index > ident.end]
+        if len(rest) == 0:
+            raise UsageError(
+                "no data left after the identification period for validation (the data end at "
+                f"{data.end}); shorten --train or give --validate"
+            )
+        val = data.slice(rest[0], None)
+    return ident, val
+
+
+def check_windows(ident, valid, columns=None, ranges=None) -> None:
+    """The physical plausibility of the signals (``columns``, default every canonical one) in
+    the windows actually used (``ranges``: the ``--range`` overrides); warnings (uncertain
+    findings) go to stderr."""
+    from ..data import check_plausibility
+
+    for data, what in ((ident, "identification data"), (valid, "validation data")):
+        notes = check_plausibility(
+            data, overrides=ranges or None, columns=columns, what=what, warn=False
+        )
+        for note in notes:
+            print(f"warning: {cli_message(note)}", file=sys.stderr, flush=True)
+
+
+def load_all(args, opts: DataOptions | None = None, *, model=None):
+    """Every DATA of the command line, loaded, split and checked: ``[(spec, data, ident, valid),
+    …]``. With ``model``, its inputs and outputs must be columns of each."""
+    from ..data import DataError
+
+    opts = opts or DataOptions(args)
+    out = []
+    for spec in opts.specs:
+        try:
+            data = load_data(spec, opts)
+            ident, valid = split_periods(data, opts)
+            columns = None
+            if model is not None:
+                columns = list(model.inputs) + list(model.outputs)
+                ident.require(columns, what=f"model {model.name}")
+            check_windows(ident, valid, columns, opts.ranges)
+        except (DataError, UsageError) as err:
+            if len(opts.specs) == 1:
+                raise
+            raise type(err)(f"{spec}: {err}") from None  # which of the files
+        check_interrupted()
+        out.append((spec, data, ident, valid))
+    return out
+
+
+def slug(spec: str, specs: Sequence[str] = ()) -> str:
+    """A folder name for a DATA argument, unique among ``specs`` (the numbered position is
+    prefixed when two share a name)."""
+    from ..datasets import is_bundled
+
+    def name(x: str) -> str:
+        base = x if is_bundled(x) else Path(x).stem
+        return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in base) or "data"
+
+    out = name(spec)
+    if [name(x) for x in specs].count(out) > 1:
+        out = f"{list(specs).index(spec) + 1}-{out}"
+    return out

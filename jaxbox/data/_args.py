@@ -1,0 +1,33 @@
+"""Checks of the types of keyword arguments at the public boundary."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["check_mapping"]
+
+
+def check_mapping(value: Any, name: str, example: str | None = None) -> dict:
+    """Return ``value`` as a new dict, or ``{}`` for ``None``; refuse anything but a mapping.
+
+    Args:
+        value: the argument as given.
+        name: the argument's name, for the message (``"columns"``, ``"bounds"``...).
+        example: an example of a valid value for the message, e.g. ``"{'Q_hea': 1000}"``.
+
+    Raises:
+        TypeError: ``value`` is a list, a string, a number... and not a mapping. The message
+            names the argument, what it got and what it takes.
+    """
+    if value is None:
+        return {}
+    if isinstance(value, Mapping):
+        return dict(value)
+    got = f"a {type(value).__name__}"
+    if isinstance(value, str):
+        got = f"the string {value!r}"
+    elif isinstance(value, (list, tuple, set)):
+        got = f"{got} of {len(value)} item(s)"
+    hint = f" such as {name}={example}" if example else ""
+    raise TypeError(f"{name} must be a mapping (a dict{hint}), got {got}.")

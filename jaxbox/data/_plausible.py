@@ -1,0 +1,578 @@
+"""Physical plausibility of the signals in the periods actually used for identification and
+validation.
+
+:func:`check_plausibility` looks at every canonical column of a dataset (or of a slice of it)
+and refuses values that no building produces or that betray a unit or sensor problem:
+
+* ``infinite`` / ``absurd`` — an infinity or a magnitude beyond :data:`~jaxbox.data._checks.ABSURD`
+  (logger error codes such as ``1e300``);
+* ``kelvin`` — temperatures about 273 K above the plausible range, in the whole column or only
+  in part of it (a logger that switched units);
+* ``fahrenheit`` — a column mostly above the plausible range but plausible in °F, or a zone
+  temperature whose median is above 40 °C (°F in part of a column is a ``range`` error that
+  says so);
+* ``range`` — values outside the plausible range of their kind (:data:`PLAUSIBLE_RANGES`,
+  overridable per column with ``overrides={column: (lo, hi)}``);
+* ``jump`` — a temperature whose median over 11 samples changes by more than 20 K from one
+  sample to the next (a change of unit or of sensor);
+* ``spike`` — isolated samples far from their neighbours: for a temperature, farther than
+  ``max(5 K, spike_k · σ)`` from the median of the 5 samples around it (a Hampel filter; σ is
+  the robust standard deviation ``1.4826 · MAD`` of the sample-to-sample differences); for a
+  power, more than 20 times the 99th percentile of its magnitudes;
+* ``stuck`` — a temperature that does not change at all for ``stuck_hours`` (24 h) or more;
+* ``kilowatt`` — heating power that looks like kW (see below).
+
+**The kW heuristic.** A heating column ``Q_hea*`` that is not zero but peaks below 50 W cannot
+heat a building. When the data also hold a zone temperature ``T_zon*`` and ``T_amb`` whose mean
+difference is at least 3 K, the mean heating power per kelvin of that difference, a lower
+bound of the heat-loss coefficient when the heating covers the losses (solar and internal gains
+only add to it), is computed: below 1 W/K (no building loses so little) the column is refused
+as kW; otherwise, or without those temperatures, a warning is given. Declaring the range of the
+column with ``overrides`` (e.g. ``{"Q_hea": (0, 40)}`` for a small test cell) turns the
+heuristic off. Irradiance that peaks below 1.5 W/m² over at least a day gives a warning
+(kW/m²?).
+
+Every refusal raises :class:`~jaxbox.data.DataError` naming the column, the first time stamps
+and their count, and what to do (with the Python keyword and the command-line option).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from collections.abc import Callable, Iterable, Mapping
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from ._args import check_mapping
+from ._checks import ABSURD, ABSURD_OTHER, rows_text
+from ._errors import DataError, DataWarning, list_names
+from ._signals import signal_base, signal_unit
+
+__all__ = [
+    "PLAUSIBLE_RANGES",
+    "Finding",
+    "check_plausibility",
+    "find_implausible",
+    "plausible_range",
+]
+
+#: Plausible range (lo, hi) per canonical base name, in the canonical unit (°C, W, W/m²).
+PLAUSIBLE_RANGES: dict[str, tuple[float, float]] = {
+    "T_zon": (-30.0, 60.0),
+    "T_amb": (-60.0, 60.0),
+    "T_bou": (-50.0, 80.0),
+    "T_cel": (-30.0, 50.0),
+    "T_gro": (-40.0, 60.0),
+    "T_sup": (-50.0, 80.0),
+    "I_glo_hor": (-50.0, 1600.0),
+    "I_dif_hor": (-50.0, 1000.0),
+    "I_n": (-50.0, 1600.0),
+    "I_e": (-50.0, 1600.0),
+    "I_s": (-50.0, 1600.0),
+    "I_w": (-50.0, 1600.0),
+    "Q_hea": (-1e7, 1e7),
+    "Q_ven": (-1e7, 1e7),
+    "P_ele": (-1e7, 1e7),
+}
+
+_KELVIN = 273.15
+#: A zone temperature whose median is above this [°C] is taken to be in °F.
+_ZONE_MEDIAN_MAX = 40.0
+#: A temperature changing level by more than this [K] from one sample to the next has jumped.
+_JUMP_K = 20.0
+#: ... as the medians of this many samples before and after.
+_JUMP_SAMPLES = 11
+#: Smallest deviation [K] of a temperature from its neighbours that counts as a spike.
+_SPIKE_FLOOR_K = 5.0
+#: A power sample above this multiple of the 99th percentile of the magnitudes is a spike.
+_POWER_SPIKE_FACTOR = 20.0
+#: A heating column peaking below this [W] may be in kW.
+_KW_PEAK = 50.0
+#: Below this heat-loss coefficient [W/K] (mean heating / mean T_zon - T_amb) it is in kW.
+_KW_UA = 1.0
+#: Smallest mean zone-ambient difference [K] for the kW test.
+_KW_DELTA_T = 3.0
+#: An irradiance peaking below this [W/m²] over a day or more may be in kW/m².
+_KW_IRRADIANCE = 1.5
+
+_WINDOWS = "choose periods without them (--train/--validate; Dataset.slice)"
+
+
+@dataclasses.dataclass(frozen=True)
+class Finding:
+    """One implausible observation in one column.
+
+    Attributes:
+        column: the column concerned.
+        kind: ``infinite``, ``absurd``, ``kelvin``, ``fahrenheit``, ``range``, ``jump``,
+            ``spike``, ``stuck``, ``kilowatt`` (see :mod:`jaxbox.data._plausible`).
+        message: the problem, where, and what to do, in one line.
+        severe: True for an error, False for a warning.
+    """
+
+    column: str
+    kind: str
+    message: str
+    severe: bool = True
+
+
+def _overrides(overrides: object, names: Iterable[str]) -> dict[str, tuple[float, float]]:
+    """Validate ``overrides`` (column or canonical base name -> (lo, hi))."""
+    given = check_mapping(overrides, "overrides", "{'T_zon': (-10, 90)}")
+    names = list(names)
+    out = {}
+    for key, pair in given.items():
+        key = str(key)
+        if key not in names and key not in PLAUSIBLE_RANGES:
+            raise DataError(
+                f"overrides names {key!r}, which is neither a column nor a canonical name; "
+                f"columns: {list_names(names)}."
+            )
+        try:
+            lo, hi = (float(v) for v in pair)
+        except (TypeError, ValueError):
+            lo = hi = float("nan")
+        if not lo < hi:
+            raise DataError(
+                f"overrides[{key!r}] must be a pair (lo, hi) with lo < hi, got {pair!r}."
+            )
+        out[key] = (lo, hi)
+    return out
+
+
+def plausible_range(
+    name: str, overrides: Mapping[str, tuple[float, float]] | None = None
+) -> tuple[float, float] | None:
+    """Plausible (lo, hi) of column ``name`` in its canonical unit: ``overrides[name]``, else
+    ``overrides`` of its base name (``"T_zon"`` for ``"T_zon2"``), else
+    :data:`PLAUSIBLE_RANGES`; ``None`` for a column that is not canonical."""
+    overrides = overrides or {}
+    if name in overrides:
+        return tuple(overrides[name])  # type: ignore[return-value]
+    base = signal_base(name)
+    if base is None:
+        return None
+    return tuple(overrides.get(base, PLAUSIBLE_RANGES[base]))  # type: ignore[return-value]
+
+
+# -- one small function per check; each returns the findings of one column -----------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class _Column:
+    """What every check needs to know about one column."""
+
+    name: str
+    x: np.ndarray
+    index: pd.DatetimeIndex
+    lo: float
+    hi: float
+    unit: str
+    overridden: bool
+
+    @property
+    def temperature(self) -> bool:
+        return self.unit == "°C"
+
+    @property
+    def power(self) -> bool:
+        return self.unit == "W"
+
+    def rows(self, mask: np.ndarray) -> str:
+        return rows_text(self.index, mask)
+
+    def override_hint(self) -> str:
+        return f"overrides={{{self.name!r}: (lo, hi)}} (--range {self.name}=LO:HI)"
+
+
+class _Options(NamedTuple):
+    """The tolerances of :func:`check_plausibility`."""
+
+    stuck_hours: float | None
+    spike_k: float
+
+
+def _infinite(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    bad = np.isinf(c.x)
+    if not bad.any():
+        return []
+    return [
+        Finding(
+            c.name,
+            "infinite",
+            f"column {c.name!r} has infinite values {c.rows(bad)}; set them to NaN and fill the "
+            f"gap, or {_WINDOWS}.",
+        )
+    ]
+
+
+def _absurd(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    limit = ABSURD if signal_base(c.name) is not None else ABSURD_OTHER
+    with np.errstate(invalid="ignore"):
+        bad = np.abs(c.x) > limit
+    if not bad.any():
+        return []
+    first = float(c.x[np.flatnonzero(bad)[0]])
+    return [
+        Finding(
+            c.name,
+            "absurd",
+            f"column {c.name!r} has absurd values (e.g. {first:.3g}) {c.rows(bad)}: a logger "
+            f"error code? set them to NaN and fill the gap, or {_WINDOWS}.",
+        )
+    ]
+
+
+def _in(values: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    with np.errstate(invalid="ignore"):
+        return (values >= lo) & (values <= hi)
+
+
+def _kelvin(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    if not c.temperature:
+        return []
+    with np.errstate(invalid="ignore"):
+        bad = (c.x > c.hi) & _in(c.x - _KELVIN, c.lo, c.hi)
+    if not bad.any():
+        return []
+    finite = np.isfinite(c.x)
+    part = "" if bad.sum() == finite.sum() else f"{int(bad.sum())} of {int(finite.sum())} "
+    return [
+        Finding(
+            c.name,
+            "kelvin",
+            f"{part}values of {c.name!r} look like kelvin (about 273 above °C) {c.rows(bad)}; "
+            f"convert them to °C (subtract 273.15) before loading, or {_WINDOWS}.",
+        )
+    ]
+
+
+def _fahrenheit_like(c: _Column) -> np.ndarray:
+    """Samples above the range that would be in range read as °F."""
+    with np.errstate(invalid="ignore"):
+        return (c.x > c.hi) & _in((c.x - 32.0) / 1.8, c.lo, c.hi)
+
+
+def _fahrenheit(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    """The whole column in °F: most samples too warm but plausible in °F, or a zone median
+    above 40 °C."""
+    if not c.temperature:
+        return []
+    finite = c.x[np.isfinite(c.x)]
+    if finite.size == 0:
+        return []
+    median = float(np.median(finite))
+    most = _fahrenheit_like(c).sum() > finite.size / 2
+    zone_hot = signal_base(c.name) == "T_zon" and not c.overridden and median > _ZONE_MEDIAN_MAX
+    if not most and not zone_hot:
+        return []
+    return [
+        Finding(
+            c.name,
+            "fahrenheit",
+            f"{c.name!r} looks like °F (median {median:.4g}, too warm for °C); convert it to °C "
+            f"((°F - 32) / 1.8) before loading, or declare its range with {c.override_hint()}.",
+        )
+    ]
+
+
+def _range(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    with np.errstate(invalid="ignore"):
+        bad = (c.x < c.lo) | (c.x > c.hi)
+    if not bad.any():
+        return []
+    hits = c.x[bad]
+    if c.unit != "°C":
+        hint = " (a unit off by a factor? scale=, --scale)"
+    elif np.all(_fahrenheit_like(c)[bad]):
+        hint = " (°F in part of it? convert those to °C)"
+    else:
+        hint = ""
+    return [
+        Finding(
+            c.name,
+            "range",
+            f"{c.name!r} leaves its plausible range {c.lo:g} … {c.hi:g} {c.unit} (min "
+            f"{np.min(hits):.4g}, max {np.max(hits):.4g}) {c.rows(bad)}{hint}; check the "
+            f"mapping (columns=, --map), fix those samples or {_WINDOWS}; if right, widen it: "
+            f"{c.override_hint()}.",
+        )
+    ]
+
+
+def _jump(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    if not c.temperature or len(c.x) < 6:
+        return []
+    s = pd.Series(c.x)
+    w = _JUMP_SAMPLES
+    before = s.rolling(w, min_periods=3).median().to_numpy()  # median of x[i-w+1..i]
+    after = s[::-1].rolling(w, min_periods=3).median().to_numpy()[::-1]  # of x[i..i+w-1]
+    step = np.full(len(c.x), np.nan)
+    step[1:] = after[1:] - before[:-1]
+    with np.errstate(invalid="ignore"):
+        bad = np.abs(step) > _JUMP_K
+    if not bad.any():
+        return []
+    i = int(np.flatnonzero(bad)[0])
+    return [
+        Finding(
+            c.name,
+            "jump",
+            f"{c.name!r} jumps by {step[i]:+.3g} K between {c.index[i - 1]} and {c.index[i]} and "
+            "stays there: a change of unit (K, °F) or of sensor? fix the data before loading, "
+            "or use the periods on one side of it (--train/--validate; Dataset.slice).",
+        )
+    ]
+
+
+def _robust_sigma(values: np.ndarray) -> float:
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return 0.0
+    return 1.4826 * float(np.median(np.abs(values - np.median(values))))
+
+
+def _spike(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    if len(c.x) < 5:
+        return []
+    if c.temperature:
+        median = pd.Series(c.x).rolling(5, center=True, min_periods=3).median().to_numpy()
+        threshold = max(_SPIKE_FLOOR_K, opts.spike_k * _robust_sigma(np.diff(c.x)))
+        with np.errstate(invalid="ignore"):
+            bad = np.abs(c.x - median) > threshold
+        size = f"more than {threshold:.3g} K from their neighbours"
+    elif c.power:
+        magnitude = np.abs(c.x[np.isfinite(c.x)])
+        level = float(np.quantile(magnitude, 0.99)) if magnitude.size else 0.0
+        if level <= 0:
+            return []
+        with np.errstate(invalid="ignore"):
+            bad = np.abs(c.x) > _POWER_SPIKE_FACTOR * level
+        if bad.sum() > 0.01 * len(c.x):
+            return []
+        size = f"above {_POWER_SPIKE_FACTOR:g}× its 99th percentile {level:.4g} W"
+    else:
+        return []
+    if not bad.any():
+        return []
+    first = float(c.x[np.flatnonzero(bad)[0]])
+    return [
+        Finding(
+            c.name,
+            "spike",
+            f"{c.name!r} has isolated spikes {size} (e.g. {first:.4g}) {c.rows(bad)}; set them "
+            f"to NaN and interpolate before loading, or {_WINDOWS}.",
+        )
+    ]
+
+
+def _stuck(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    if not c.temperature or opts.stuck_hours is None or len(c.x) < 3:
+        return []
+    same = np.diff(c.x) == 0.0
+    if not same.any():
+        return []
+    # runs of equal neighbours: start/end positions of each run of True in ``same``
+    edges = np.diff(np.concatenate([[0], same.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # samples s..e
+    ns = c.index.asi8
+    hours = (ns[ends] - ns[starts]) / 3.6e12
+    long = np.flatnonzero((hours >= opts.stuck_hours) & (ends - starts >= 2))
+    if long.size == 0:
+        return []
+    k = int(long[np.argmax(hours[long])])
+    s, e = int(starts[k]), int(ends[k])
+    return [
+        Finding(
+            c.name,
+            "stuck",
+            f"{c.name!r} stays exactly at {c.x[s]:.4g} °C for {hours[k]:.3g} h, from "
+            f"{c.index[s]} to {c.index[e]}: a stuck or disconnected sensor? choose periods where "
+            "it moves (--train/--validate; Dataset.slice); stuck_hours= sets the tolerance.",
+        )
+    ]
+
+
+def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    if c.overridden:
+        return []
+    base = signal_base(c.name)
+    finite = c.x[np.isfinite(c.x)]
+    if finite.size == 0:
+        return []
+    peak = float(np.max(np.abs(finite)))
+    if base and base.startswith("I_"):
+        span = (c.index[-1] - c.index[0]) / pd.Timedelta(hours=1)
+        if 0 < peak < _KW_IRRADIANCE and span >= 24:
+            return [
+                Finding(
+                    c.name,
+                    "kilowatt",
+                    f"{c.name!r} peaks at {peak:.3g} W/m² over {span:.3g} h: in kW/m²? then "
+                    f"pass scale={{{c.name!r}: 1000}} (--scale {c.name}=1000).",
+                    severe=False,
+                )
+            ]
+        return []
+    if base != "Q_hea" or not 0 < peak < _KW_PEAK:
+        return []
+    fix = f"pass scale={{{c.name!r}: 1000}} (--scale {c.name}=1000)"
+    zones = [n for n in frame.columns if signal_base(str(n)) == "T_zon"]
+    ua = None
+    if zones and "T_amb" in frame.columns:
+        zone = np.nanmean(frame[zones].to_numpy(dtype=float), axis=1)
+        delta = float(np.nanmean(zone - frame["T_amb"].to_numpy(dtype=float)))
+        if delta >= _KW_DELTA_T:
+            ua = float(np.nanmean(finite)) / delta
+    if ua is not None and ua < _KW_UA:
+        return [
+            Finding(
+                c.name,
+                "kilowatt",
+                f"{c.name!r} looks like kW, not W: it peaks at {peak:.3g} and its mean per K of "
+                f"zone-ambient difference is {ua:.3g} W/K, below any building's heat loss; "
+                f"{fix}, or declare its range with {c.override_hint()}.",
+            )
+        ]
+    return [
+        Finding(
+            c.name,
+            "kilowatt",
+            f"{c.name!r} peaks at only {peak:.3g} W: in kW? then {fix}.",
+            severe=False,
+        )
+    ]
+
+
+#: The checks in the order they run; after a column's first error its later checks are skipped.
+_CHECKS: tuple[Callable[..., list[Finding]], ...] = (
+    _infinite,
+    _absurd,
+    _kelvin,
+    _fahrenheit,
+    _range,
+    _jump,
+    _spike,
+    _stuck,
+    _kilowatt,
+)
+
+
+def _frame_of(data: object) -> pd.DataFrame:
+    frame = getattr(data, "_frame", None)
+    if isinstance(frame, pd.DataFrame):
+        return frame
+    if isinstance(data, pd.DataFrame) and isinstance(data.index, pd.DatetimeIndex):
+        return data
+    raise TypeError(
+        "check_plausibility takes a jaxbox Dataset (or a DataFrame with a DatetimeIndex), got "
+        f"{type(data).__name__}; load the data with jaxbox.data.load first."
+    )
+
+
+def find_implausible(
+    data: object,
+    *,
+    overrides: Mapping[str, tuple[float, float]] | None = None,
+    columns: Iterable[str] | None = None,
+    stuck_hours: float | None = 24.0,
+    spike_k: float = 10.0,
+) -> tuple[Finding, ...]:
+    """Every implausible finding (errors and warnings) in ``data``, without raising.
+
+    Arguments as in :func:`check_plausibility`. At most one error per column (its first).
+    """
+    frame = _frame_of(data)
+    names = [str(n) for n in frame.columns]
+    ranges = _overrides(overrides, names)
+    if columns is None:
+        chosen = [n for n in names if signal_base(n) is not None]
+    else:
+        chosen = [columns] if isinstance(columns, str) else [str(n) for n in columns]
+        missing = [n for n in chosen if n not in names]
+        if missing:
+            raise DataError(
+                f"no column {list_names(missing)} to check; available: {list_names(names)}."
+            )
+    index = pd.DatetimeIndex(frame.index)
+    opts = _Options(stuck_hours=stuck_hours, spike_k=float(spike_k))
+    findings: list[Finding] = []
+    for name in chosen:
+        rng = plausible_range(name, ranges)
+        lo, hi = rng if rng is not None else (-math.inf, math.inf)
+        column = _Column(
+            name=name,
+            x=frame[name].to_numpy(dtype=np.float64),
+            index=index,
+            lo=lo,
+            hi=hi,
+            unit=signal_unit(name) or "",
+            overridden=name in ranges or signal_base(name) in ranges,
+        )
+        for check in _CHECKS:
+            found = check(column, frame, opts)
+            findings += found
+            if any(f.severe for f in found):
+                break
+    return tuple(findings)
+
+
+def check_plausibility(
+    data: object,
+    *,
+    overrides: Mapping[str, tuple[float, float]] | None = None,
+    columns: Iterable[str] | None = None,
+    what: str | None = None,
+    stuck_hours: float | None = 24.0,
+    spike_k: float = 10.0,
+    warn: bool = True,
+) -> tuple[str, ...]:
+    """Refuse physically implausible signals in ``data``; return the warnings.
+
+    Call it on the data actually used: the identification window and the validation window
+    (e.g. ``check_plausibility(ident, columns=model.inputs + model.outputs, what="identification
+    data")``). The checks are listed in :mod:`jaxbox.data._plausible`: infinite and absurd
+    values, temperatures in kelvin or °F (in all or part of a column), values outside the
+    plausible range of their kind, jumps, spikes, stuck temperature sensors, heating power in
+    kW.
+
+    Args:
+        data: a :class:`~jaxbox.data.Dataset` (or a slice of one).
+        overrides: plausible range per column or canonical base name, ``{"T_zon": (-10, 90)}``
+            (canonical units); replaces :data:`PLAUSIBLE_RANGES` for it and turns off the
+            range-based unit heuristics (zone median in °F, heating in kW) for it.
+        columns: the columns to check (default: every canonical column).
+        what: names the data in the messages, e.g. ``"validation data"``.
+        stuck_hours: a temperature constant for this long [h] is a stuck sensor (``None``: no
+            check).
+        spike_k: a temperature farther than ``max(5 K, spike_k · σ)`` from the median of its 5
+            neighbours is a spike (σ: robust standard deviation of the sample differences).
+        warn: also issue the warnings with :func:`warnings.warn` (:class:`DataWarning`).
+
+    Returns:
+        The warnings (uncertain findings, such as a heating power that may be in kW), in words.
+
+    Raises:
+        DataError: the first implausible column, naming it, the first time stamps and their
+            count, and what to do (Python keyword and command-line option); more problems are
+            counted at the end of the message.
+        TypeError: ``data`` is not a Dataset, or ``overrides`` is not a mapping.
+    """
+    findings = find_implausible(
+        data, overrides=overrides, columns=columns, stuck_hours=stuck_hours, spike_k=spike_k
+    )
+    prefix = f"{what}: " if what else ""
+    errors = [f for f in findings if f.severe]
+    if errors:
+        others = sorted({f.column for f in errors[1:]})
+        more = f" ({len(errors) - 1} more problem(s) in {list_names(others, 5)})" if others else ""
+        raise DataError(prefix + errors[0].message + more)
+    notes = tuple(prefix + f.message for f in findings if not f.severe)
+    if warn:
+        for note in notes:
+            warnings.warn(note, DataWarning, stacklevel=2)
+    return notes

@@ -1,0 +1,279 @@
+"""One identification attempt, :class:`Case`, and running several at once (:func:`run_cases`).
+
+A :class:`Case` is one identification attempt: a model structure, its identification and
+validation slices of a building's data, an initial guess and where it came from, the solver
+settings, and once run the fit, its post-simulation validation and its validity verdict.
+:func:`run_cases` fits every start of several cases in as few compiled calls as their shapes
+allow. The lowest floor of :mod:`jaxbox.select`: it imports nothing else of the package but the
+initial guesses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..models import RCModel
+from ._guess import Guess, lhs_starts
+
+__all__ = ["Case", "Progress", "SETTINGS", "run_cases"]
+
+Progress = Callable[[str], None]
+
+#: Solver settings a case passes on to :func:`jaxbox.fit.fit_batch`.
+SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simulator")
+
+
+def quiet(msg: str) -> None:
+    """A progress callback that says nothing."""
+
+
+@dataclasses.dataclass(eq=False)
+class Case:
+    """One identification attempt of a :class:`GreyBox`.
+
+    Attributes:
+        name: unique name within the GreyBox (the model name by default).
+        model: the model structure.
+        ident: identification data (a slice of the GreyBox's data).
+        valid: validation data directly following ``ident`` (or ``None``).
+        guess: the initial guess and its source (naming, parent, manual).
+        free, fixed, bounds: the estimation problem (see :func:`jaxbox.fit.fit`; SI units).
+        starts: number of starts (the guess plus Latin-hypercube samples), fitted in one call.
+        seed: seed of the Latin hypercube.
+        settings: solver settings (``max_steps``, ``rtol``, ``atol``, ``concentration``,
+            ``weights``, ``simulator``).
+        parent: name of the case the guess was inherited from.
+        notes: what happened on the way (a retry with narrowed bounds, …).
+        result: the :class:`~jaxbox.fit.FitResult` once run.
+        validation: its :class:`~jaxbox.validate.Validation` (auto and cross).
+        verdict: its :class:`~jaxbox.validate.Verdict`.
+        timing: ``fit_s``, ``validate_s``, ``verdict_s`` [s] of the run.
+    """
+
+    name: str
+    model: RCModel
+    ident: Any
+    valid: Any
+    guess: Guess
+    free: tuple[str, ...] | None = None
+    fixed: dict = dataclasses.field(default_factory=dict)
+    bounds: dict = dataclasses.field(default_factory=dict)
+    starts: int = 8
+    seed: int | None = 0
+    settings: dict = dataclasses.field(default_factory=dict)
+    parent: str | None = None
+    notes: list = dataclasses.field(default_factory=list)
+    result: Any = None
+    validation: Any = None
+    verdict: Any = None
+    timing: dict = dataclasses.field(default_factory=dict)
+
+    # -- running ---------------------------------------------------------------------------------
+
+    def start_values(self) -> np.ndarray:
+        """The starts [S, n_free] this case fits (the guess first), reproducible for its seed."""
+        _, x0 = lhs_starts(
+            self.model,
+            self.ident,
+            self._guess_in_bounds(),
+            self.starts,
+            free=self.free,
+            fixed=self.fixed,
+            bounds=self.bounds,
+            seed=self.seed,
+            concentration=self.settings.get("concentration", 4.0),
+        )
+        return x0
+
+    def _guess_in_bounds(self) -> dict:
+        out = {}
+        for n, v in self.guess.values.items():
+            if n in self.fixed:
+                continue
+            spec = self.model.parameter(n)
+            lo, hi = self.bounds.get(n, (spec.lower, spec.upper))
+            out[n] = float(np.clip(v, lo, hi))
+        return out
+
+    def run(self, progress: Progress | None = None) -> Case:
+        """Fit every start in one batched call, post-simulate, and judge validity."""
+        return run_cases([self], progress)[0]
+
+    def _request(self) -> dict:
+        """The :func:`jaxbox.fit.fit_batch` request of this case."""
+        opts = {k: v for k, v in self.settings.items() if k in SETTINGS}
+        return {
+            "model": self.model,
+            "data": self.ident,
+            "free": self.free,
+            "fixed": self.fixed or None,
+            "bounds": self.bounds or None,
+            "guess": self._guess_in_bounds(),
+            "starts": self.start_values(),
+            "seed": self.seed,
+            **opts,
+        }
+
+    def _complete(self, result, fit_s: float, say: Progress) -> Case:
+        """Post-simulate a fitted case and judge it."""
+        from ..validate import check_validity, uncertainty, validate
+
+        self.result = result
+        t1 = time.perf_counter()
+        self.validation = validate(self.result, self.valid)
+        t2 = time.perf_counter()
+        try:
+            unc = uncertainty(self.result)
+        except ValueError:
+            unc = None
+        self.verdict = check_validity(self.result, unc, check_intervals=unc is not None)
+        t3 = time.perf_counter()
+        self.timing = {
+            "fit_s": fit_s,
+            "compile_s": float(self.result.timing.get("compile_s", 0.0)),
+            "validate_s": t2 - t1,
+            "verdict_s": t3 - t2,
+        }
+        if self.result.timing.get("batch", 1) > 1:
+            self.timing["batch"] = int(self.result.timing["batch"])
+        say(
+            f"  {self.name}: {self.result.starts.status_summary()}; RMSE auto "
+            f"{self.se_auto:.3f} K, cross {fmt_se(self.se_cross)} K, "
+            f"{'valid' if self.is_valid else 'not valid'} ({fit_s + t3 - t1:.1f} s)"
+        )
+        return self
+
+    def judge(self, **options) -> Case:
+        """Judge validity again with other :func:`~jaxbox.validate.check_validity` options."""
+        from ..validate import check_validity
+
+        self._require_run()
+        self.verdict = check_validity(self.result, **options)
+        return self
+
+    def _require_run(self) -> None:
+        if self.result is None:
+            raise ValueError(f"case {self.name!r} has not been run yet; call case.run()")
+
+    # -- summaries -------------------------------------------------------------------------------
+
+    @property
+    def done(self) -> bool:
+        return self.result is not None
+
+    @property
+    def n_params(self) -> int:
+        """Number of free parameters (initial states included)."""
+        if self.result is not None:
+            return len(self.result.free)
+        if self.free is not None:
+            return len(self.free)
+        return len([n for n in self.model.param_names if n not in self.fixed])
+
+    @property
+    def se_auto(self) -> float:
+        """Simulation error Σ q RMSE on the identification data [K] (nan before running)."""
+        return float("nan") if self.validation is None else float(self.validation.se_auto)
+
+    @property
+    def se_cross(self) -> float:
+        """Simulation error on the validation data [K] (nan without validation data)."""
+        v = self.validation
+        return float("nan") if v is None or v.se_cross is None else float(v.se_cross)
+
+    @property
+    def is_valid(self) -> bool:
+        return bool(self.verdict is not None and self.verdict.valid)
+
+    @property
+    def reasons(self) -> tuple[str, ...]:
+        return () if self.verdict is None else tuple(self.verdict.reasons)
+
+    def row(self) -> dict:
+        """One row of :meth:`GreyBox.table`."""
+        v = self.validation
+        out = {
+            "case": self.name,
+            "model": self.model.name,
+            "n_params": self.n_params,
+            "guess": self.guess.source + (f" ({self.parent})" if self.parent else ""),
+            "starts": self.starts,
+            "se_auto": self.se_auto,
+            "se_cross": self.se_cross,
+            "valid": self.is_valid if self.verdict is not None else None,
+            "reasons": "; ".join(self.reasons),
+            "notes": "; ".join(self.notes),
+        }
+        if v is not None:
+            for o, r in v.rmse_auto.items():
+                out[f"rmse_auto_{o}"] = float(r)
+            for o, r in (v.rmse_cross or {}).items():
+                out[f"rmse_cross_{o}"] = float(r)
+        return out
+
+    def __repr__(self) -> str:
+        state = (
+            f"se_auto={self.se_auto:.4g}, se_cross={self.se_cross:.4g}, valid={self.is_valid}"
+            if self.done
+            else "not run"
+        )
+        return f"Case({self.name!r}, model={self.model.name!r}, {state})"
+
+
+def run_cases(
+    cases: Sequence[Case],
+    progress: Progress | None = None,
+    *,
+    catch: bool = False,
+    labels: Sequence[str] | None = None,
+) -> list[Case]:
+    """Run several cases together: every start of every case in as few compiled calls as the
+    shapes allow (one, for cases of the same shape — e.g. one model on several buildings).
+
+    Args:
+        cases: cases not run yet (of one or several GreyBoxes).
+        progress: called with one line of text per step.
+        catch: record a case that fails (every start failed, non-finite post-simulation) in its
+            ``notes`` and go on, instead of raising.
+        labels: a prefix per case for the progress lines (e.g. the building).
+
+    Returns:
+        The cases, run (a failed one, with ``catch``, has no result).
+    """
+    from ..fit import FitError, fit_batch
+
+    say = progress or quiet
+    labels = list(labels) if labels is not None else [""] * len(cases)
+    tell = [(lambda msg, lab=lab: say(f"{lab}{msg}")) if lab else say for lab in labels]
+    requests = []
+    for case, told in zip(cases, tell, strict=True):
+        req = case._request()
+        told(
+            f"  {case.name}: {len(req['starts'])} starts in one batch "
+            f"({len(req['starts'][0])} free parameters) …"
+        )
+        requests.append(req)
+    t0 = time.perf_counter()
+    outcomes = fit_batch(requests, errors="return")
+    fit_s = (time.perf_counter() - t0) / max(1, len(cases))
+    for case, outcome, told in zip(cases, outcomes, tell, strict=True):
+        try:
+            if isinstance(outcome, FitError):
+                raise outcome
+            case._complete(outcome, fit_s, told)
+        except (ValueError, FloatingPointError) as err:  # FitError, non-finite post-simulation
+            if not catch:
+                raise
+            case.result = case.validation = case.verdict = None
+            case.notes.append(f"failed: {err}")
+            told(f"  {case.name}: failed ({err})")
+    return list(cases)
+
+
+def fmt_se(x: float) -> str:
+    return "n/a" if not np.isfinite(x) else f"{x:.3f}"

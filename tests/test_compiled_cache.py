@@ -1,0 +1,138 @@
+"""One bounded cache of compiled functions: rooms, hits, clear() and least-recently-used eviction.
+
+A tiny problem (a one-state model over two days of hourly samples) evaluated at the true
+parameters, so that no fit has to be compiled: the sensitivities and the uncertainty analysis
+take any result with ``problem``, ``params`` and ``data``. The verbs are run once per room; the
+eviction tests fetch the rooms' entries through the same getters the verbs use, which build the
+jitted functions without compiling them.
+"""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+import pytest
+from _reference import synthetic_building
+
+from jaxbox import _compiled
+from jaxbox.fit import fit_sensitivity, make_problem
+from jaxbox.fit._sensitivity import _functions as sensitivity_functions
+from jaxbox.models import get_model
+from jaxbox.reference import collocation_fit
+from jaxbox.reference._transcription import _functions as collocation_functions
+from jaxbox.validate import sensitivities
+from jaxbox.validate._uncertainty import _jacobian_fn
+
+TRUTH = {"C_zon": 5e6, "R_wal": 0.01, "gA": 3.0, "T_zon0": 20.0}
+N = 48
+ROOMS = ("sensitivity", "uncertainty", "collocation")
+
+
+@pytest.fixture(scope="module")
+def result():
+    """A stand-in for a fit result at the true parameters (48 hourly samples)."""
+    data = synthetic_building(get_model("Zon"), TRUTH, n=N, seed=4, noise=0.02)
+    return types.SimpleNamespace(
+        problem=make_problem(get_model("Zon"), data), params=TRUTH, data=data
+    )
+
+
+@pytest.fixture(autouse=True)
+def empty_cache():
+    """Every test starts from an empty cache; the maximum size is restored afterwards."""
+    before = _compiled.info()["max_entries"]
+    _compiled.clear()
+    yield
+    _compiled.set_max_entries(before)
+    _compiled.clear()
+
+
+def _entries(room: str | None = None) -> int:
+    return _compiled.info(room)["entries"]
+
+
+def _compiles() -> int:
+    return _compiled.info()["compiles"]
+
+
+# getters of one entry per room (no compilation: jax.jit compiles on the first call)
+def _sensitivity(result):
+    return sensitivity_functions(result.problem, N)
+
+
+def _uncertainty(result):
+    return _jacobian_fn(result.problem, N)
+
+
+def _collocation(result, n_c: int = 3):
+    return collocation_functions(result.problem, n_c, ((N,),))
+
+
+def test_sensitivity_compiles_once(result) -> None:
+    first = fit_sensitivity(result)
+    assert _entries("sensitivity") == 1 and _compiles() == 1
+    second = fit_sensitivity(result)
+    info = _compiled.info()
+    assert info["compiles"] == 1 and info["hits"] == 1 and _entries() == 1
+    np.testing.assert_array_equal(first.values, second.values)
+    # the cached function traced and compiled once for both calls
+    assert _sensitivity(result)["derivatives"]._cache_size() == 1
+
+
+def test_uncertainty_compiles_once(result) -> None:
+    _, J1 = sensitivities(result)
+    assert _entries("uncertainty") == 1 and _compiles() == 1
+    _, J2 = sensitivities(result)
+    assert _compiles() == 1 and _compiled.info()["hits"] == 1
+    np.testing.assert_array_equal(J1, J2)
+    assert _uncertainty(result)._cache_size() == 1
+
+
+def test_collocation_compiles_once(result) -> None:
+    options = {"hessian": "gauss-newton", "max_iterations": 3}
+    first = collocation_fit("Zon", result.data, **options)
+    assert _entries("collocation") == 1 and _compiles() == 1
+    second = collocation_fit("Zon", result.data, **options)
+    assert _compiles() == 1 and _compiled.info()["hits"] == 1 and _entries() == 1
+    assert first.params == second.params
+
+
+def test_clear_empties_every_room(result) -> None:
+    _sensitivity(result), _uncertainty(result), _collocation(result), _collocation(result, 2)
+    assert [_entries(room) for room in ROOMS] == [1, 1, 2]
+    _compiled.clear()
+    assert _entries() == 0 and [_entries(room) for room in ROOMS] == [0, 0, 0]
+    assert _compiles() == 0
+    _sensitivity(result)  # built again after clear()
+    assert _compiles() == 1
+
+
+def test_one_entry_evicts_the_previous(result) -> None:
+    _compiled.set_max_entries(1)
+    first = _sensitivity(result)
+    _uncertainty(result)
+    info = _compiled.info()
+    assert info["entries"] == 1 and info["evictions"] == 1
+    assert _entries("sensitivity") == 0 and _entries("uncertainty") == 1
+    again = _sensitivity(result)  # evicted, so built again
+    assert again is not first and _compiles() == 3 and _entries("sensitivity") == 1
+
+
+def test_least_recently_used_goes_first(result) -> None:
+    _compiled.set_max_entries(2)
+    first = _sensitivity(result)
+    _uncertainty(result)
+    assert _sensitivity(result) is first  # a hit: uncertainty is now the oldest
+    _collocation(result)
+    assert [_entries(room) for room in ROOMS] == [1, 0, 1]
+    assert _compiled.info()["evictions"] == 1
+    assert _sensitivity(result) is first
+
+
+def test_shrinking_evicts_and_zero_is_refused(result) -> None:
+    _sensitivity(result), _uncertainty(result)
+    _compiled.set_max_entries(1)
+    assert _entries() == 1 and _entries("uncertainty") == 1
+    with pytest.raises(ValueError, match="at least one"):
+        _compiled.set_max_entries(0)

@@ -70,7 +70,7 @@ def _v_bounds(scaling):
 
 
 def _network_matrices(model, theta, *, exp, zeros, stack_rows):
-    """A, B of an RC network in any algebra (numpy or CasADi), as jaxbox's ``rc_matrices``."""
+    """A, B of an RC network in any algebra (numpy or CasADi), as jaxbox's ``RCModel.rc_form``."""
     net = model.network
     names = [m.name for m in net.nodes]
     idx = {nm: i for i, nm in enumerate(names)}

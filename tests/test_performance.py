@@ -14,7 +14,6 @@ from _reference import synthetic_building
 
 from jaxbox.fit import compile_cache_info, fit_model, make_problem, problem_arrays
 from jaxbox.fit._fit import solve_jobs, solve_starts
-from jaxbox.fit._problem import rc_matrices
 from jaxbox.models import get_model, list_models
 from jaxbox.simulate import discretize_foh
 from jaxbox.simulate._exact import discretize_foh_rc, simulate_exact
@@ -140,12 +139,13 @@ def test_linear_recurrence_carries_trailing_axes():
 
 @pytest.mark.parametrize("name", list_models())
 def test_rc_route_matches_the_model_and_the_block_exponential(name):
-    """The fit assembles A, B by incidence matrices and discretises through eigh: same numbers as
-    ``state_space`` and the Van Loan exponential for every library model."""
+    """The model's one assembly of A, B (incidence matrices) and the fit's discretisation
+    through eigh: the same numbers as the Van Loan exponential for every library model, and
+    ``state_space`` is that assembly."""
     model = get_model(name)
     rng = np.random.default_rng(7)
     theta = {k: v * (1 + 0.3 * rng.random()) for k, v in model.defaults().items()}
-    A, B, caps, held = rc_matrices(model, theta)
+    A, B, caps, held = model.rc_form(theta)
     A0, B0, _, _ = model.state_space(theta)
     np.testing.assert_allclose(A, A0, rtol=1e-13, atol=1e-20)
     np.testing.assert_allclose(B, B0, rtol=1e-13, atol=1e-20)
@@ -166,7 +166,7 @@ def test_rc_discretisation_is_cheap_to_differentiate_under_vmap():
     def disc(route):
         def f(p):
             theta = dict(zip(names, p, strict=True))
-            A, B, caps, held = rc_matrices(model, theta)
+            A, B, caps, held = model.rc_form(theta)
             if route == "rc":
                 return discretize_foh_rc(A, B, caps, 3600.0, held)
             return discretize_foh(A, B, 3600.0)

@@ -108,7 +108,7 @@ class Problem:
         """
         p = self.transform.to_physical(z, lo, hi, sc)
         theta = self.theta(p, fixed_values)
-        A, B, caps, held = rc_matrices(self.model, theta)
+        A, B, caps, held = self.model.rc_form(theta)
         Phi, G0, G1 = discretize_foh_rc(A, B, caps, dt, held)
         return Phi, G0, G1, self.model.initial_state(theta)
 
@@ -158,73 +158,6 @@ class Problem:
         return jax.vmap(one, in_axes=(0, 0, 0, 0, 0, d_axis, d_axis, d_axis, d_axis))(
             Z, fixed, lo, hi, sc, t, u, y, w
         )
-
-
-def _factor(kind, value, theta):
-    if kind == "const":
-        return float(value)
-    v = jnp.asarray(theta[value], dtype=float)
-    return v if kind == "param" else 1.0 - v
-
-
-def rc_matrices(model: RCModel, theta):
-    """``(A, B, caps, held)`` of an RC network: the same A and B as ``model.state_space``.
-
-    Assembled as ``G = Σ_e g_e K_e`` over the edges, with constant incidence matrices ``K_e``
-    and the conductances ``g_e`` stacked in one vector (likewise ``H`` over edges to inputs and
-    heat sources), instead of a chain of indexed updates: the same numbers, a far smaller
-    program for XLA to compile once differentiated and batched. ``caps`` are the heat
-    capacities [J/K] (1 for held nodes) and ``held`` a static tuple marking constant nodes.
-    """
-    net = model.network
-    names = [m.name for m in net.nodes]
-    idx = {name: i for i, name in enumerate(names)}
-    uidx = {u: j for j, u in enumerate(model.inputs)}
-    n, m = len(names), len(model.inputs)
-    held = tuple(bool(getattr(node, "constant", False)) for node in net.nodes)
-    live = np.asarray([0.0 if h else 1.0 for h in held])[:, None]
-    cond, KG, KH = [], [], []
-    for e in net.edges:
-        r = e.scale * jnp.asarray(theta[e.R], dtype=float)
-        for kind, value in getattr(e, "factors", ()):
-            r = r * _factor(kind, value, theta)
-        cond.append(1.0 / r)
-        kg, kh = np.zeros((n, n)), np.zeros((n, m))
-        i = idx[e.a]
-        kg[i, i] -= 1.0
-        if e.b in idx:
-            j = idx[e.b]
-            kg[j, j] -= 1.0
-            kg[i, j] += 1.0
-            kg[j, i] += 1.0
-        else:
-            kh[i, uidx[e.b]] += 1.0
-        KG.append(kg * live)
-        KH.append(kh * live)
-    G = jnp.zeros((n, n))
-    H = jnp.zeros((n, m))
-    if cond:
-        cond = jnp.stack(cond)
-        G = jnp.tensordot(cond, jnp.asarray(np.stack(KG)), 1)
-        H = jnp.tensordot(cond, jnp.asarray(np.stack(KH)), 1)
-    gains, KS = [], []
-    for s in net.sources:
-        gain = 1.0
-        for kind, value in s.gain:
-            gain = gain * _factor(kind, value, theta)
-        gains.append(jnp.asarray(gain, dtype=float))
-        ks = np.zeros((n, m))
-        ks[idx[s.node], uidx[s.input]] = 1.0
-        KS.append(ks * live)
-    if gains:
-        H = H + jnp.tensordot(jnp.stack(gains), jnp.asarray(np.stack(KS)), 1)
-    caps = jnp.stack(
-        [
-            jnp.asarray(1.0 if h else theta[node.C], dtype=float)
-            for node, h in zip(net.nodes, held, strict=True)
-        ]
-    )
-    return G / caps[:, None], H / caps[:, None], caps, held
 
 
 def initial_guess(model: RCModel, data) -> dict[str, float]:

@@ -32,6 +32,7 @@ import re
 from collections.abc import Mapping
 
 import jax.numpy as jnp
+import numpy as np
 
 from ._parameters import ModelError, Parameter, parameter_for
 
@@ -516,49 +517,78 @@ class RCModel:
         )
 
     # ---- numerics (pure jnp; jit/vmap/grad friendly) -------------------------------------------
+    def rc_form(self, theta: Mapping) -> tuple:
+        """``(A [1/s], B, caps [J/K], held)``: the state matrices with the heat capacities.
+
+        Assembled as ``G = Σ_e g_e K_e`` over the edges, with constant incidence matrices
+        ``K_e`` and the conductances ``g_e`` [W/K] stacked in one vector (likewise ``H`` over
+        edges to inputs and heat sources), instead of a chain of indexed updates: a small
+        program for XLA to compile once differentiated and batched. ``caps`` holds 1 for a
+        constant node and ``held`` (static) marks them; their rows of A and B are zero.
+        """
+        net = self.network
+        names = [m.name for m in net.nodes]
+        idx = {name: i for i, name in enumerate(names)}
+        uidx = {u: j for j, u in enumerate(self.inputs)}
+        n, m = len(names), len(self.inputs)
+        held = tuple(bool(node.constant) for node in net.nodes)
+        live = np.asarray([0.0 if h else 1.0 for h in held])[:, None]
+        cond, KG, KH = [], [], []
+        for e in net.edges:
+            r = e.scale * jnp.asarray(theta[e.R], dtype=float)
+            for kind, value in e.factors:
+                r = r * _factor_value(kind, value, theta)
+            cond.append(1.0 / r)
+            kg, kh = np.zeros((n, n)), np.zeros((n, m))
+            i = idx[e.a]
+            kg[i, i] -= 1.0
+            if e.b in idx:
+                j = idx[e.b]
+                kg[j, j] -= 1.0
+                kg[i, j] += 1.0
+                kg[j, i] += 1.0
+            else:
+                kh[i, uidx[e.b]] += 1.0
+            KG.append(kg * live)
+            KH.append(kh * live)
+        G = jnp.zeros((n, n))
+        H = jnp.zeros((n, m))
+        if cond:
+            c = jnp.stack(cond)
+            G = jnp.tensordot(c, jnp.asarray(np.stack(KG)), 1)
+            H = jnp.tensordot(c, jnp.asarray(np.stack(KH)), 1)
+        gains, KS = [], []
+        for s in net.sources:
+            gain = 1.0
+            for kind, value in s.gain:
+                gain = gain * _factor_value(kind, value, theta)
+            gains.append(jnp.asarray(gain, dtype=float))
+            ks = np.zeros((n, m))
+            ks[idx[s.node], uidx[s.input]] = 1.0
+            KS.append(ks * live)
+        if gains:
+            H = H + jnp.tensordot(jnp.stack(gains), jnp.asarray(np.stack(KS)), 1)
+        caps = jnp.stack(
+            [
+                jnp.asarray(1.0 if h else theta[node.C], dtype=float)
+                for node, h in zip(net.nodes, held, strict=True)
+            ]
+        )
+        return G / caps[:, None], H / caps[:, None], caps, held
+
     def state_space(self, theta: Mapping) -> tuple:
         """Continuous-time matrices (A [1/s], B, C, D) for parameters θ (SI values).
 
         B maps inputs to dT/dt: ``1/(R C)`` [1/s] for boundary temperatures, ``gain/C`` [K/J] for
-        heat inputs. Every parameter of the model must be in θ.
+        heat inputs. Every parameter of the model must be in θ. Constant nodes keep their
+        value (dT/dt = 0). See :meth:`rc_form`, which assembles A and B.
         """
-        n = self.network
-        names = [m.name for m in n.nodes]
-        idx = {name: i for i, name in enumerate(names)}
-        uidx = {u: j for j, u in enumerate(self.inputs)}
-        ns, nu = len(names), len(self.inputs)
-        caps = jnp.stack(
-            [jnp.asarray(1.0 if m.constant else theta[m.C], dtype=float) for m in n.nodes]
-        )
-        G = jnp.zeros((ns, ns))  # conductances between nodes [W/K] (Laplacian form)
-        H = jnp.zeros((ns, nu))  # couplings to inputs [W/K or W/unit]
-        for e in n.edges:
-            r = e.scale * jnp.asarray(theta[e.R], dtype=float)
-            for kind, value in e.factors:
-                r = r * _factor_value(kind, value, theta)
-            g = 1.0 / r
-            i = idx[e.a]
-            G = G.at[i, i].add(-g)
-            if e.b in idx:
-                j = idx[e.b]
-                G = G.at[j, j].add(-g).at[i, j].add(g).at[j, i].add(g)
-            else:
-                H = H.at[i, uidx[e.b]].add(g)
-        for s in n.sources:
-            gain = 1.0
-            for kind, value in s.gain:
-                gain = gain * _factor_value(kind, value, theta)
-            H = H.at[idx[s.node], uidx[s.input]].add(gain)
-        held = [idx[m.name] for m in n.nodes if m.constant]
-        if held:  # constant nodes keep their value: dT/dt = 0
-            G = G.at[jnp.asarray(held)].set(0.0)
-            H = H.at[jnp.asarray(held)].set(0.0)
-        A = G / caps[:, None]
-        B = H / caps[:, None]
-        out_nodes = [idx[m.name] for m in n.nodes if m.output]
-        C = jnp.zeros((len(out_nodes), ns)).at[jnp.arange(len(out_nodes)), out_nodes].set(1.0)
-        D = jnp.zeros((len(out_nodes), nu))
-        return A, B, C, D
+        A, B, _, _ = self.rc_form(theta)
+        out_nodes = [i for i, m in enumerate(self.network.nodes) if m.output]
+        C = np.zeros((len(out_nodes), len(self.network.nodes)))
+        C[np.arange(len(out_nodes)), out_nodes] = 1.0
+        D = jnp.zeros((len(out_nodes), len(self.inputs)))
+        return A, B, jnp.asarray(C), D
 
     def initial_state(self, theta: Mapping):
         """Initial node temperatures x0 [°C] from the ``T_*0`` parameters in θ."""

@@ -20,9 +20,9 @@ from .data import load as load
 from .fit import FitError as FitError
 from .fit import FitResult as FitResult
 from .fit import LevenbergMarquardt as LevenbergMarquardt
-from .fit import fit_model as fit_model
 from .fit import fit_batch as fit_batch
 from .fit import fit_many as fit_many
+from .fit import fit_model as fit_model
 from .models import ModelError as ModelError
 from .models import Parameter as Parameter
 from .models import RCModel as RCModel

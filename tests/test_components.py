@@ -15,7 +15,7 @@ from jaxbox.models import (
     register,
 )
 from jaxbox.models import components as c
-from jaxbox.simulate import simulate_model, simulate_arrays
+from jaxbox.simulate import simulate_arrays, simulate_model
 
 
 def _net(name="t"):

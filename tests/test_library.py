@@ -11,7 +11,7 @@ import pytest
 from scipy.linalg import expm
 
 from jaxbox.data import Dataset
-from jaxbox.fit import fit_model, fit_batch
+from jaxbox.fit import fit_batch, fit_model
 from jaxbox.models import (
     ModelError,
     describe_models,

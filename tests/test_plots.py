@@ -113,7 +113,8 @@ def test_plots_of_auto_validation_only(fitted):
 
 
 def test_confidence_interval_plot_marks_non_identifiable():
-    res = fit_model("Zon", _data(N, irradiance=False), starts=np.asarray([[TRUTH[n] for n in FREE]]))
+    start = np.asarray([[TRUTH[n] for n in FREE]])
+    res = fit_model("Zon", _data(N, irradiance=False), starts=start)
     unc = uncertainty(res)
     assert unc.not_identifiable == ("gA",)
     fig = plot_confidence_intervals(unc)

@@ -10,7 +10,7 @@ import pytest
 from jaxbox.data import Dataset
 from jaxbox.fit import FitResult, StartReport, make_problem
 from jaxbox.models import get_model
-from jaxbox.simulate import simulate_model, simulate_arrays
+from jaxbox.simulate import simulate_arrays, simulate_model
 from jaxbox.validate import prediction_performance, validate
 
 N = 200

@@ -6,7 +6,7 @@ import pytest
 
 from jaxbox.data import Dataset
 from jaxbox.models import get_model
-from jaxbox.simulate import simulate_model, simulate_arrays
+from jaxbox.simulate import simulate_arrays, simulate_model
 
 DT = 3600.0
 

@@ -41,7 +41,10 @@ def test_solves_any_residual_function_through_optx_least_squares():
     np.testing.assert_allclose(sol.value["y"], 2.25, rtol=1e-8)
     # the same optimum as optimistix's own Levenberg–Marquardt
     stock = optx.least_squares(
-        _rosenbrock, optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12), y0, args=(1.5, 100.0),
+        _rosenbrock,
+        optx.LevenbergMarquardt(rtol=1e-12, atol=1e-12),
+        y0,
+        args=(1.5, 100.0),
         max_steps=500,
     )
     np.testing.assert_allclose(sol.value["x"], stock.value["x"], rtol=1e-8)
@@ -72,9 +75,9 @@ def test_vmap_over_starts_with_throw_false():
     solver = LevenbergMarquardt(rtol=1e-10, atol=1e-20)
     fn = lambda y, args: _rosenbrock({"x": y[0], "y": y[1]}, args)  # noqa: E731
     y0s = jnp.asarray([[-1.2, 1.0], [2.0, 2.0], [0.0, -3.0]])
-    sols = jax.vmap(
-        lambda y0: optx.least_squares(fn, solver, y0, args=(1.0, 10.0), throw=False)
-    )(y0s)
+    sols = jax.vmap(lambda y0: optx.least_squares(fn, solver, y0, args=(1.0, 10.0), throw=False))(
+        y0s
+    )
     np.testing.assert_allclose(sols.value, np.ones((3, 2)), rtol=1e-7)
 
 
@@ -88,7 +91,10 @@ def test_stock_optimistix_lm_reaches_the_same_optimum(building, name):
     """From the same start, jaxbox's solver and optimistix's own reach the same cost."""
     ours = fit_model(name, building, starts=1, max_steps=500, rtol=1e-12, atol=1e-20)
     stock = fit_model(
-        name, building, starts=1, max_steps=500,
+        name,
+        building,
+        starts=1,
+        max_steps=500,
         solver=optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10),
     )
     assert ours.starts.status[0] == "converged"

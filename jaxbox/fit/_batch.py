@@ -22,7 +22,7 @@ from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
 from ._solver import LevenbergMarquardt
 
-__all__ = ["fit", "fit_many", "fit_batch"]
+__all__ = ["fit_model", "fit_many", "fit_batch"]
 
 
 def fit_model(
@@ -141,8 +141,9 @@ def fit_many(
 ) -> list[FitResult] | dict[str, FitResult]:
     """Fit ``model`` to each of several datasets of the same length in one batched call.
 
-    Takes the arguments of :func:`~jaxbox.fit.fit_model`; they apply to every dataset. Initial states
-    are guessed from each dataset's own first samples, and each dataset gets ``starts`` starts
+    Takes the arguments of :func:`~jaxbox.fit.fit_model`; they apply to every dataset. Initial
+    states are guessed from each dataset's own first samples, and each dataset gets ``starts``
+    starts
     (the guess plus Latin-hypercube samples around it, with the same ``seed``), or the same
     explicit starts [S, n_free]. ``slots`` counts the starts iterated together over all
     datasets.
@@ -243,7 +244,7 @@ def fit_batch(
             model, data = get_model(req["model"]), req["data"]
             arg = {k: req.get(k, _DEFAULTS[k]) for k in _DEFAULTS}
             problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
-            x0 = make_starts(problem, *(arg[k] for k in _STARTS))
+            x0 = make_starts(problem, data, *(arg[k] for k in _STARTS))
             solver = (int(arg["max_steps"]), float(arg["rtol"]), float(arg["atol"]), arg["solver"])
             prepared.append((i, problem, data, x0, problem_arrays(problem, data), solver))
         except FitError as err:

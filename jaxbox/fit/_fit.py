@@ -50,7 +50,7 @@ from .. import _compiled
 from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
 from ._solver import LevenbergMarquardt
-from ._starts import latin_hypercube
+from ._starts import sample_starts
 
 __all__ = ["solve_starts", "solve_jobs", "compile_cache_info", "clear_compile_cache"]
 
@@ -69,7 +69,6 @@ def compile_cache_info() -> dict:
 def clear_compile_cache() -> None:
     """Drop every compiled function (of the fit and of every other room)."""
     _compiled.clear()
-
 
 
 def solver_key(solver) -> object:
@@ -455,17 +454,13 @@ def _status(code: int, cost: float, p: np.ndarray) -> str:
     return _STATUS.get(int(code), f"failed (code {int(code)})")
 
 
-def make_starts(problem: Problem, starts, seed, concentration) -> np.ndarray:
-    """The guess plus ``starts − 1`` Latin-hypercube samples, or explicit starts checked."""
-    g = np.asarray([problem.guess_dict[n] for n in problem.free])
+def make_starts(problem: Problem, data, starts, seed, concentration) -> np.ndarray:
+    """The guess plus ``starts − 1`` Latin-hypercube samples (:func:`sample_starts`), or
+    explicit starts checked."""
     if isinstance(starts, int | np.integer):
         if starts < 1:
             raise FitError(f"starts must be at least 1, got {starts}")
-        x0s = g[None, :]
-        if starts > 1:
-            lhs = latin_hypercube(problem.transform, g, starts - 1, seed, concentration)
-            x0s = np.concatenate([x0s, lhs], axis=0)
-        return x0s
+        return sample_starts(problem, data, int(starts), seed, concentration)
     x0s = np.atleast_2d(np.asarray(starts, dtype=float))
     if x0s.shape[1] != len(problem.free):
         raise FitError(

@@ -11,15 +11,15 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..models import RCModel
 from ..simulate import simulate_arrays
 from ..simulate._exact import discretize_foh_rc, normal_equations
+from ._guess import initial_guess
 from ._transforms import Transform, make_transform
 
-__all__ = ["Problem", "FitError", "make_problem", "initial_guess"]
+__all__ = ["Problem", "FitError", "make_problem"]
 
 
 class FitError(ValueError):
@@ -158,45 +158,6 @@ class Problem:
         return jax.vmap(one, in_axes=(0, 0, 0, 0, 0, d_axis, d_axis, d_axis, d_axis))(
             Z, fixed, lo, hi, sc, t, u, y, w
         )
-
-
-def initial_guess(model: RCModel, data) -> dict[str, float]:
-    """Default guess: naming-convention defaults, initial states from the data.
-
-    A measured state starts at its first measurement. An unmeasured state starts at the mean of
-    the first values of the measured temperatures around it (zone outputs and the boundary
-    temperatures it is linked to), which keeps multistart families away from unphysical
-    initial temperatures.
-    """
-    guess = model.defaults()
-    net = model.network
-    first = {}
-    cols = set(data.columns)
-    for name in {*model.outputs, *[i for i in model.inputs if i.startswith("T_")]}:
-        if name in cols:
-            first[name] = float(data.array([name])[0, 0])
-    measured = {n.name: first[n.output] for n in net.nodes if n.output in first}
-    for node in net.nodes:
-        if node.name in measured:
-            value = measured[node.name]
-        else:
-            around = []
-            for e in net.edges:
-                for a, b in ((e.a, e.b), (e.b, e.a)):
-                    if a != node.name:
-                        continue
-                    if b in measured:
-                        around.append(measured[b])
-                    elif b in first:
-                        around.append(first[b])
-            if not around:
-                around = list(measured.values())
-            if not around:
-                continue
-            value = float(np.mean(around))
-        spec = model.parameter(node.T0)
-        guess[node.T0] = float(np.clip(value, spec.lower, spec.upper))
-    return guess
 
 
 def make_problem(

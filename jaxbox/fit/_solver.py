@@ -157,7 +157,10 @@ class NielsenDamping(optx.AbstractSearch):
         dtype = f_info_struct.f.dtype
         zero = jnp.zeros((), dtype)
         return _SearchState(
-            jnp.asarray(self.damping0, dtype), jnp.asarray(2.0, dtype), zero, zero,
+            jnp.asarray(self.damping0, dtype),
+            jnp.asarray(2.0, dtype),
+            zero,
+            zero,
             jnp.array(False),
         )
 
@@ -174,7 +177,8 @@ class NielsenDamping(optx.AbstractSearch):
         )
         rho = jnp.where(ok, actual / jnp.where(predicted > 0, predicted, 1.0), 0.0)
         lam = jnp.where(
-            ok, state.damping * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3),
+            ok,
+            state.damping * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3),
             state.damping * state.nu,
         )
         nu = jnp.where(ok, 2.0, 2.0 * state.nu)
@@ -279,9 +283,7 @@ class LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
         )
         keep = accept & finite
         new_flat = jnp.where(keep, flat_eval, flat)
-        f_info = jax.tree_util.tree_map(
-            lambda a, b: jnp.where(keep, a, b), eval_info, state.f_info
-        )
+        f_info = jax.tree_util.tree_map(lambda a, b: jnp.where(keep, a, b), eval_info, state.f_info)
         aux = (
             None
             if state.aux is None
@@ -291,18 +293,14 @@ class LevenbergMarquardt(optx.AbstractLeastSquaresSolver):
         cost = 2.0 * state.f_info.f
         tol = self.rtol * cost + self.atol
         small = (
-            search_state.accepted
-            & (search_state.actual <= tol)
-            & (search_state.predicted <= tol)
+            search_state.accepted & (search_state.actual <= tol) & (search_state.predicted <= tol)
         )
         stalled = search_state.damping > _LAMBDA_MAX
         diverged = state.first_step & ~finite
         terminate = diverged | (~state.first_step & (small | stalled))
         result = optx.RESULTS.where(diverged, optx.RESULTS.nonlinear_divergence, search_result)
         step, descent_result = self.descent.step(step_size, descent_state)
-        result = optx.RESULTS.where(
-            result == optx.RESULTS.successful, descent_result, result
-        )
+        result = optx.RESULTS.where(result == optx.RESULTS.successful, descent_result, result)
         new_state = LMState(
             first_step=jnp.array(False),
             y_eval=unravel(new_flat + step),

@@ -4,18 +4,28 @@ For each free parameter a univariate beta distribution on its bounds (in the tra
 scale: logarithmic for resistances and capacities, linear otherwise) has its mode at the guess:
 ``Beta(1 + κ f, 1 + κ (1 − f))`` with ``f`` the guess's relative position in the bounds —
 symmetric when the guess is central, skewed towards the guess otherwise. ``n`` stratified samples
-are drawn per parameter (one in each of ``n`` equal-probability strata) and the columns are
-shuffled independently, so the ``n`` starts cover every parameter's range evenly.
+are drawn per parameter (one in each of ``n`` equal-probability strata, by
+:class:`scipy.stats.qmc.LatinHypercube`) and combined at random, so the ``n`` starts cover every
+parameter's range evenly.
+
+:func:`sample_starts` is the one sampler of starts: the guess plus ``n − 1`` such samples, with
+initial temperatures drawn within their data-derived range (:func:`~jaxbox.fit.state_ranges`)
+instead of the wide default bounds of ``T_*0``. ``fit_model(starts=n)`` and a selection case with
+``n`` starts both use it, so they draw the same starts for the same seed and guess.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy import stats
+from scipy.stats import qmc
 
+from ._guess import state_ranges
 from ._transforms import _FREE, _LIN, _LOG, _LOWER, Transform
 
-__all__ = ["latin_hypercube"]
+__all__ = ["latin_hypercube", "sample_starts"]
 
 _EPS = 1e-6
 
@@ -38,12 +48,12 @@ def latin_hypercube(
     """
     if n < 1:
         raise ValueError(f"the number of starts must be at least 1, got {n}")
-    rng = np.random.default_rng(seed)
     guess = np.asarray(guess, dtype=float)
     p = len(guess)
+    strata = qmc.LatinHypercube(d=max(p, 1), seed=np.random.default_rng(seed)).random(n)
     out = np.empty((n, p))
     for i, k in enumerate(transform.kinds):
-        u = (rng.permutation(n) + rng.random(n)) / n
+        u = strata[:, i]
         if k in (_LOG, _LIN):
             lo, hi = transform.lower[i], transform.upper[i]
             if k == _LOG:
@@ -63,3 +73,29 @@ def latin_hypercube(
             s = transform.scale[i]
             out[:, i] = guess[i] + 4 * s * (stats.beta.ppf(u, 3, 3) - 0.5)
     return out
+
+
+def sample_starts(problem, data, n: int, seed: int | None = 0, concentration: float = 4.0):
+    """The guess plus ``n − 1`` Latin-hypercube starts [n, n_free] (physical values).
+
+    Initial temperatures are sampled within their data-derived range (:func:`state_ranges`),
+    intersected with their bounds, when the guess lies inside it; every other parameter within
+    its bounds (:func:`latin_hypercube`). Reproducible for a seed.
+    """
+    if n < 1:
+        raise ValueError(f"the number of starts must be at least 1, got {n}")
+    tr = problem.transform
+    g = np.asarray([problem.guess_dict[k] for k in problem.free])
+    if n == 1:
+        return g[None, :]
+    ranges = state_ranges(problem.model, data)
+    lo, hi = np.array(tr.lower, dtype=float), np.array(tr.upper, dtype=float)
+    for i, name in enumerate(problem.free):
+        if name in ranges:
+            a, _, b = ranges[name]
+            a, b = max(a, lo[i]), min(b, hi[i])
+            if a < g[i] < b:
+                lo[i], hi[i] = a, b
+    sampling = dataclasses.replace(tr, lower=lo, upper=hi)
+    lhs = latin_hypercube(sampling, g, n - 1, seed, concentration)
+    return np.concatenate([g[None, :], lhs], axis=0)

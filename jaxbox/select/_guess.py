@@ -16,7 +16,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..fit import initial_guess, latin_hypercube, make_problem
+from ..fit import initial_guess, make_problem, sample_starts, state_guess, state_ranges
 from ..models import RCModel
 
 __all__ = [
@@ -28,12 +28,6 @@ __all__ = [
     "state_ranges",
     "lhs_starts",
 ]
-
-#: Half-width [K] of the sampling range around a measured initial temperature.
-MEASURED_MARGIN = 1.0
-#: Margin [K] added on both sides of the span of the temperatures around an unmeasured state.
-UNMEASURED_MARGIN = 2.0
-
 
 @dataclasses.dataclass(frozen=True)
 class Guess:
@@ -69,76 +63,9 @@ class Guess:
         )
 
 
-def _first_values(model: RCModel, data) -> dict[str, float]:
-    """First sample of every measured temperature the model touches (outputs, T_* inputs)."""
-    out = {}
-    for name in (*model.outputs, *(i for i in model.inputs if i.startswith("T_"))):
-        if name in data.columns:
-            out[name] = float(data.array([name])[0, 0])
-    return out
-
-
-def _neighbours(model: RCModel, node: str) -> list[str]:
-    out = []
-    for e in model.network.edges:
-        if e.a == node:
-            out.append(e.b)
-        elif e.b == node:
-            out.append(e.a)
-    return out
-
-
-def state_ranges(model: RCModel, data) -> dict[str, tuple[float, float, float]]:
-    """Data-derived (low, guess, high) [°C] per initial-state parameter ``T_*0``.
-
-    A measured state: its first measurement ± :data:`MEASURED_MARGIN`. An unmeasured state: the
-    span of the temperatures around it (measured neighbouring states and boundary inputs such as
-    ``T_amb``, ``T_bou``, followed through unmeasured neighbours) at the start of ``data``,
-    widened by :data:`UNMEASURED_MARGIN`; its guess is their mean. Clipped to the parameter's
-    default bounds.
-    """
-    first = _first_values(model, data)
-    nodes = {n.name: n for n in model.network.nodes}
-    measured = {n.name: first[n.output] for n in nodes.values() if n.output in first}
-    out = {}
-    for node in nodes.values():
-        spec = model.parameter(node.T0)
-        if node.name in measured:
-            v = measured[node.name]
-            lo, g, hi = v - MEASURED_MARGIN, v, v + MEASURED_MARGIN
-        else:
-            around, seen, todo = [], {node.name}, [node.name]
-            while todo:  # breadth-first through unmeasured neighbours
-                for b in _neighbours(model, todo.pop(0)):
-                    if b in seen:
-                        continue
-                    seen.add(b)
-                    if b in measured:
-                        around.append(measured[b])
-                    elif b in first:
-                        around.append(first[b])
-                    elif b in nodes:
-                        todo.append(b)
-            if not around:
-                around = list(measured.values()) or [spec.default]
-            g = float(np.mean(around))
-            lo, hi = min(around) - UNMEASURED_MARGIN, max(around) + UNMEASURED_MARGIN
-        lo, hi = max(lo, spec.lower), min(hi, spec.upper)
-        if not lo < hi:
-            lo, hi = spec.lower, spec.upper
-        out[node.T0] = (float(lo), float(np.clip(g, lo, hi)), float(hi))
-    return out
-
-
-def state_guess(model: RCModel, data) -> dict[str, float]:
-    """Initial temperatures [°C] from the data (the middle of :func:`state_ranges`)."""
-    return {k: g for k, (_, g, _) in state_ranges(model, data).items()}
-
-
 def naming_guess(model: RCModel, data) -> Guess:
     """Defaults per naming prefix (:func:`jaxbox.fit.initial_guess`), initial states from data."""
     values = initial_guess(model, data)
-    values.update(state_guess(model, data))
     return Guess({n: float(values[n]) for n in model.param_names}, "naming")
 
 
@@ -185,27 +112,11 @@ def lhs_starts(
 ) -> tuple[tuple[str, ...], np.ndarray]:
     """The guess plus ``n − 1`` Latin-hypercube starts [n, n_free] (physical values).
 
-    Beta distributions around the guess within the bounds (:func:`jaxbox.fit.latin_hypercube`:
-    stratified per parameter, combined at random, reproducible for a seed). Initial temperatures
-    are sampled within their data-derived range (:func:`state_ranges`), intersected with their
-    bounds, not over the wide default bounds.
+    The fit's own sampler (:func:`jaxbox.fit.sample_starts`), so that ``fit_model(starts=n)``
+    and a case with ``n`` starts draw the same starts for the same seed and guess.
 
     Returns:
         (names of the free parameters, starts [n, p]).
     """
     problem = make_problem(model, data, free=free, fixed=fixed, bounds=bounds, guess=dict(guess))
-    tr = problem.transform
-    g = np.asarray([problem.guess_dict[k] for k in problem.free])
-    if n <= 1:
-        return problem.free, g[None, :]
-    ranges = state_ranges(model, data)
-    lo, hi = np.array(tr.lower, dtype=float), np.array(tr.upper, dtype=float)
-    for i, name in enumerate(problem.free):
-        if name in ranges:
-            a, _, b = ranges[name]
-            a, b = max(a, lo[i]), min(b, hi[i])
-            if a < g[i] < b:
-                lo[i], hi[i] = a, b
-    sampling = dataclasses.replace(tr, lower=lo, upper=hi)
-    lhs = latin_hypercube(sampling, g, n - 1, seed, concentration)
-    return problem.free, np.concatenate([g[None, :], lhs], axis=0)
+    return problem.free, sample_starts(problem, data, n, seed, concentration)

@@ -6,5 +6,5 @@ from ._exact import simulate_exact as simulate_exact
 from ._parallel import simulate_parallel as simulate_parallel
 from ._simulate import METHODS as METHODS
 from ._simulate import Simulation as Simulation
-from ._simulate import simulate_model as simulate_model
 from ._simulate import simulate_arrays as simulate_arrays
+from ._simulate import simulate_model as simulate_model

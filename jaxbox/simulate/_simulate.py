@@ -16,7 +16,7 @@ from ._diffrax import simulate_diffrax
 from ._exact import simulate_exact
 from ._parallel import simulate_parallel
 
-__all__ = ["Simulation", "simulate", "simulate_arrays", "check_theta", "METHODS"]
+__all__ = ["Simulation", "simulate_model", "simulate_arrays", "check_theta", "METHODS"]
 
 METHODS = ("exact", "diffrax", "parallel")
 

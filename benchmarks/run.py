@@ -350,8 +350,8 @@ t0 = time.perf_counter()
 r = jaxbox.fit_model(model, data, starts=S)
 wall = time.perf_counter() - t0
 r2 = jaxbox.fit_model(model, data, starts=S)
-from jaxbox.fit import _fit
-mem = [v.memory_analysis() for v in _fit._CACHE.values()][0]
+from jaxbox import _compiled
+mem = _compiled.entries("fit")[0].memory_analysis()
 print(json.dumps({
     "samples": n, "starts": S, "compile_s": r.timing["compile_s"], "fit_s": r2.timing["fit_s"],
     "first_call_s": wall, "best_cost": float(r.cost), "rmse": float(np.sqrt(r.cost)),

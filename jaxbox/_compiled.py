@@ -15,7 +15,7 @@ from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from typing import Any
 
-__all__ = ["cached", "clear", "info", "set_max_entries"]
+__all__ = ["cached", "clear", "entries", "info", "set_max_entries"]
 
 _LOCK = threading.Lock()
 _ENTRIES: OrderedDict[Hashable, Any] = OrderedDict()
@@ -61,6 +61,12 @@ def info(room: str | None = None) -> dict:
         else:
             n = sum(1 for k in _ENTRIES if isinstance(k, tuple) and k and k[0] == room)
         return {"entries": n, "max_entries": _MAX[0], **_STATS}
+
+
+def entries(room: str) -> list:
+    """The compiled functions kept for ``room``, least recently used first."""
+    with _LOCK:
+        return [v for k, v in _ENTRIES.items() if isinstance(k, tuple) and k and k[0] == room]
 
 
 def set_max_entries(n: int) -> None:

@@ -130,3 +130,15 @@ def test_slot_refilling_batch_equals_one_start_at_a_time(building):
         assert alone.starts.status[0] == batched.starts.status[i]
         np.testing.assert_allclose(alone.starts.cost[0], batched.starts.cost[i], rtol=1e-10)
         np.testing.assert_allclose(alone.starts.params[0], batched.starts.params[i], rtol=1e-6)
+
+
+def test_fit_and_a_selection_case_draw_the_same_starts(building):
+    """One start sampler: fit_model(starts=8) and a selection case with 8 starts."""
+    from jaxbox.select import lhs_starts, naming_guess
+
+    model = get_model("ZonWalIntInf")
+    guess = naming_guess(model, building).values
+    names, case_starts = lhs_starts(model, building, guess, 8, seed=5)
+    result = fit_model(model, building, starts=8, seed=5, max_steps=1)
+    assert names == result.problem.free
+    np.testing.assert_array_equal(case_starts, result.starts.initial)

@@ -86,6 +86,13 @@ def renamed(**names):
     return make
 
 
+def stuck(folder: Path) -> Path:
+    """Four days whose outdoor temperature never changes."""
+    f = frame(96)
+    f["T_amb"] = 5.0
+    return csv(folder / "data.csv", f)
+
+
 def dropped(*names):
     def make(folder: Path) -> Path:
         return csv(folder / "data.csv", frame().drop(columns=list(names)))
@@ -211,6 +218,8 @@ CASES = [
     ("1e300 in the validation window", changed(I_glo_hor=(45, 1e300)), FIT, ["I_glo_hor"]),
     ("-1e300 in the identification window", changed(T_amb=(2, -1e300)), FIT, ["T_amb"]),
     ("spike in the validation window", changed(T_zon=(30, 95.0)), FIT, ["T_zon"]),
+    ("spike inside the plausible range", changed(T_zon=(30, 38.0)), FIT, ["T_zon", "spike"]),
+    ("stuck outdoor sensor", stuck, FIT, ["T_amb", "stuck"]),
     ("heating power in kW", changed(Q_hea=frame()["Q_hea"] / 1000), FIT, ["Q_hea"]),
     ("semicolon file", semicolons(False), FIT, ["--sep"]),
     ("semicolons and decimal commas", semicolons(True), [*FIT, "--sep", ";"], ["--decimal"]),
@@ -285,7 +294,7 @@ CASES = [
     # -- periods
     ("--resample not a rule", good, [*FIT, "--resample", "fortnightly"], ["--resample"]),
     ("--resample zero", good, [*FIT, "--resample", "0h"], ["--resample"]),
-    ("--resample finer than the data", good, [*FIT, "--resample", "10min"], ["resample"]),
+    ("--resample finer than the data", good, [*FIT, "--resample", "10min"], ["--resample"]),
     ("--train without ..", good, [*FIT, "--train", "2024-01-01"], ["--train", "START..END"]),
     ("--train not a date", good, [*FIT, "--train", "monday..friday"], ["--train", "monday"]),
     ("--train reversed", good, [*FIT, "--train", "2024-01-02..2024-01-01"], ["--train"]),

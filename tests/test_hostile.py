@@ -573,6 +573,14 @@ def test_greybox_takes_a_dataset_a_dataframe_or_a_path(dataset, tmp_path):
         assert len(gb.data) == N and gb.valid_period is not None
 
 
+@pytest.mark.parametrize("ranges", [[("T_zon", 0, 50)], "T_zon=0:50", {"T_zon": 5}])
+def test_greybox_refuses_malformed_ranges(dataset, ranges):
+    from jaxbox.select import GreyBox
+
+    with pytest.raises(TypeError, match="ranges"):
+        GreyBox(dataset, ranges=ranges)
+
+
 def test_greybox_refuses_implausible_windows(dataset):
     from jaxbox.data import DataError
     from jaxbox.select import GreyBox

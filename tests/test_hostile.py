@@ -125,6 +125,15 @@ def prefix_file(folder: Path) -> Path:
     return folder / "twinhouse_exp1_myhouse.csv"
 
 
+def slug_taken(folder: Path) -> Path:
+    """Two datasets whose plots go to ./1-data and ./2-data, the second a file already."""
+    for sub in ("a", "b"):
+        (folder / sub).mkdir()
+        csv(folder / sub / "data.csv")
+    (folder / "2-data").write_text("taken")
+    return folder
+
+
 def a_file(folder: Path) -> Path:
     (folder / "taken").write_text("a file, not a folder")
     return folder / "taken"
@@ -375,6 +384,12 @@ CASES = [
         ["--out"],
     ),
     ("demo --out is a file", a_file, ["demo", "--out", "{data}"], ["--out"]),
+    (
+        "a dataset's --plots folder is a file",
+        slug_taken,
+        ["fit", "{folder}/a/data.csv", "{folder}/b/data.csv", "--model", "Zon", "--plots", "."],
+        ["--plots", "2-data"],
+    ),
 ]
 
 

@@ -211,3 +211,28 @@ def test_command_line_keeps_a_persistent_compilation_cache(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["models"]
+
+
+def test_select_writes_its_outputs_at_once(csv_file, capsys, tmp_path):
+    """select --out: the selection document, the report and the saved GreyBox in place, no
+    staging folder left; the GreyBox loads with the same cases."""
+    from jaxbox.select import GreyBox
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")  # what was there stays
+    code = main(
+        ["select", str(csv_file), "--models", "Zon", "--starts", "2", *MAP, "--out", str(out)]
+    )
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert sorted(p.name for p in out.iterdir()) == [
+        "greybox",
+        "notes.txt",
+        "report.html",
+        "selection.json",
+    ]
+    doc = json.loads((out / "selection.json").read_text())
+    assert doc["files"]["report"] == str(out / "report.html")
+    back = GreyBox.load(out / "greybox")
+    assert list(back.cases) == [row["case"] for row in doc["table"]]

@@ -86,6 +86,13 @@ def renamed(**names):
     return make
 
 
+def stuck(folder: Path) -> Path:
+    """Four days whose outdoor temperature never changes."""
+    f = frame(96)
+    f["T_amb"] = 5.0
+    return csv(folder / "data.csv", f)
+
+
 def dropped(*names):
     def make(folder: Path) -> Path:
         return csv(folder / "data.csv", frame().drop(columns=list(names)))
@@ -116,6 +123,15 @@ def prefix_file(folder: Path) -> Path:
     """A file named like a bundled dataset, with only a header: must be read, not replaced."""
     (folder / "twinhouse_exp1_myhouse.csv").write_text("time,T_zon,T_amb,Q_hea,I_glo_hor\n")
     return folder / "twinhouse_exp1_myhouse.csv"
+
+
+def slug_taken(folder: Path) -> Path:
+    """Two datasets whose plots go to ./1-data and ./2-data, the second a file already."""
+    for sub in ("a", "b"):
+        (folder / sub).mkdir()
+        csv(folder / sub / "data.csv")
+    (folder / "2-data").write_text("taken")
+    return folder
 
 
 def a_file(folder: Path) -> Path:
@@ -211,6 +227,8 @@ CASES = [
     ("1e300 in the validation window", changed(I_glo_hor=(45, 1e300)), FIT, ["I_glo_hor"]),
     ("-1e300 in the identification window", changed(T_amb=(2, -1e300)), FIT, ["T_amb"]),
     ("spike in the validation window", changed(T_zon=(30, 95.0)), FIT, ["T_zon"]),
+    ("spike inside the plausible range", changed(T_zon=(30, 38.0)), FIT, ["T_zon", "spike"]),
+    ("stuck outdoor sensor", stuck, FIT, ["T_amb", "stuck"]),
     ("heating power in kW", changed(Q_hea=frame()["Q_hea"] / 1000), FIT, ["Q_hea"]),
     ("semicolon file", semicolons(False), FIT, ["--sep"]),
     ("semicolons and decimal commas", semicolons(True), [*FIT, "--sep", ";"], ["--decimal"]),
@@ -285,7 +303,7 @@ CASES = [
     # -- periods
     ("--resample not a rule", good, [*FIT, "--resample", "fortnightly"], ["--resample"]),
     ("--resample zero", good, [*FIT, "--resample", "0h"], ["--resample"]),
-    ("--resample finer than the data", good, [*FIT, "--resample", "10min"], ["resample"]),
+    ("--resample finer than the data", good, [*FIT, "--resample", "10min"], ["--resample"]),
     ("--train without ..", good, [*FIT, "--train", "2024-01-01"], ["--train", "START..END"]),
     ("--train not a date", good, [*FIT, "--train", "monday..friday"], ["--train", "monday"]),
     ("--train reversed", good, [*FIT, "--train", "2024-01-02..2024-01-01"], ["--train"]),
@@ -366,6 +384,12 @@ CASES = [
         ["--out"],
     ),
     ("demo --out is a file", a_file, ["demo", "--out", "{data}"], ["--out"]),
+    (
+        "a dataset's --plots folder is a file",
+        slug_taken,
+        ["fit", "{folder}/a/data.csv", "{folder}/b/data.csv", "--model", "Zon", "--plots", "."],
+        ["--plots", "2-data"],
+    ),
 ]
 
 
@@ -562,6 +586,14 @@ def test_greybox_takes_a_dataset_a_dataframe_or_a_path(dataset, tmp_path):
     for data in (dataset, frame().set_index("time"), path, str(path)):
         gb = GreyBox(data)
         assert len(gb.data) == N and gb.valid_period is not None
+
+
+@pytest.mark.parametrize("ranges", [[("T_zon", 0, 50)], "T_zon=0:50", {"T_zon": 5}])
+def test_greybox_refuses_malformed_ranges(dataset, ranges):
+    from jaxbox.select import GreyBox
+
+    with pytest.raises(TypeError, match="ranges"):
+        GreyBox(dataset, ranges=ranges)
 
 
 def test_greybox_refuses_implausible_windows(dataset):

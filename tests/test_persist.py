@@ -362,3 +362,23 @@ def test_a_reader_during_saves_sees_a_whole_version(tmp_path):
         proc.wait()
     assert len(versions) > 20
     assert versions == sorted(versions) and versions[-1] > versions[0]  # saves went on
+
+
+def test_two_savers_and_a_reader(tmp_path):
+    """Two processes save into one folder at the same time while this one loads: the saves
+    take turns, every load gives a whole version of one of them, and the folder loads after."""
+    folder = tmp_path / "gb"
+    savers = [_saver(folder), _saver(folder, start=10**6)]
+    try:
+        for proc in savers:
+            proc.stdout.readline()
+        seen = set()
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < 3.0:
+            seen.add(_version(load_greybox(folder)) >= 10**6)
+    finally:
+        for proc in savers:
+            proc.kill()
+            proc.wait()
+    assert _version(load_greybox(folder)) >= 0
+    assert seen  # versions of one saver or the other, never an error

@@ -29,12 +29,12 @@ from ._common import (
 from ._data import (
     DataOptions,
     add_data_arguments,
+    check_output_folders,
     load_all,
     slug,
 )
 from ._outputs import (
     Outputs,
-    check_folder,
 )
 
 __all__ = ["add_fit_arguments", "fit_command", "models_command"]
@@ -112,7 +112,7 @@ def fit_command(args) -> int:
         raise UsageError(f"--fix and --bounds both give {both[0]}; a fixed parameter has no bounds")
     check_run_options(args)
     opts = DataOptions(args)
-    plots = check_folder(args.plots, "--plots")
+    plots = check_output_folders(args.plots, "--plots", opts.specs)
     # the data, checked in the periods used
     sets = load_all(args, opts, model=model)
     say = _say(args)

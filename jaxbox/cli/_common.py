@@ -147,6 +147,7 @@ _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
     (re.compile(r"resample='([^']*)'"), r"--resample \1"),
     (re.compile(r"scale=\{'([^']+)': ([^}]+)\}"), r"--scale \1=\2"),
     (re.compile(r"^scale (names|factor)"), r"--scale \1"),
+    (re.compile(r"^resample rule\b"), "--resample"),
     (re.compile(r"\bscale applies after columns="), "--scale applies after --map"),
     (
         re.compile(r"read it with pd\.read_csv\(\.\.\., encoding=\.\.\.\) and pass the DataFrame"),

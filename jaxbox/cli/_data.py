@@ -21,9 +21,17 @@ from ._common import (
     scale,
     separator,
 )
-from ._outputs import reason
+from ._outputs import check_folder, reason
 
-__all__ = ["DATA_HELP", "DataOptions", "add_data_arguments", "load_all", "load_data", "slug"]
+__all__ = [
+    "DATA_HELP",
+    "DataOptions",
+    "add_data_arguments",
+    "check_output_folders",
+    "load_all",
+    "load_data",
+    "slug",
+]
 
 
 #: The fewest samples of an identification or validation period (the residual tests of
@@ -295,3 +303,13 @@ def slug(spec: str, specs: Sequence[str] = ()) -> str:
     if [name(x) for x in specs].count(out) > 1:
         out = f"{list(specs).index(spec) + 1}-{out}"
     return out
+
+
+def check_output_folders(text: str | None, option: str, specs: Sequence[str]) -> Path | None:
+    """The output folder of ``option`` probed for writing, and with several DATA the folder of
+    each inside it (one per dataset, named by :func:`slug`)."""
+    folder = check_folder(text, option)
+    if folder is not None and len(specs) > 1:
+        for spec in specs:
+            check_folder(str(folder / slug(spec, specs)), option)
+    return folder

@@ -33,7 +33,7 @@ def check_folder(text: str | None, option: str) -> Path | None:
     path = Path(text)
     try:
         if path.exists() and not path.is_dir():
-            raise UsageError(f"{option} {text!r} is a file, not a folder; give a folder")
+            raise UsageError("it is a file, not a folder; give a folder")
         made = _make_folder(path)
     except UsageError as err:
         raise UsageError(f"{option} {text!r}: {err}") from None

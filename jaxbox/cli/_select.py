@@ -26,6 +26,7 @@ from ._common import (
 from ._data import (
     DataOptions,
     add_data_arguments,
+    check_output_folders,
     check_windows,
     load_all,
     load_data,
@@ -219,7 +220,7 @@ def select_command(args) -> int:
     accepted model's fit document (with several DATA: ``{"buildings": [document, …]}``)."""
     check_run_options(args)
     opts = DataOptions(args)
-    out = check_folder(args.out, "--out")
+    out = check_output_folders(args.out, "--out", opts.specs)
     sets = [
         (spec, data.slice(ident.start, valid.end), ident, valid)
         for spec, data, ident, valid in load_all(args, opts)

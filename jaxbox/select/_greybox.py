@@ -28,11 +28,10 @@ def _period(data) -> tuple[str, str]:
 
 
 def _pair(value, name: str):
-    """A ``(start, end)`` period argument: a pair of time stamps (either may be ``None``)."""
+    """A pair argument: a ``(start, end)`` period (either may be ``None``) or a ``(lo, hi)``
+    range."""
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
-        raise TypeError(
-            f"{name} must be a (start, end) pair of time stamps (either may be None), got {value!r}"
-        )
+        raise TypeError(f"{name} must be a pair (a tuple of two values), got {value!r}")
     return tuple(value)
 
 
@@ -46,7 +45,9 @@ class GreyBox:
     """Every identification attempt (:class:`Case`) on one building's data.
 
     Args:
-        data: the building's :class:`~jaxbox.data.Dataset` (inputs and outputs).
+        data: the building's inputs and outputs: a :class:`~jaxbox.data.Dataset`, a pandas
+            DataFrame with a time index or a ``time`` column, or the path of a CSV file (read
+            with :func:`jaxbox.data.load`); anything else is a ``TypeError``.
         train: identification period ``(start, end)`` (inclusive; ``None`` sides are open);
             default the first half of ``data``.
         valid: validation period ``(start, end)``; default everything after ``train``. Pass
@@ -71,8 +72,8 @@ class GreyBox:
         self.data = data
         self.name = str(name)
         self.ranges = {
-            str(k): (float(lo), float(hi))
-            for k, (lo, hi) in check_mapping(ranges, "ranges").items()
+            str(k): tuple(map(float, _pair(v, f"ranges[{k!r}]")))
+            for k, v in check_mapping(ranges, "ranges").items()
         }
         if train is None and valid is None:
             ident, val = data.split()

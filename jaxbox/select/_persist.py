@@ -16,7 +16,7 @@ removes the arrays files older than the previous version. A save interrupted at 
 the previous save intact and loadable; a reader that loads while another process saves gets the
 previous or the new version (it reads the index, then the arrays it names, and starts again if a
 save removed them meanwhile). Temporary files of a save that was killed are removed by the next
-save or load.
+save or load. Saves into one folder take turns (a lock on its ``.greybox.lock``).
 
 Loading trusts nothing in the folder: the index is checked against its schema (one
 :class:`PersistError` naming the field for each problem), the arrays file it names must be a
@@ -26,6 +26,7 @@ implies.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import io
@@ -49,6 +50,7 @@ __all__ = ["FORMAT", "PersistError", "Saved", "read_greybox", "save_greybox"]
 
 FORMAT = "jaxbox.greybox/1"
 INDEX = "greybox.json"
+LOCK = ".greybox.lock"
 #: the only names an index may give its arrays file: a plain file inside the folder
 _ARRAYS_NAME = re.compile(r"arrays-[0-9a-f]{16}\.npz")
 #: attempts of a load that finds its arrays removed by a concurrent save
@@ -314,6 +316,28 @@ def save_greybox(gb, path) -> Path:
     """
     folder = Path(path)
     folder.mkdir(parents=True, exist_ok=True)
+    with _saving(folder):
+        return _save(gb, folder)
+
+
+@contextlib.contextmanager
+def _saving(folder: Path):
+    """One save at a time into ``folder`` (an exclusive lock on its ``.greybox.lock``, where the
+    system has them): a save must not remove the arrays another save has just written."""
+    try:
+        import fcntl
+    except ImportError:  # no advisory locks here: saves into one folder must not overlap
+        yield
+        return
+    with open(folder / LOCK, "a+b") as handle:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+
+
+def _save(gb, folder: Path) -> Path:
     remove_stale_temporaries(folder)
     buf = io.BytesIO()
     np.savez_compressed(buf, **_arrays(gb))

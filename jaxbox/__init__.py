@@ -2,37 +2,69 @@
 
 Data → models → simulate → fit → validate → select → report. Call :func:`enable_x64` once after
 import (the command line does it for you): every computation runs in float64.
+
+The subpackages and the public names below load on first use, so that ``import jaxbox`` is light
+(the command line installs its Ctrl-C handling before anything heavy is imported). The verbs are
+``fit_model`` and ``simulate_model``; ``jaxbox.fit`` and ``jaxbox.simulate`` are the packages.
 """
 
-from . import data as data
-from . import datasets as datasets
-from . import models as models
-from . import reference as reference
-from . import report as report
-from . import select as select
-from . import validate as validate
-from ._cache import enable_compilation_cache as enable_compilation_cache
-from ._x64 import PrecisionError as PrecisionError
-from ._x64 import enable_x64 as enable_x64
-from .data import DataError as DataError
-from .data import Dataset as Dataset
-from .data import load as load
-from .fit import FitError as FitError
-from .fit import FitResult as FitResult
-from .fit import LevenbergMarquardt as LevenbergMarquardt
-from .fit import fit_batch as fit_batch
-from .fit import fit_many as fit_many
-from .fit import fit_model as fit_model
-from .models import ModelError as ModelError
-from .models import Parameter as Parameter
-from .models import RCModel as RCModel
-from .models import RCNetwork as RCNetwork
-from .models import get_model as get_model
-from .models import list_models as list_models
-from .select import GreyBox as GreyBox
-from .select import forward_selection as forward_selection
-from .select import forward_selection_many as forward_selection_many
-from .simulate import Simulation as Simulation
-from .simulate import simulate_model as simulate_model
+from __future__ import annotations
+
+import importlib
 
 __version__ = "0.1.0"
+
+#: subpackages, loaded on first use
+_SUBPACKAGES = (
+    "data",
+    "datasets",
+    "fit",
+    "models",
+    "reference",
+    "report",
+    "select",
+    "simulate",
+    "validate",
+)
+#: public name -> the module that defines it
+_NAMES = {
+    "enable_compilation_cache": "_cache",
+    "PrecisionError": "_x64",
+    "enable_x64": "_x64",
+    "DataError": "data",
+    "Dataset": "data",
+    "load": "data",
+    "FitError": "fit",
+    "FitResult": "fit",
+    "LevenbergMarquardt": "fit",
+    "fit_model": "fit",
+    "fit_batch": "fit",
+    "fit_many": "fit",
+    "ModelError": "models",
+    "Parameter": "models",
+    "RCModel": "models",
+    "RCNetwork": "models",
+    "get_model": "models",
+    "list_models": "models",
+    "GreyBox": "select",
+    "forward_selection": "select",
+    "forward_selection_many": "select",
+    "Simulation": "simulate",
+    "simulate_model": "simulate",
+}
+
+__all__ = sorted([*_SUBPACKAGES, *_NAMES, "__version__"])
+
+
+def __getattr__(name: str):
+    if name in _SUBPACKAGES:
+        return importlib.import_module(f".{name}", __name__)
+    if name in _NAMES:
+        value = getattr(importlib.import_module(f".{_NAMES[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'jaxbox' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -548,11 +548,6 @@ def _interrupt(argv, folder, delay):
     if proc.returncode == 0:  # finished before the signal: the outputs are complete
         assert json.loads(out)
         pytest.skip("the command finished before Ctrl-C")
-    if proc.returncode == -signal.SIGINT and "jaxbox/__init__.py" in err:
-        pytest.xfail(
-            "Ctrl-C while `import jaxbox` runs (before any command-line code): needs an "
-            "import of jaxbox that does not load every subpackage (outside jaxbox/cli)"
-        )
     assert proc.returncode == 130, err
     assert err.strip().splitlines() == ["error: interrupted"], err
     assert out == ""

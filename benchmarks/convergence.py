@@ -1,0 +1,258 @@
+"""Do the starts reach the optimum? Every model of the ``exp1`` and ``bacher-madsen`` families.
+
+For each model on twin house N2 (experiment 1, identification half, hourly): jaxbox from 64
+starts (the default guess, then Latin-hypercube samples, seed 0), and CasADi/IPOPT direct
+collocation from the first ``--casadi-starts`` of the same starts (re-scored by jaxbox's exact
+simulation). A start *reached the best cost* when its cost is within 1e-4 (relative) of the best
+cost found by either route. And the speed of the 14-parameter benchmark (64 starts) against a
+baseline commit of jaxbox, measured in the same run (the baseline is checked out with
+``git archive`` into a temporary folder and run in a subprocess, alternating with the current
+code).
+
+    python benchmarks/convergence.py [--casadi-starts 8] [--baseline 0bad291] [--out FILE]
+
+Writes ``benchmarks/convergence.json`` and the Markdown tables to ``--out`` (default
+``benchmarks/CONVERGENCE.md``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(HERE))
+
+import jaxbox  # noqa: E402
+
+jaxbox.enable_x64()
+
+from jaxbox.fit import make_problem, sample_starts  # noqa: E402
+from jaxbox.models import families  # noqa: E402
+
+REL = 1e-4
+SPEED_MODEL = "ZonWalIntInfWinBouC"
+
+_SPEED = r"""
+import json, sys, time
+import numpy as np
+import jaxbox
+jaxbox.enable_x64()
+fit = getattr(jaxbox, "fit_model", None) or getattr(jaxbox, "fit")
+ident, _ = jaxbox.datasets.twinhouse_exp1("N2").split()
+r = fit(sys.argv[1], ident, starts=64, seed=0)
+compile_s = r.timing["compile_s"]
+fits = []
+for _ in range(int(sys.argv[2])):
+    r = fit(sys.argv[1], ident, starts=64, seed=0)
+    fits.append(r.timing["fit_s"])
+c = np.asarray(r.starts.cost)
+print(json.dumps({"compile_s": compile_s, "fit_s": min(fits), "best": float(np.nanmin(c)),
+                  "median_steps": float(np.median(r.starts.steps))}))
+"""
+
+
+def log(msg: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def _at_best(costs, best) -> np.ndarray:
+    costs = np.asarray(costs, dtype=float)
+    return np.isfinite(costs) & (costs <= best * (1 + REL))
+
+
+def model_row(name: str, ident, n_casadi: int, budget: float) -> dict:
+    import _peers
+
+    model = jaxbox.get_model(name)
+    problem = make_problem(model, ident)
+    starts = sample_starts(problem, ident, 64, 0, 4.0)
+    jaxbox.fit.clear_compile_cache()
+    first = jaxbox.fit_model(model, ident, starts=starts)
+    r = jaxbox.fit_model(model, ident, starts=starts)
+    row = {
+        "free": len(problem.free),
+        "jaxbox": {
+            "costs": r.starts.cost.tolist(),
+            "steps": np.asarray(r.starts.steps).tolist(),
+            "status": list(r.starts.status),
+            "compile_s": first.timing["compile_s"],
+            "fit_s": r.timing["fit_s"],
+        },
+    }
+    if n_casadi:
+        try:
+            peer = _peers.casadi_collocation(
+                problem, ident, starts[:n_casadi], budget_s=budget, log=log
+            )
+            row["casadi"] = {
+                "costs": [s["cost"] for s in peer["starts"]],
+                "wall_s": [s["wall_s"] for s in peer["starts"]],
+            }
+        except ImportError:
+            log("casadi not installed (pip install -e '.[bench]'): skipped")
+    best = min(np.nanmin(row["jaxbox"]["costs"]), *row.get("casadi", {}).get("costs", [np.inf]))
+    row["best"] = float(best)
+    return row
+
+
+def speed(baseline: str, repeats: int, rounds: int) -> dict:
+    """64 starts of the 14-parameter model: this tree against ``baseline``, alternating."""
+    out = {"baseline": baseline, "runs": {"current": [], "baseline": []}}
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = Path(tmp) / "base.tar"
+        subprocess.run(
+            ["git", "archive", "--format=tar", "-o", str(archive), baseline, "jaxbox"],
+            cwd=ROOT,
+            check=True,
+        )
+        base = Path(tmp) / "base"
+        with tarfile.open(archive) as tf:
+            tf.extractall(base, filter="data")
+        paths = {"current": str(ROOT), "baseline": str(base)}
+        for _ in range(rounds):
+            for which, path in paths.items():
+                env = {**os.environ, "PYTHONPATH": path, "JAXBOX_CACHE": "0"}
+                proc = subprocess.run(
+                    [sys.executable, "-c", _SPEED, SPEED_MODEL, str(repeats)],
+                    env=env,
+                    capture_output=True,
+                    text=True,
+                    check=True,
+                    cwd=tmp,
+                )
+                res = json.loads(proc.stdout.strip().splitlines()[-1])
+                out["runs"][which].append(res)
+                log(f"speed {which}: {res}")
+    return out
+
+
+def report(res: dict) -> str:
+    lines = [
+        "# Do the starts reach the optimum?",
+        "",
+        f"Written by `python benchmarks/convergence.py` on {res['date']}; raw numbers in "
+        "`benchmarks/convergence.json`. Twin house N2, experiment 1, identification half (492 "
+        "hourly samples). 64 starts per model: the default guess, then Latin-hypercube samples "
+        f"(seed 0); CasADi/IPOPT collocation from the first {res['n_casadi']} of the same starts. "
+        f"*At best*: cost within {REL:g} (relative) of the best cost of either route.",
+        "",
+        "| family | model | free | best cost [K²] | jaxbox at best | guess at best "
+        "| median LM steps | median steps of the starts at best | per start [ms] | compile [s] "
+        "| CasADi at best | CasADi per start [s] |",
+        "|---|---|---:|---:|---:|:-:|---:|---:|---:|---:|---:|---:|",
+    ]
+    totals = {"half": 0, "guess": 0, "steps": 0, "casadi": 0, "n": 0}
+    for fam, name, row in res["rows"]:
+        jx = row["jaxbox"]
+        best = row["best"]
+        at = _at_best(jx["costs"], best)
+        steps = np.asarray(jx["steps"])
+        n = len(at)
+        cas = row.get("casadi")
+        if cas:
+            cat = _at_best(cas["costs"], best)
+            cas_txt = f"{cat.sum()} / {len(cat)}"
+            cas_t = f"{np.median(cas['wall_s']):.2f}"
+            jx_first = at[: len(cat)].sum()
+            totals["casadi"] += int(at.mean() >= cat.mean())
+        else:
+            cas_txt, cas_t, jx_first = "–", "–", None
+        med_at = f"{np.median(steps[at]):.0f}" if at.any() else "–"
+        lines.append(
+            f"| {fam} | {name} | {row['free']} | {best:.9g} | {at.sum()} / {n}"
+            + (f" ({jx_first} of the first {len(cas['costs'])})" if cas else "")
+            + f" | {'yes' if at[0] else 'no'} | {np.median(steps):.0f} | {med_at} | "
+            f"{1000 * jx['fit_s'] / n:.1f} | {jx['compile_s']:.1f} | {cas_txt} | {cas_t} |"
+        )
+        totals["n"] += 1
+        totals["half"] += int(at.mean() >= 0.5)
+        totals["guess"] += int(at[0])
+        totals["steps"] += int(np.median(steps) <= 30)
+    lines += [
+        "",
+        "| target (issue) | models meeting it |",
+        "|---|---:|",
+        f"| at least half of the starts reach the best cost | {totals['half']} / {totals['n']} |",
+        f"| the default-guess start reaches the best | {totals['guess']} / {totals['n']} |",
+        f"| median start needs ≤ 30 LM steps | {totals['steps']} / {totals['n']} |",
+        f"| never fewer (proportionally) at best than CasADi on the same starts "
+        f"| {totals['casadi']} / {totals['n']} |",
+    ]
+    sp = res.get("speed")
+    if sp:
+        cur = min(r["fit_s"] for r in sp["runs"]["current"])
+        base = min(r["fit_s"] for r in sp["runs"]["baseline"])
+        cc = min(r["compile_s"] for r in sp["runs"]["current"])
+        bc = min(r["compile_s"] for r in sp["runs"]["baseline"])
+        lines += [
+            "",
+            f"## Speed against `{sp['baseline']}` (same run, alternating processes)",
+            "",
+            f"`{SPEED_MODEL}` (14 free parameters), 64 starts; minimum over the runs.",
+            "",
+            "| code | fit 64 starts [s] | per start [ms] | compile [s] | best cost "
+            "| median steps |",
+            "|---|---:|---:|---:|---:|---:|",
+        ]
+        for which in ("baseline", "current"):
+            runs = sp["runs"][which]
+            f = min(r["fit_s"] for r in runs)
+            c = min(r["compile_s"] for r in runs)
+            lines.append(
+                f"| {which} | {f:.3f} | {1000 * f / 64:.2f} | {c:.2f} | {runs[0]['best']:.9g} | "
+                f"{runs[0]['median_steps']:.0f} |"
+            )
+        lines += [
+            "",
+            f"Ratio current / baseline: fit {cur / base:.2f}×, compile {cc / bc:.2f}×.",
+        ]
+    lines += ["", f"Machine: {res['machine']}", ""]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--casadi-starts", type=int, default=8)
+    ap.add_argument("--budget", type=float, default=120.0, help="CasADi seconds per model")
+    ap.add_argument("--families", default="exp1,bacher-madsen")
+    ap.add_argument("--baseline", default="", help="commit to hold the speed against")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--out", default=str(HERE / "CONVERGENCE.md"))
+    args = ap.parse_args(argv)
+    import platform
+
+    ident, _ = jaxbox.datasets.twinhouse_exp1("N2").split()
+    res = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "n_casadi": args.casadi_starts,
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"jax {jaxbox.__version__ and __import__('jax').__version__}",
+        "rows": [],
+    }
+    for fam in args.families.split(","):
+        for name in families()[fam]:
+            log(f"{fam} {name}")
+            res["rows"].append((fam, name, model_row(name, ident, args.casadi_starts, args.budget)))
+            (HERE / "convergence.json").write_text(json.dumps(res))
+    if args.baseline:
+        res["speed"] = speed(args.baseline, args.repeats, args.rounds)
+    (HERE / "convergence.json").write_text(json.dumps(res))
+    Path(args.out).write_text(report(res))
+    log(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -8,7 +8,7 @@ import pytest
 from _reference import synthetic_building
 
 from jaxbox.data import Dataset
-from jaxbox.fit import FitError, compile_cache_info, fit_model
+from jaxbox.fit import FitError, compile_cache_info, fit_model, make_problem
 from jaxbox.models import get_model
 
 TRUTH = {
@@ -153,3 +153,17 @@ def test_subpackages_are_not_shadowed_by_verbs():
         assert getattr(jaxbox, name) is module
     assert callable(jaxbox.fit_model) and callable(jaxbox.simulate_model)
     assert jaxbox.fit.fit_model is jaxbox.fit_model
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"bounds": {"R_wal": (-1.0, 1.0)}}, "R_wal.*> 0"),
+        ({"bounds": {"C_wal": (0.0, 1e9)}}, "C_wal.*> 0"),
+        ({"fixed": {"R_wal": -0.01}}, "R_wal.*> 0"),
+        ({"fixed": {"C_zon": 0.0}}, "C_zon.*> 0"),
+    ],
+)
+def test_resistances_and_capacities_must_be_positive(zonwal_data, kwargs, match):
+    with pytest.raises(FitError, match=match):
+        make_problem(get_model("ZonWal"), zonwal_data, **kwargs)

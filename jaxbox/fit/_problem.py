@@ -160,6 +160,11 @@ class Problem:
         )
 
 
+def _positive(name: str) -> bool:
+    """Resistances [K/W] and capacities [J/K] are positive by the naming convention."""
+    return name.startswith(("R_", "C_"))
+
+
 def make_problem(
     model: RCModel,
     data,
@@ -209,6 +214,8 @@ def make_problem(
     for n, v in fixed.items():
         if not np.isfinite(v):
             raise FitError(f"fixed value of {n} is {v}; give a finite number")
+        if _positive(n) and not v > 0:
+            raise FitError(f"fixed value of {n} is {v:g}; resistances and capacities must be > 0")
     lo, hi, g = [], [], []
     for n in free:
         spec = model.parameter(n)
@@ -219,6 +226,11 @@ def make_problem(
             raise FitError(f"bounds of {n} must be a pair (lower, upper), got {b!r}") from None
         if not blo < bhi:
             raise FitError(f"bounds of {n}: lower {blo:g} must be below upper {bhi:g}")
+        if _positive(n) and not blo > 0:
+            raise FitError(
+                f"bounds of {n}: lower {blo:g} must be > 0 (resistances and capacities are "
+                "positive); give e.g. (1e-5, 10) for a resistance, (1e4, 1e10) for a capacity"
+            )
         gn = full_guess[n]
         if not np.isfinite(gn):
             raise FitError(f"guess of {n} is {gn}; give a finite number")

@@ -68,7 +68,9 @@ def test_all_starts_failing_is_an_error(zonwal_data):
 
 
 def test_fixed_parameters_and_bounds(zonwal_data):
-    r = fit_model("ZonWal", zonwal_data, fixed={"gA": 2.5}, bounds={"R_wal": (0.001, 0.1)})
+    r = fit_model(
+        "ZonWal", zonwal_data, starts=1, fixed={"gA": 2.5}, bounds={"R_wal": (0.001, 0.1)}
+    )
     assert "gA" not in r.free and r.params["gA"] == 2.5
     assert r.bounds["R_wal"] == (0.001, 0.1)
     assert r.params["R_wal"] == pytest.approx(TRUTH["R_wal"], rel=1e-5)
@@ -167,3 +169,26 @@ def test_subpackages_are_not_shadowed_by_verbs():
 def test_resistances_and_capacities_must_be_positive(zonwal_data, kwargs, match):
     with pytest.raises(FitError, match=match):
         make_problem(get_model("ZonWal"), zonwal_data, **kwargs)
+
+
+def test_one_set_of_defaults_in_python_the_selection_and_the_command_line():
+    import inspect
+
+    from jaxbox.cli import build_parser
+    from jaxbox.fit import DEFAULT_MAX_STEPS, DEFAULT_STARTS, fit_batch, fit_many
+    from jaxbox.select import GreyBox, forward_selection
+
+    for fn in (fit_model, fit_many):
+        params = inspect.signature(fn).parameters
+        assert params["starts"].default == DEFAULT_STARTS
+        assert params["max_steps"].default == DEFAULT_MAX_STEPS
+    assert inspect.signature(forward_selection).parameters["starts"].default == DEFAULT_STARTS
+    assert inspect.signature(GreyBox.add_case).parameters["starts"].default == DEFAULT_STARTS
+    assert fit_batch  # requests take fit_model's defaults (tested in test_library)
+    parser = build_parser()
+    for command in ("fit", "select"):
+        args = parser.parse_args(
+            [command, "x.csv"] + (["--model", "Zon"] if command == "fit" else [])
+        )
+        assert args.starts == DEFAULT_STARTS, command
+        assert args.max_steps in (None, DEFAULT_MAX_STEPS), command

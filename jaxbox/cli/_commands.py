@@ -44,7 +44,12 @@ def add_fit_arguments(p) -> None:
     """Declare the arguments of ``jaxbox fit``."""
     add_data_arguments(p)
     p.add_argument("--model", "-m", required=True, help="library model name (see `jaxbox models`)")
-    p.add_argument("--starts", type=int_option, default=16, help="number of starts (default 16)")
+    p.add_argument(
+        "--starts",
+        type=int_option,
+        default=fit_default("starts"),
+        help=f"number of starts (default {fit_default('starts')})",
+    )
     p.add_argument(
         "--seed", type=int_option, default=0, help="seed of the Latin hypercube (default 0)"
     )

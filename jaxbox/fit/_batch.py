@@ -17,6 +17,7 @@ import optimistix as optx
 
 from .._x64 import require_x64
 from ..models import get_model
+from ._defaults import DEFAULT_MAX_STEPS, DEFAULT_STARTS
 from ._fit import _problem_key, make_starts, result_from, solve_jobs, solver_key
 from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
@@ -33,12 +34,12 @@ def fit_model(
     fixed: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     guess: Mapping[str, float] | None = None,
-    starts: int | np.ndarray = 1,
+    starts: int | np.ndarray = DEFAULT_STARTS,
     seed: int | None = 0,
     weights: Mapping[str, float] | Sequence[float] | None = None,
     simulator: str = "exact",
     sim_options: Mapping | None = None,
-    max_steps: int = 100,
+    max_steps: int = DEFAULT_MAX_STEPS,
     rtol: float = 1e-6,
     atol: float = 1e-16,
     concentration: float = 4.0,
@@ -127,12 +128,12 @@ def fit_many(
     fixed: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     guess: Mapping[str, float] | None = None,
-    starts: int | np.ndarray = 1,
+    starts: int | np.ndarray = DEFAULT_STARTS,
     seed: int | None = 0,
     weights: Mapping[str, float] | Sequence[float] | None = None,
     simulator: str = "exact",
     sim_options: Mapping | None = None,
-    max_steps: int = 100,
+    max_steps: int = DEFAULT_MAX_STEPS,
     rtol: float = 1e-6,
     atol: float = 1e-16,
     concentration: float = 4.0,

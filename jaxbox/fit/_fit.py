@@ -47,6 +47,7 @@ import optimistix as optx
 from jax import lax
 
 from .. import _compiled
+from ._defaults import DEFAULT_MAX_STEPS
 from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
 from ._solver import LevenbergMarquardt
@@ -303,7 +304,7 @@ def _build_generic(groups, max_steps: int, solver):
 def solve_jobs(
     jobs: Sequence[tuple[Problem, np.ndarray, tuple]],
     *,
-    max_steps: int = 100,
+    max_steps: int = DEFAULT_MAX_STEPS,
     rtol: float = 1e-6,
     atol: float = 1e-16,
     slots: int | None = None,
@@ -431,7 +432,7 @@ def solve_starts(
     starts: np.ndarray,
     arrays,
     *,
-    max_steps: int = 100,
+    max_steps: int = DEFAULT_MAX_STEPS,
     rtol: float = 1e-6,
     atol: float = 1e-16,
     slots: int | None = None,

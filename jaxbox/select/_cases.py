@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ..fit import DEFAULT_STARTS
 from ..models import RCModel
 from ._guess import Guess, lhs_starts
 
@@ -63,7 +64,7 @@ class Case:
     free: tuple[str, ...] | None = None
     fixed: dict = dataclasses.field(default_factory=dict)
     bounds: dict = dataclasses.field(default_factory=dict)
-    starts: int = 8
+    starts: int = DEFAULT_STARTS
     seed: int | None = 0
     settings: dict = dataclasses.field(default_factory=dict)
     parent: str | None = None

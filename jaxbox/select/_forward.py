@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..data import Dataset
+from ..fit import DEFAULT_STARTS
 from ..models import RCModel, get_model, list_models
 from ._cases import Case, Progress, quiet, run_cases
 from ._greybox import GreyBox
@@ -246,7 +247,7 @@ def forward_selection(
     greybox,
     candidates: str | Sequence[str | RCModel] = "all",
     *,
-    starts: int = 8,
+    starts: int = DEFAULT_STARTS,
     seed: int | None = 0,
     margin: float = 0.0,
     patience: int = 1,
@@ -298,7 +299,7 @@ def forward_selection_many(
     greyboxes: Sequence,
     candidates: str | Sequence[str | RCModel] = "all",
     *,
-    starts: int = 8,
+    starts: int = DEFAULT_STARTS,
     seed: int | None = 0,
     margin: float = 0.0,
     patience: int = 1,

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from ..data import DataError, as_dataset, check_mapping, check_plausibility
+from ..fit import DEFAULT_STARTS
 from ..models import RCModel, get_model
 from ._cases import SETTINGS, Case, Progress, fmt_se
 from ._guess import Guess, manual_guess, naming_guess, parent_guess
@@ -154,7 +155,7 @@ class GreyBox:
         free: Sequence[str] | None = None,
         fixed: Mapping[str, float] | None = None,
         bounds: Mapping[str, tuple[float, float]] | None = None,
-        starts: int = 8,
+        starts: int = DEFAULT_STARTS,
         seed: int | None = 0,
         train: tuple | None = None,
         valid: tuple | None = None,

@@ -29,6 +29,7 @@ __all__ = [
     "lhs_starts",
 ]
 
+
 @dataclasses.dataclass(frozen=True)
 class Guess:
     """An initial guess for every model parameter.

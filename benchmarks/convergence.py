@@ -10,9 +10,10 @@ baseline commit of jaxbox, measured in the same run (the baseline is checked out
 code).
 
     python benchmarks/convergence.py [--casadi-starts 8] [--baseline 0bad291] [--out FILE]
+    python benchmarks/convergence.py --report-only
 
 Writes ``benchmarks/convergence.json`` and the Markdown tables to ``--out`` (default
-``benchmarks/CONVERGENCE.md``).
+``benchmarks/CONVERGENCE.md``), which ``benchmarks/run.py`` appends to ``RESULTS.md``.
 """
 
 from __future__ import annotations
@@ -140,7 +141,7 @@ def speed(baseline: str, repeats: int, rounds: int) -> dict:
 
 def report(res: dict) -> str:
     lines = [
-        "# Do the starts reach the optimum?",
+        "## Do the starts reach the optimum? (benchmarks/convergence.py)",
         "",
         f"Written by `python benchmarks/convergence.py` on {res['date']}; raw numbers in "
         "`benchmarks/convergence.json`. Twin house N2, experiment 1, identification half (492 "
@@ -198,7 +199,7 @@ def report(res: dict) -> str:
         bc = min(r["compile_s"] for r in sp["runs"]["baseline"])
         lines += [
             "",
-            f"## Speed against `{sp['baseline']}` (same run, alternating processes)",
+            f"### Speed against `{sp['baseline']}` (same run, alternating processes)",
             "",
             f"`{SPEED_MODEL}` (14 free parameters), 64 starts; minimum over the runs.",
             "",
@@ -231,7 +232,13 @@ def main(argv=None) -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--out", default=str(HERE / "CONVERGENCE.md"))
+    ap.add_argument(
+        "--report-only", action="store_true", help="rewrite the tables from convergence.json"
+    )
     args = ap.parse_args(argv)
+    if args.report_only:
+        Path(args.out).write_text(report(json.loads((HERE / "convergence.json").read_text())))
+        return
     import platform
 
     ident, _ = jaxbox.datasets.twinhouse_exp1("N2").split()

@@ -442,7 +442,8 @@ def buildings(repeats) -> dict:
     sep_first = time.perf_counter() - t0
     sep_compiles = _fit.compile_cache_info()["compiles"]
     sep_fit = min(
-        sum(jaxbox.fit_model(MODEL, s, starts=64).timing["fit_s"] for s in sets) for _ in range(repeats)
+        sum(jaxbox.fit_model(MODEL, s, starts=64).timing["fit_s"] for s in sets)
+        for _ in range(repeats)
     )
     _fit.clear_compile_cache()
     t0 = time.perf_counter()
@@ -920,6 +921,10 @@ def report(res: dict) -> str:
             w(f"- {key}: {err}")
         w("")
     w(res.get("notes", ""))
+    convergence = HERE / "CONVERGENCE.md"
+    if convergence.exists():  # written by benchmarks/convergence.py (its own run and date)
+        w("")
+        w(convergence.read_text())
     return "\n".join(L) + "\n"
 
 

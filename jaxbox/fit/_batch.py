@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import optimistix as optx
+from jaxtyping import Float
 
 from .._x64 import require_x64
 from ..models import get_model
@@ -34,7 +35,7 @@ def fit_model(
     fixed: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     guess: Mapping[str, float] | None = None,
-    starts: int | np.ndarray = DEFAULT_STARTS,
+    starts: int | Float[np.ndarray, "starts free"] = DEFAULT_STARTS,
     seed: int | None = 0,
     weights: Mapping[str, float] | Sequence[float] | None = None,
     simulator: str = "exact",
@@ -128,7 +129,7 @@ def fit_many(
     fixed: Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | None = None,
     guess: Mapping[str, float] | None = None,
-    starts: int | np.ndarray = DEFAULT_STARTS,
+    starts: int | Float[np.ndarray, "starts free"] = DEFAULT_STARTS,
     seed: int | None = 0,
     weights: Mapping[str, float] | Sequence[float] | None = None,
     simulator: str = "exact",

@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 from jax import lax
+from jaxtyping import Float
 
 from .. import _compiled
 from ._defaults import DEFAULT_MAX_STEPS
@@ -302,7 +303,7 @@ def _build_generic(groups, max_steps: int, solver):
 
 
 def solve_jobs(
-    jobs: Sequence[tuple[Problem, np.ndarray, tuple]],
+    jobs: Sequence[tuple[Problem, Float[np.ndarray, "starts free"], tuple]],
     *,
     max_steps: int = DEFAULT_MAX_STEPS,
     rtol: float = 1e-6,

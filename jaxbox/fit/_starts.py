@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from jaxtyping import Float
 from scipy import stats
 from scipy.stats import qmc
 
@@ -36,7 +37,7 @@ def latin_hypercube(
     n: int,
     seed: int | None = 0,
     concentration: float = 4.0,
-) -> np.ndarray:
+) -> Float[np.ndarray, "n free"]:
     """``n`` Latin-hypercube starts [n, p] (physical values) around ``guess`` within the bounds.
 
     Args:
@@ -75,7 +76,9 @@ def latin_hypercube(
     return out
 
 
-def sample_starts(problem, data, n: int, seed: int | None = 0, concentration: float = 4.0):
+def sample_starts(
+    problem, data, n: int, seed: int | None = 0, concentration: float = 4.0
+) -> Float[np.ndarray, "starts free"]:
     """The guess plus ``n − 1`` Latin-hypercube starts [n, n_free] (physical values).
 
     Initial temperatures are sampled within their data-derived range (:func:`state_ranges`),

@@ -292,7 +292,10 @@ def test_estimates_converge_to_the_shooting_estimates(synthetic_pair) -> None:
 
 def test_nonfinite_problem_ends_with_a_status() -> None:
     data, _ = synthetic("Zon", ZON, n=30)
-    res = collocation_fit("Zon", data, fixed={"C_zon": 0.0})
+    # a capacity of 0 is refused up front; one of 1e-300 J/K overflows the dynamics
+    with pytest.raises(FitError, match="C_zon.*> 0"):
+        collocation_fit("Zon", data, fixed={"C_zon": 0.0})
+    res = collocation_fit("Zon", data, fixed={"C_zon": 1e-300})
     assert res.status == "nonfinite" and not res.success
     assert "not finite" in res.message
 

@@ -132,7 +132,9 @@ class Case:
             unc = uncertainty(self.result)
         except ValueError:
             unc = None
-        self.verdict = check_validity(self.result, unc, check_intervals=unc is not None)
+        self.verdict = check_validity(
+            self.result, unc, check_intervals=unc is not None, validation=self.validation
+        )
         t3 = time.perf_counter()
         self.timing = {
             "fit_s": fit_s,
@@ -154,7 +156,7 @@ class Case:
         from ..validate import check_validity
 
         self._require_run()
-        self.verdict = check_validity(self.result, **options)
+        self.verdict = check_validity(self.result, **{"validation": self.validation, **options})
         return self
 
     def _require_run(self) -> None:

@@ -520,7 +520,9 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
             unc = uncertainty(case.result)
         except ValueError:
             unc = None
-        case.verdict = check_validity(case.result, unc, check_intervals=unc is not None)
+        case.verdict = check_validity(
+            case.result, unc, check_intervals=unc is not None, validation=case.validation
+        )
     return case
 
 

@@ -88,7 +88,7 @@ def fit_report(
         uncertainty,
         max_rel_ci=max_rel_ci,
         residuals=res_auto,
-        **(verdict_options or {}),
+        **{"validation": validation, **(verdict_options or {})},
     )
     ms = multistart_view(result)
     if valid is None:

@@ -230,10 +230,13 @@ class _CasadiNLP:
         }
 
 
-def casadi_collocation(problem, data, starts, *, budget_s=None, n_c=3, log=print):
-    """Solve from each start in turn (until ``budget_s`` seconds are spent); one dict per start."""
+def casadi_collocation(
+    problem, data, starts, *, budget_s=None, n_c=3, log=print, ipopt_options=None
+):
+    """Solve from each start in turn (until ``budget_s`` seconds are spent); one dict per start.
+    ``ipopt_options`` (e.g. ``{"ipopt.max_wall_time": 60.0}``) go to IPOPT."""
     t0 = time.perf_counter()
-    nlp = _CasadiNLP(problem, data, n_c=n_c)
+    nlp = _CasadiNLP(problem, data, n_c=n_c, ipopt_options=ipopt_options)
     setup = time.perf_counter() - t0
     log(
         f"    casadi: NLP with {nlp.n_x + len(problem.free)} variables, {nlp.n_g} constraints, setup {setup:.1f} s"

@@ -95,7 +95,12 @@ def model_row(name: str, ident, n_casadi: int, budget: float) -> dict:
     if n_casadi:
         try:
             peer = _peers.casadi_collocation(
-                problem, ident, starts[:n_casadi], budget_s=budget, log=log
+                problem,
+                ident,
+                starts[:n_casadi],
+                budget_s=budget,
+                log=log,
+                ipopt_options={"ipopt.max_wall_time": 60.0},
             )
             row["casadi"] = {
                 "costs": [s["cost"] for s in peer["starts"]],
@@ -147,7 +152,13 @@ def report(res: dict) -> str:
         "`benchmarks/convergence.json`. Twin house N2, experiment 1, identification half (492 "
         "hourly samples). 64 starts per model: the default guess, then Latin-hypercube samples "
         f"(seed 0); CasADi/IPOPT collocation from the first {res['n_casadi']} of the same starts. "
-        f"*At best*: cost within {REL:g} (relative) of the best cost of either route.",
+        f"*At best*: cost within {REL:g} (relative) of the best cost of either route. IPOPT "
+        "stops a start after 60 s (`max_wall_time`)."
+        + (
+            f" Resumed: models before {res['date']} measured from {res['resumed_from']}."
+            if res.get("resumed_from")
+            else ""
+        ),
         "",
         "| family | model | free | best cost [K²] | jaxbox at best | guess at best "
         "| median LM steps | median steps of the starts at best | per start [ms] | compile [s] "
@@ -235,6 +246,9 @@ def main(argv=None) -> None:
     ap.add_argument(
         "--report-only", action="store_true", help="rewrite the tables from convergence.json"
     )
+    ap.add_argument(
+        "--resume", action="store_true", help="keep the models already in convergence.json"
+    )
     args = ap.parse_args(argv)
     if args.report_only:
         Path(args.out).write_text(report(json.loads((HERE / "convergence.json").read_text())))
@@ -249,8 +263,16 @@ def main(argv=None) -> None:
         f"jax {jaxbox.__version__ and __import__('jax').__version__}",
         "rows": [],
     }
+    done = {}
+    if args.resume and (HERE / "convergence.json").exists():
+        old = json.loads((HERE / "convergence.json").read_text())
+        done = {(f, n): row for f, n, row in old["rows"]}
+        res["resumed_from"] = old["date"]
     for fam in args.families.split(","):
         for name in families()[fam]:
+            if (fam, name) in done:
+                res["rows"].append((fam, name, done[(fam, name)]))
+                continue
             log(f"{fam} {name}")
             res["rows"].append((fam, name, model_row(name, ident, args.casadi_starts, args.budget)))
             (HERE / "convergence.json").write_text(json.dumps(res))

@@ -155,7 +155,8 @@ def report(res: dict) -> str:
         f"*At best*: cost within {REL:g} (relative) of the best cost of either route. IPOPT "
         "stops a start after 60 s (`max_wall_time`)."
         + (
-            f" Resumed: models before {res['date']} measured from {res['resumed_from']}."
+            f" The run was resumed: the first models were measured by the run of "
+            f"{res['resumed_from']}."
             if res.get("resumed_from")
             else ""
         ),

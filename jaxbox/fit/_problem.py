@@ -57,6 +57,12 @@ class Problem:
         return (self.model.structure, self.free, tuple(n for n, _ in self.fixed))
 
     @property
+    def simulation_key(self) -> tuple:
+        """:attr:`structure_key` plus the simulator and its options: the key of compiled
+        functions that simulate the problem (sensitivities, uncertainty)."""
+        return (*self.structure_key, self.simulator, self.sim_options)
+
+    @property
     def fixed_dict(self) -> dict[str, float]:
         return dict(self.fixed)
 

@@ -162,13 +162,7 @@ class FitSensitivity:
 def _functions(problem: Problem, n_samples: int) -> dict:
     """The compiled derivatives of ``problem``'s structure over ``n_samples`` samples, kept in
     the ``"sensitivity"`` room of :mod:`jaxbox._compiled` (built on a miss)."""
-    key = (
-        "sensitivity",
-        *problem.structure_key,
-        problem.simulator,
-        problem.sim_options,
-        n_samples,
-    )
+    key = ("sensitivity", *problem.simulation_key, n_samples)
     return cached(key, lambda: _build_functions(problem))[0]
 
 

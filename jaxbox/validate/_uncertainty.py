@@ -231,13 +231,7 @@ def _pair_or_none(pair):
 def _jacobian_fn(problem, n_samples: int):
     """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]) for N =
     ``n_samples``, kept in the ``"uncertainty"`` room of :mod:`jaxbox._compiled`."""
-    key = (
-        "uncertainty",
-        *problem.structure_key,
-        problem.simulator,
-        problem.sim_options,
-        n_samples,
-    )
+    key = ("uncertainty", *problem.simulation_key, n_samples)
     return cached(key, lambda: _build_jacobian_fn(problem))[0]
 
 

@@ -276,7 +276,7 @@ def main(argv=None) -> None:
     if args.resume and (HERE / "convergence.json").exists():
         old = json.loads((HERE / "convergence.json").read_text())
         done = {(f, n): row for f, n, row in old["rows"]}
-        res["resumed_from"] = old["date"]
+        res["resumed_from"] = old.get("resumed_from", old["date"])
     for fam in args.families.split(","):
         for name in families()[fam]:
             if (fam, name) in done:

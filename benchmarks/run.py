@@ -921,12 +921,16 @@ def report(res: dict) -> str:
             w(f"- {key}: {err}")
         w("")
     w(res.get("notes", ""))
-    convergence = HERE / "CONVERGENCE.md"
-    if convergence.exists():  # written by benchmarks/convergence.py (its own run and date)
-        w("")
-        w(convergence.read_text())
+    for name in _TOPICS:  # written by benchmarks/<topic>.py (each its own run and date)
+        section = HERE / f"{name}.md"
+        if section.exists():
+            w("")
+            w(section.read_text())
     return "\n".join(L) + "\n"
 
+
+#: section files of the topic benchmarks, appended to RESULTS.md in this order
+_TOPICS = ("CONVERGENCE", "ZOO", "STOCHASTIC", "FLEET", "DESIGN")
 
 _SECTIONS = (
     "jaxbox",

@@ -1,0 +1,353 @@
+"""Maximum-likelihood (and MAP) estimation of the stochastic form of an RC model.
+
+Every start (the guess plus Latin-hypercube samples, :func:`jaxbox.fit.sample_starts`) of every
+dataset runs BFGS (``optimistix.BFGS``) on the negative log-likelihood per observation, in the
+bound transform's unbounded coordinates, under one ``vmap`` in one compiled call per model
+structure, free/fixed split and data shape (kept in :mod:`jaxbox._compiled`). The gradient is
+reverse-mode autodiff through the Kalman filter's ``lax.scan``.
+
+At the best start, the exact Hessian of the NLL (plus the log prior) with respect to the
+physical free parameters (``jax.hessian``) gives the covariance of the estimates, their
+correlations, t-statistics and two-sided p-values (t distribution with ``N_obs − k`` degrees of
+freedom), as CTSM reports them.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .. import _compiled
+from .._x64 import require_x64
+from ..fit import FitError, StartReport, sample_starts
+from ..models import get_model
+from ._kalman import kalman_scan
+from ._problem import StochasticProblem, make_stochastic_problem, stochastic_arrays, system
+from ._result import MLResult
+
+__all__ = ["fit_ml", "fit_ml_many", "DEFAULT_ML_STARTS", "DEFAULT_ML_MAX_STEPS"]
+
+DEFAULT_ML_STARTS = 16
+DEFAULT_ML_MAX_STEPS = 400
+_CONVERGED, _MAX_STEPS, _NONFINITE = 0, 1, 2
+
+
+def _objective(sp: StochasticProblem):
+    def f(z, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y):
+        p = sp.transform.to_physical(z, lo, hi, sc)
+        return sp.objective_physical(p, f_vals, pm, ps, dt, u, y) / scale
+
+    return f
+
+
+def _build(sp: StochasticProblem, max_steps: int, rtol: float, atol: float, per_member: bool):
+    solver = optx.BFGS(rtol=rtol, atol=atol)
+    obj = _objective(sp)
+
+    def one(z0, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y):
+        def fn(z, _):
+            v = obj(z, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y)
+            return jnp.where(jnp.isfinite(v), v, jnp.inf)
+
+        sol = optx.minimise(fn, solver, z0, max_steps=max_steps, throw=False)
+        val = obj(sol.value, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y)
+        steps = sol.stats["num_steps"]
+        ok = sol.result == optx.RESULTS.successful
+        code = jnp.where(
+            ~jnp.isfinite(val),
+            _NONFINITE,
+            jnp.where(ok, _CONVERGED, jnp.where(steps >= max_steps, _MAX_STEPS, _NONFINITE)),
+        )
+        return sol.value, val, code.astype(jnp.int32), steps
+
+    d = 0 if per_member else None
+    axes = (0, 0, 0, 0, 0, 0, 0, 0, 0, d, d)
+    return jax.jit(jax.vmap(one, in_axes=axes))
+
+
+def solve_ml(
+    jobs: Sequence[tuple[StochasticProblem, np.ndarray, tuple]],
+    *,
+    max_steps: int = DEFAULT_ML_MAX_STEPS,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+) -> dict:
+    """BFGS from every start of every job in one compiled, batched call.
+
+    A job is ``(problem, starts [S, k] physical, (dt, u, y))``. Jobs must share the problem
+    structure (:attr:`StochasticProblem.structure_key`) and the data shapes.
+
+    Returns per member: ``job``, ``p`` [B, k], ``objective`` [B] (NLL + prior per observation),
+    ``code`` (0 converged, 1 step cap, 2 non-finite), ``steps``; and ``compile_s``, ``fit_s``.
+    """
+    if not jobs:
+        raise FitError("no job to solve")
+    keys = {sp.structure_key for sp, _, _ in jobs}
+    if len(keys) > 1:
+        raise FitError("jobs solved together need the same model structure and free/fixed split")
+    shapes = {(np.shape(a[1]), np.shape(a[2])) for _, _, a in jobs}
+    if len(shapes) > 1:
+        raise FitError(
+            f"datasets solved together need the same length and columns; got {sorted(shapes)}"
+        )
+    sp0 = jobs[0][0]
+    cols: list[list] = [[] for _ in range(9)]
+    us, ys, counts = [], [], []
+    for sp, starts, (dt, u, y) in jobs:
+        starts = np.atleast_2d(np.asarray(starts, dtype=float))
+        s = len(starts)
+        tr = sp.transform
+        z0 = np.where(np.isfinite(starts), tr.to_internal(starts), np.nan)
+        pm, ps = sp.prior_arrays()
+        fixed = np.asarray([v for _, v in sp.fixed], dtype=float)
+        n_obs = float(np.isfinite(y).sum())
+        rows = (fixed, tr.lower, tr.upper, tr.scale, pm, ps)
+        cols[0].append(z0)
+        for c, a in zip(cols[1:7], rows, strict=True):
+            c.append(np.broadcast_to(np.asarray(a, dtype=float), (s, len(a))))
+        cols[7].append(np.full(s, float(dt)))
+        cols[8].append(np.full(s, n_obs))
+        us.append(u)
+        ys.append(y)
+        counts.append(s)
+    members = [np.concatenate(c, axis=0) for c in cols]
+    per_member = len(jobs) > 1
+    if per_member:
+        u = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(us, counts, strict=True)])
+        y = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(ys, counts, strict=True)])
+    else:
+        u, y = us[0], ys[0]
+    args = tuple(jnp.asarray(a, dtype=float) for a in (*members, u, y))
+    key = (
+        "stochastic",
+        "ml",
+        sp0.structure_key,
+        tuple(a.shape for a in args),
+        max_steps,
+        rtol,
+        atol,
+    )
+    t0 = time.perf_counter()
+    compiled, built = _compiled.cached(
+        key, lambda: _build(sp0, max_steps, rtol, atol, per_member).lower(*args).compile()
+    )
+    compile_s = time.perf_counter() - t0 if built else 0.0
+    t0 = time.perf_counter()
+    z, val, code, steps = jax.block_until_ready(compiled(*args))
+    fit_s = time.perf_counter() - t0
+    z = np.asarray(z)
+    p = np.asarray(sp0.transform.to_physical(jnp.asarray(z), members[2], members[3], members[4]))
+    return {
+        "job": np.repeat(np.arange(len(jobs)), counts),
+        "p": p,
+        "objective": np.asarray(val),
+        "code": np.asarray(code),
+        "steps": np.asarray(steps),
+        "compile_s": compile_s,
+        "fit_s": fit_s,
+    }
+
+
+def _hessian_fn(sp: StochasticProblem, shapes):
+    """NLL, its gradient and its exact Hessian in *every* parameter (physical and noise, in
+    ``param_names`` order), compiled once per model structure, hold and data shape: fits with
+    different free/fixed splits share it."""
+    key = ("stochastic", "hessian", sp.model.structure, sp.hold, shapes)
+    names = sp.param_names
+
+    def build():
+        def f(values, x0_std, dt, u, y):
+            theta = {n: values[i] for i, n in enumerate(names)}
+            mats, C, D, r, m0, P0 = system(sp.model, theta, dt, sp.hold, x0_std)
+            return kalman_scan(mats, C, D, r, m0, P0, u, y)
+
+        return jax.jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)))
+
+    return _compiled.cached(key, build)[0]
+
+
+def _status(code: int, val: float, p) -> str:
+    if not (np.isfinite(val) and np.all(np.isfinite(p))):
+        return "nonfinite"
+    return {_CONVERGED: "converged", _MAX_STEPS: "max_steps"}.get(int(code), "nonfinite")
+
+
+def _result(sp, data, arrays, starts, out, sl, settings, timing) -> MLResult:
+    p, val, code, steps = out["p"][sl], out["objective"][sl], out["code"][sl], out["steps"][sl]
+    status = tuple(_status(c, v, q) for c, v, q in zip(code, val, p, strict=True))
+    report = StartReport(initial=starts, params=p, cost=val, steps=steps, status=status)
+    best = report.best_index()
+    if best is None:
+        raise FitError(
+            f"all {len(status)} maximum-likelihood starts failed for {sp.model.name} "
+            f"({report.status_summary()}); check the data and bounds, or add starts"
+        )
+    dt, u, y = arrays
+    pb = p[best]
+    values = {**sp.fixed_dict, **dict(zip(sp.free, pb, strict=True))}
+    vec = np.asarray([values[n] for n in sp.param_names], dtype=float)
+    hess = _hessian_fn(sp, (u.shape, y.shape))
+    t0 = time.perf_counter()
+    args = (vec, np.asarray(sp.x0_std), dt, u, y)
+    nll, grad, H = hess(*(jnp.asarray(a, dtype=float) for a in args))
+    idx = np.asarray([sp.param_names.index(n) for n in sp.free])
+    grad, H = np.asarray(grad)[idx], np.asarray(H)[np.ix_(idx, idx)]
+    pm, ps = sp.prior_arrays()
+    has = np.isfinite(ps)
+    prior = 0.5 * float(np.sum(((pb - pm)[has] / ps[has]) ** 2))
+    grad = grad + np.where(has, (pb - pm) / np.where(has, ps, 1.0) ** 2, 0.0)
+    H = H + np.diag(np.where(has, 1.0 / np.where(has, ps, 1.0) ** 2, 0.0))
+    timing = {**timing, "hessian_s": time.perf_counter() - t0}
+    return MLResult.build(
+        problem=sp,
+        data=data,
+        arrays=arrays,
+        p_free=pb,
+        nll=float(nll),
+        objective=float(nll) + prior,
+        grad=grad,
+        hessian=H,
+        starts=report,
+        best=best,
+        timing=timing,
+        settings=settings,
+    )
+
+
+def fit_ml(
+    model,
+    data,
+    *,
+    free: Sequence[str] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    guess: Mapping[str, float] | None = None,
+    priors: Mapping[str, tuple[float, float]] | None = None,
+    starts: int | np.ndarray = DEFAULT_ML_STARTS,
+    seed: int | None = 0,
+    concentration: float = 4.0,
+    hold: str = "foh",
+    x0_std: float | Mapping[str, float] | None = None,
+    max_steps: int = DEFAULT_ML_MAX_STEPS,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+) -> MLResult:
+    """Maximum-likelihood (with ``priors``: MAP) estimate of the stochastic form of ``model``.
+
+    Args:
+        model: an :class:`~jaxbox.models.RCModel` or a library model name.
+        data: the identification :class:`~jaxbox.data.Dataset`.
+        free: parameters to estimate, physical and noise (default: all not ``fixed``).
+        fixed: values held fixed (SI), e.g. ``{"sigma_wal": 0.0}`` for a state without
+            diffusion.
+        bounds: ``{name: (lower, upper)}`` (SI); noise parameters default to
+            ``sigma_*`` ∈ [1e-7, 0.1] K/√s and ``sigma_y_*`` ∈ [1e-4, 5] K.
+        guess: initial guesses (SI); physical ones default as for output error.
+        priors: ``{name: (mean, sd)}`` Gaussian priors on free parameters (SI): a MAP estimate.
+        starts: number of starts (the guess plus Latin-hypercube samples), or an array
+            [S, k] of explicit starts in physical units (columns in ``problem.free`` order).
+        seed, concentration: of the Latin hypercube (:func:`jaxbox.fit.sample_starts`).
+        hold: ``"foh"`` (inputs linear between samples, as the output-error fit) or ``"zoh"``.
+        x0_std: standard deviation [K] of the initial states around ``T_*0`` (one value, or
+            per state name); default 1 K.
+        max_steps: BFGS iterations per start.
+        rtol, atol: BFGS tolerances on the NLL per observation and on the coordinates.
+
+    Returns:
+        :class:`MLResult`: estimates, intervals from the exact Hessian, log-likelihood, AIC,
+        BIC, every start's outcome.
+    """
+    return fit_ml_many(
+        model,
+        [data],
+        free=free,
+        fixed=fixed,
+        bounds=bounds,
+        guess=guess,
+        priors=priors,
+        starts=starts,
+        seed=seed,
+        concentration=concentration,
+        hold=hold,
+        x0_std=x0_std,
+        max_steps=max_steps,
+        rtol=rtol,
+        atol=atol,
+    )[0]
+
+
+def fit_ml_many(
+    model,
+    datasets: Sequence,
+    *,
+    free: Sequence[str] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    guess: Mapping[str, float] | None = None,
+    priors: Mapping[str, tuple[float, float]] | None = None,
+    starts: int | np.ndarray = DEFAULT_ML_STARTS,
+    seed: int | None = 0,
+    concentration: float = 4.0,
+    hold: str = "foh",
+    x0_std: float | Mapping[str, float] | None = None,
+    max_steps: int = DEFAULT_ML_MAX_STEPS,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+) -> list[MLResult]:
+    """:func:`fit_ml` on several datasets of the same length and step, in one compiled call
+    (every start of every dataset under one ``vmap``). Returns one result per dataset."""
+    require_x64()
+    model = get_model(model)
+    datasets = list(datasets)
+    if not datasets:
+        raise FitError("fit_ml_many needs at least one dataset")
+    jobs, all_starts, arrays_list, problems = [], [], [], []
+    for data in datasets:
+        sp = make_stochastic_problem(
+            model,
+            data,
+            free=free,
+            fixed=fixed,
+            bounds=bounds,
+            guess=guess,
+            priors=priors,
+            hold=hold,
+            x0_std=x0_std,
+        )
+        arrays = stochastic_arrays(model, data)
+        if isinstance(starts, int | np.integer):
+            if starts < 1:
+                raise FitError(f"starts must be at least 1, got {starts}")
+            x0s = sample_starts(sp, data, int(starts), seed, concentration)
+        else:
+            x0s = np.atleast_2d(np.asarray(starts, dtype=float))
+            if x0s.shape[1] != len(sp.free):
+                raise FitError(
+                    "explicit starts need one column per free parameter "
+                    f"({', '.join(sp.free)}), got shape {x0s.shape}"
+                )
+        jobs.append((sp, x0s, arrays))
+        all_starts.append(x0s)
+        arrays_list.append(arrays)
+        problems.append(sp)
+    out = solve_ml(jobs, max_steps=max_steps, rtol=rtol, atol=atol)
+    settings = {
+        "method": "ml" if not priors else "map",
+        "max_steps": max_steps,
+        "rtol": rtol,
+        "atol": atol,
+        "seed": seed,
+        "hold": hold,
+        "optimizer": "optimistix.BFGS",
+    }
+    timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(jobs)}
+    results = []
+    for i, (sp, data) in enumerate(zip(problems, datasets, strict=True)):
+        sl = out["job"] == i
+        results.append(_result(sp, data, arrays_list[i], all_starts[i], out, sl, settings, timing))
+    return results

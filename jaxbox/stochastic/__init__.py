@@ -16,6 +16,7 @@ from ._fit import solve_ml as solve_ml
 from ._kalman import discretize as discretize
 from ._kalman import kalman_scan as kalman_scan
 from ._kalman import process_noise as process_noise
+from ._kalman import process_noise_van_loan as process_noise_van_loan
 from ._kalman import rts_scan as rts_scan
 from ._noise import diffusion_names as diffusion_names
 from ._noise import measurement_names as measurement_names

@@ -351,3 +351,34 @@ def fit_ml_many(
         sl = out["job"] == i
         results.append(_result(sp, data, arrays_list[i], all_starts[i], out, sl, settings, timing))
     return results
+
+
+def fit_ml_method(args: dict) -> MLResult:
+    """``jaxbox.fit_model(..., method="ml")``: the output-error arguments that carry over to
+    :func:`fit_ml`; output weights and simulator options do not apply to the likelihood."""
+    from ..fit._defaults import DEFAULT_MAX_STEPS, DEFAULT_STARTS
+
+    for name, default in (("weights", None), ("sim_options", None), ("solver", None)):
+        if args.get(name) is not default:
+            raise FitError(f"{name} does not apply to method='ml'")
+    opts = dict(args.get("ml_options") or {})
+    bad = sorted(set(opts) - {"priors", "hold", "x0_std", "rtol", "atol"})
+    if bad:
+        raise FitError(f"unknown argument(s) for method='ml': {', '.join(bad)}")
+    starts = args["starts"]
+    if isinstance(starts, int) and starts == DEFAULT_STARTS:
+        starts = DEFAULT_ML_STARTS
+    max_steps = args["max_steps"]
+    return fit_ml(
+        args["model"],
+        args["data"],
+        free=args["free"],
+        fixed=args["fixed"],
+        bounds=args["bounds"],
+        guess=args["guess"],
+        starts=starts,
+        seed=args["seed"],
+        concentration=args["concentration"],
+        max_steps=DEFAULT_ML_MAX_STEPS if max_steps in (None, DEFAULT_MAX_STEPS) else max_steps,
+        **opts,
+    )

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import _compiled
 from ..models import get_model
 from ._problem import DEFAULT_X0_STD, system
 from ._states import _check_params
@@ -38,9 +40,12 @@ def simulate_sde(
     u = np.asarray(data.array(list(model.inputs)), dtype=float)
     dt = float(data.step)
     std = DEFAULT_X0_STD if x0_std is None else float(x0_std)
-    (Phi, G0, G1, Q), C, D, r, m0, _ = (
-        np.asarray(a) if not isinstance(a, tuple) else tuple(np.asarray(b) for b in a)
-        for a in system(model, {k: jnp.asarray(v) for k, v in theta.items()}, dt, hold)
+    fn = _compiled.cached(
+        ("stochastic", "system", model.structure, hold),
+        lambda: jax.jit(lambda th, dt: system(model, th, dt, hold)),
+    )[0]
+    (Phi, G0, G1, Q), C, D, r, m0, _ = jax.tree_util.tree_map(
+        np.asarray, fn({k: jnp.asarray(v) for k, v in theta.items()}, dt)
     )
     rng = np.random.default_rng(seed)
     R = 1 if replications is None else int(replications)

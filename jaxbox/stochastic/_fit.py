@@ -25,6 +25,7 @@ import optimistix as optx
 from .. import _compiled
 from .._x64 import require_x64
 from ..fit import FitError, StartReport, sample_starts
+from ..fit._transforms import Transform
 from ..models import get_model
 from ._kalman import kalman_scan
 from ._problem import StochasticProblem, make_stochastic_problem, stochastic_arrays, system
@@ -37,25 +38,35 @@ DEFAULT_ML_MAX_STEPS = 400
 _CONVERGED, _MAX_STEPS, _NONFINITE = 0, 1, 2
 
 
-def _objective(sp: StochasticProblem):
-    def f(z, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y):
-        p = sp.transform.to_physical(z, lo, hi, sc)
-        return sp.objective_physical(p, f_vals, pm, ps, dt, u, y) / scale
+def _objective(full: Transform, model, hold: str):
+    """Objective per observation over every parameter: free ones from the coordinates ``z``
+    (through ``full``), fixed ones from ``values`` (their coordinates are ignored, so their
+    gradient is zero and BFGS leaves them where they are)."""
+    names = full.names
+
+    def f(z, mask, values, lo, hi, sc, pm, ps, x0_std, dt, scale, u, y):
+        p = jnp.where(mask, full.to_physical(z, lo, hi, sc), values)
+        theta = {n: p[..., i] for i, n in enumerate(names)}
+        mats, C, D, r, m0, P0 = system(model, theta, dt, hold, x0_std)
+        nll = kalman_scan(mats, C, D, r, m0, P0, u, y)
+        has = mask & jnp.isfinite(ps)
+        d = jnp.where(has, (p - pm) / jnp.where(has, ps, 1.0), 0.0)
+        return (nll + 0.5 * jnp.sum(d * d)) / scale
 
     return f
 
 
-def _build(sp: StochasticProblem, max_steps: int, rtol: float, atol: float, per_member: bool):
+def _build(full, model, hold, max_steps: int, rtol: float, atol: float, per_member: bool):
     solver = optx.BFGS(rtol=rtol, atol=atol)
-    obj = _objective(sp)
+    obj = _objective(full, model, hold)
 
-    def one(z0, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y):
+    def one(z0, *args):
         def fn(z, _):
-            v = obj(z, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y)
+            v = obj(z, *args)
             return jnp.where(jnp.isfinite(v), v, jnp.inf)
 
         sol = optx.minimise(fn, solver, z0, max_steps=max_steps, throw=False)
-        val = obj(sol.value, f_vals, lo, hi, sc, pm, ps, dt, scale, u, y)
+        val = obj(sol.value, *args)
         steps = sol.stats["num_steps"]
         ok = sol.result == optx.RESULTS.successful
         code = jnp.where(
@@ -66,7 +77,7 @@ def _build(sp: StochasticProblem, max_steps: int, rtol: float, atol: float, per_
         return sol.value, val, code.astype(jnp.int32), steps
 
     d = 0 if per_member else None
-    axes = (0, 0, 0, 0, 0, 0, 0, 0, 0, d, d)
+    axes = (0,) * 11 + (d, d)
     return jax.jit(jax.vmap(one, in_axes=axes))
 
 
@@ -79,54 +90,71 @@ def solve_ml(
 ) -> dict:
     """BFGS from every start of every job in one compiled, batched call.
 
-    A job is ``(problem, starts [S, k] physical, (dt, u, y))``. Jobs must share the problem
-    structure (:attr:`StochasticProblem.structure_key`) and the data shapes.
+    A job is ``(problem, starts [S, k] physical, (dt, u, y))``. Jobs must share the model
+    structure, the hold, the transform kinds and the data shapes; they may differ in data,
+    bounds, fixed values, priors and in which parameters are free. The compiled solve is kept
+    per model structure, hold, transform kinds, shapes and solver settings.
 
-    Returns per member: ``job``, ``p`` [B, k], ``objective`` [B] (NLL + prior per observation),
-    ``code`` (0 converged, 1 step cap, 2 non-finite), ``steps``; and ``compile_s``, ``fit_s``.
+    Returns per member: ``job``, ``p`` [B, k] (each job's free parameters), ``objective`` [B]
+    (NLL + prior per observation), ``code`` (0 converged, 1 step cap, 2 non-finite),
+    ``steps``; and ``compile_s``, ``fit_s``.
     """
     if not jobs:
         raise FitError("no job to solve")
-    keys = {sp.structure_key for sp, _, _ in jobs}
+    fulls = [sp.full_transform() for sp, _, _ in jobs]
+    keys = {
+        (sp.model.structure, sp.hold, f[0].kinds, f[0].style)
+        for (sp, _, _), f in zip(jobs, fulls, strict=True)
+    }
     if len(keys) > 1:
-        raise FitError("jobs solved together need the same model structure and free/fixed split")
+        raise FitError(
+            "jobs solved together need the same model structure, hold and bound transforms"
+        )
     shapes = {(np.shape(a[1]), np.shape(a[2])) for _, _, a in jobs}
     if len(shapes) > 1:
         raise FitError(
             f"datasets solved together need the same length and columns; got {sorted(shapes)}"
         )
-    sp0 = jobs[0][0]
-    cols: list[list] = [[] for _ in range(9)]
-    us, ys, counts = [], [], []
-    for sp, starts, (dt, u, y) in jobs:
+    sp0, full0 = jobs[0][0], fulls[0][0]
+    n_all = len(full0.names)
+    cols: list[list] = [[] for _ in range(12)]
+    us, ys, counts, free_idx = [], [], [], []
+    for (sp, starts, (dt, u, y)), (full, mask, values) in zip(jobs, fulls, strict=True):
         starts = np.atleast_2d(np.asarray(starts, dtype=float))
         s = len(starts)
-        tr = sp.transform
-        z0 = np.where(np.isfinite(starts), tr.to_internal(starts), np.nan)
-        pm, ps = sp.prior_arrays()
-        fixed = np.asarray([v for _, v in sp.fixed], dtype=float)
-        n_obs = float(np.isfinite(y).sum())
-        rows = (fixed, tr.lower, tr.upper, tr.scale, pm, ps)
+        idx = np.flatnonzero(mask)
+        z0 = np.zeros((s, n_all))
+        z0[:, idx] = np.where(np.isfinite(starts), sp.transform.to_internal(starts), np.nan)
+        pm = np.zeros(n_all)
+        ps = np.full(n_all, np.inf)
+        pm[idx], ps[idx] = sp.prior_arrays()
+        rows = (mask, values, full.lower, full.upper, full.scale, pm, ps, sp.x0_std)
         cols[0].append(z0)
-        for c, a in zip(cols[1:7], rows, strict=True):
-            c.append(np.broadcast_to(np.asarray(a, dtype=float), (s, len(a))))
-        cols[7].append(np.full(s, float(dt)))
-        cols[8].append(np.full(s, n_obs))
+        for c, a in zip(cols[1:9], rows, strict=True):
+            a = np.asarray(a, dtype=float)
+            c.append(np.broadcast_to(a, (s, len(a))))
+        cols[9].append(np.full(s, float(dt)))
+        cols[10].append(np.full(s, float(np.isfinite(y).sum())))
         us.append(u)
         ys.append(y)
         counts.append(s)
-    members = [np.concatenate(c, axis=0) for c in cols]
+        free_idx.append(idx)
+    members = [np.concatenate(c, axis=0) for c in cols[:11]]
     per_member = len(jobs) > 1
     if per_member:
         u = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(us, counts, strict=True)])
         y = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(ys, counts, strict=True)])
     else:
         u, y = us[0], ys[0]
-    args = tuple(jnp.asarray(a, dtype=float) for a in (*members, u, y))
+    args = [jnp.asarray(a, dtype=float) for a in (*members, u, y)]
+    args[1] = args[1].astype(bool)
     key = (
         "stochastic",
         "ml",
-        sp0.structure_key,
+        sp0.model.structure,
+        sp0.hold,
+        full0.kinds,
+        full0.style,
         tuple(a.shape for a in args),
         max_steps,
         rtol,
@@ -134,17 +162,27 @@ def solve_ml(
     )
     t0 = time.perf_counter()
     compiled, built = _compiled.cached(
-        key, lambda: _build(sp0, max_steps, rtol, atol, per_member).lower(*args).compile()
+        key,
+        lambda: (
+            _build(full0, sp0.model, sp0.hold, max_steps, rtol, atol, per_member)
+            .lower(*args)
+            .compile()
+        ),
     )
     compile_s = time.perf_counter() - t0 if built else 0.0
     t0 = time.perf_counter()
     z, val, code, steps = jax.block_until_ready(compiled(*args))
     fit_s = time.perf_counter() - t0
-    z = np.asarray(z)
-    p = np.asarray(sp0.transform.to_physical(jnp.asarray(z), members[2], members[3], members[4]))
+    p_all = np.asarray(full0.to_physical(jnp.asarray(z), members[3], members[4], members[5]))
+    parts, start = [], 0
+    for c, idx in zip(counts, free_idx, strict=True):
+        parts.append(p_all[start : start + c][:, idx])
+        start += c
+    width = {p.shape[1] for p in parts}
     return {
         "job": np.repeat(np.arange(len(jobs)), counts),
-        "p": p,
+        "p": np.concatenate(parts, axis=0) if len(width) == 1 else parts,
+        "p_jobs": parts,
         "objective": np.asarray(val),
         "code": np.asarray(code),
         "steps": np.asarray(steps),
@@ -178,7 +216,9 @@ def _status(code: int, val: float, p) -> str:
 
 
 def _result(sp, data, arrays, starts, out, sl, settings, timing) -> MLResult:
-    p, val, code, steps = out["p"][sl], out["objective"][sl], out["code"][sl], out["steps"][sl]
+    job = int(out["job"][sl][0])
+    p = out["p_jobs"][job]
+    val, code, steps = out["objective"][sl], out["code"][sl], out["steps"][sl]
     status = tuple(_status(c, v, q) for c, v, q in zip(code, val, p, strict=True))
     report = StartReport(initial=starts, params=p, cost=val, steps=steps, status=status)
     best = report.best_index()

@@ -96,6 +96,41 @@ class StochasticProblem:
             self.hold,
         )
 
+    def full_transform(self) -> tuple[Transform, np.ndarray, np.ndarray]:
+        """The bound transform over *every* parameter (``param_names`` order), the mask of the
+        free ones and the values of the fixed ones.
+
+        Free parameters keep their transform; a fixed one gets the transform of its spec's
+        bounds (what it would have if it were free with default bounds), so that the compiled
+        solve depends on the model structure and the transform kinds only, not on which
+        parameters are fixed: a fit with a diffusion fixed reuses the compiled solve of the fit
+        that estimates it.
+        """
+        tr, names = self.transform, self.param_names
+        fixed = self.fixed_dict
+        kinds, lo, hi, sc = [], [], [], []
+        for n in names:
+            if n in self.free:
+                i = self.free.index(n)
+                kinds.append(tr.kinds[i])
+                lo.append(tr.lower[i])
+                hi.append(tr.upper[i])
+                sc.append(tr.scale[i])
+            else:
+                spec = self.spec(n)
+                g = float(np.clip(spec.default, spec.lower, spec.upper))
+                one = make_transform([n], [spec.lower], [spec.upper], [g])
+                kinds.append(one.kinds[0])
+                lo.append(spec.lower)
+                hi.append(spec.upper)
+                sc.append(one.scale[0])
+        full = Transform(
+            tuple(names), tuple(kinds), np.asarray(lo), np.asarray(hi), np.asarray(sc), tr.style
+        )
+        mask = np.asarray([n in self.free for n in names])
+        values = np.asarray([fixed.get(n, 0.0) for n in names], dtype=float)
+        return full, mask, values
+
     def prior_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Prior mean and sd per free parameter (sd = inf: no prior)."""
         mean = np.zeros(len(self.free))

@@ -69,6 +69,13 @@ def test_estimate_writes_states(fit_doc, csv_file, tmp_path, capsys):
     assert np.all(frame["T_zon_smoothed_sd"] <= frame["T_zon_filtered_sd"] + 1e-12)
 
 
+def test_fit_method_ml_text(csv_file, capsys):
+    code = main(["fit", str(csv_file), "--model", "BM_Ti", "--method", "ml", "--starts", "4"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "log-likelihood" in out and "Ljung–Box" in out and "k-step RMSE" in out
+
+
 def test_bad_input_is_one_line(csv_file, tmp_path, capsys):
     code = main(["fit", str(csv_file), "--model", "BM_Ti", "--method", "ml", "--fix", "sigma_x=1"])
     assert code == 2

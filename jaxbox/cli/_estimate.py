@@ -92,10 +92,10 @@ def ml_fit_command(args) -> int:
             print(f"== {spec}")
         print(result.summary())
         for name, r in doc["residuals"]["outputs"].items():
-            lb, cp = r["ljung_box"], r["periodogram"]
+            lb, cp = r["ljung_box"], r["cumulated_periodogram"]
             print(
-                f"innovations {name}: Ljung–Box p = {lb['pvalue']:.3g}, cumulated periodogram "
-                f"p = {cp['pvalue']:.3g} ({'white' if r['white'] else 'NOT white'})"
+                f"innovations {name}: Ljung–Box p = {lb['p_value']:.3g}, cumulated periodogram "
+                f"p = {cp['p_value']:.3g} ({'white' if r['white'] else 'NOT white'})"
             )
         ks = ", ".join(f"{k}: {v[model.outputs[0]]:.3f} K" for k, v in doc["k_step_rmse"].items())
         print(f"k-step RMSE (identification, {model.outputs[0]}) {ks}")

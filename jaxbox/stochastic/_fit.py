@@ -24,7 +24,9 @@ import optimistix as optx
 
 from .. import _compiled
 from .._x64 import require_x64
-from ..fit import FitError, StartReport, sample_starts
+from ..fit._problem import FitError
+from ..fit._result import StartReport
+from ..fit._starts import sample_starts
 from ..fit._transforms import Transform
 from ..models import get_model
 from ._kalman import kalman_scan

@@ -15,8 +15,8 @@ from collections.abc import Mapping, Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from ..fit import FitError, Problem, make_problem, make_transform
-from ..fit._transforms import Transform
+from ..fit._problem import FitError, Problem, make_problem
+from ..fit._transforms import Transform, make_transform
 from ..models import RCModel
 from ._kalman import HOLDS, discretize, kalman_scan
 from ._noise import diffusion_names, measurement_names, noise_parameters

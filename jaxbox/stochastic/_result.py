@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 from scipy import stats
 
-from ..fit import StartReport
+from ..fit._result import StartReport
 from ._problem import StochasticProblem
 
 __all__ = ["MLResult", "likelihood_ratio_test"]
@@ -279,7 +279,7 @@ class MLResult:
 def innovation_tests(est, alpha: float = 0.05):
     """Residual analysis (:func:`jaxbox.validate.analyse_residuals`) of the standardised
     innovations of a :class:`StateEstimate`, missing samples left out, with the inputs."""
-    from ..validate import analyse_residuals
+    from ..validate._residuals import analyse_residuals
 
     e = est.standardized_innovations
     keep = np.all(np.isfinite(e), axis=1)

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from .. import _compiled
-from ..fit import FitError
+from ..fit._problem import FitError
 from ..models import RCModel, get_model
 from ._kalman import HOLDS, kalman_scan, rts_scan
 from ._noise import noise_names

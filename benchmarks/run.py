@@ -925,6 +925,10 @@ def report(res: dict) -> str:
     if convergence.exists():  # written by benchmarks/convergence.py (its own run and date)
         w("")
         w(convergence.read_text())
+    stochastic = HERE / "STOCHASTIC.md"
+    if stochastic.exists():  # written by benchmarks/stochastic.py (its own run and date)
+        w("")
+        w(stochastic.read_text())
     return "\n".join(L) + "\n"
 
 

@@ -8,7 +8,13 @@ from test_stochastic import _dataset
 
 import jaxbox
 from jaxbox.fit import FitError
-from jaxbox.stochastic import estimate_states, fit_ml, fit_ml_many, likelihood_ratio_test
+from jaxbox.stochastic import (
+    estimate_states,
+    fit_ml,
+    fit_ml_many,
+    forward_selection_lr,
+    likelihood_ratio_test,
+)
 
 TI = {
     "C_zon": 5e6,
@@ -150,3 +156,15 @@ def test_interval_coverage_small(ti):
         fit.intervals()[n][0] <= TI[n] <= fit.intervals()[n][1] for fit in fits for n in fit.free
     ]
     assert np.mean(inside) >= 0.75
+
+
+@pytest.mark.slow
+def test_forward_selection_by_likelihood_ratio(ti, data, fit):
+    """Data from a one-state model: the two-state extension is not significant, or barely."""
+    sel = forward_selection_lr(["BM_Ti", "BM_TiTe"], data, starts=STARTS)
+    first, second = sel["table"]
+    assert first["accepted"] and first["loglik"] == pytest.approx(fit.loglik, rel=1e-9)
+    assert second["df"] == 4
+    assert second["statistic"] == pytest.approx(2 * (second["loglik"] - first["loglik"]))
+    assert second["accepted"] == (second["pvalue"] < 0.05)
+    assert sel["accepted"] == ("BM_TiTe" if second["accepted"] else "BM_Ti")

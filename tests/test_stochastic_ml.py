@@ -158,13 +158,17 @@ def test_interval_coverage_small(ti):
     assert np.mean(inside) >= 0.75
 
 
-@pytest.mark.slow
-def test_forward_selection_by_likelihood_ratio(ti, data, fit):
-    """Data from a one-state model: the two-state extension is not significant, or barely."""
-    sel = forward_selection_lr(["BM_Ti", "BM_TiTe"], data, starts=STARTS)
+def test_forward_selection_by_likelihood_ratio(ti, data, fit, fit_quiet):
+    """A model without diffusion, then the same with it: the data have one, so the second is
+    accepted by the likelihood-ratio test."""
+    quiet = ("BM_Ti", {"fixed": {"sigma_zon": 1e-10}, "x0_std": 1e-5})
+    sel = forward_selection_lr([quiet, "BM_Ti"], data, starts=STARTS)
     first, second = sel["table"]
-    assert first["accepted"] and first["loglik"] == pytest.approx(fit.loglik, rel=1e-9)
-    assert second["df"] == 4
+    assert first["accepted"] and first["loglik"] == pytest.approx(fit_quiet.loglik, rel=1e-9)
+    assert second["loglik"] == pytest.approx(fit.loglik, rel=1e-9)
+    assert second["df"] == 1
     assert second["statistic"] == pytest.approx(2 * (second["loglik"] - first["loglik"]))
-    assert second["accepted"] == (second["pvalue"] < 0.05)
-    assert sel["accepted"] == ("BM_TiTe" if second["accepted"] else "BM_Ti")
+    assert second["pvalue"] < 0.05 and second["accepted"]
+    assert sel["accepted"] == "BM_Ti"
+    with pytest.raises(ValueError, match="alpha"):
+        forward_selection_lr(["BM_Ti"], data, alpha=2.0)

@@ -28,13 +28,17 @@ def forward_selection_lr(
     otherwise.
 
     Args:
-        models: model names or :class:`~jaxbox.models.RCModel`, simplest first.
+        models: model names or :class:`~jaxbox.models.RCModel`, simplest first; an entry may
+            be a pair ``(model, options)`` whose options (e.g. ``{"fixed": {"sigma_wal": 0}}``)
+            update ``fit_options`` for that model: a model nested in the next by fixed
+            parameters (a diffusion that may not be needed).
         data: the identification dataset.
         alpha: significance level.
         fit_options: passed to :func:`fit_ml` (``starts``, ``seed``, ``fixed``…).
 
     Returns:
-        ``{"accepted": name, "table": [row per model], "fits": {name: MLResult}}``; a row holds
+        ``{"accepted": name, "table": [row per model], "fits": {name: MLResult}}`` (a model
+        with options is named with them, ``"BM_Ti (sigma_zon=0)"``); a row holds
         ``model``, ``n_free``, ``loglik``, ``aic``, ``bic``, the LR ``statistic``, ``df`` and
         ``pvalue`` against the model accepted before it, and ``accepted``.
     """
@@ -43,13 +47,18 @@ def forward_selection_lr(
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must be in (0, 1), got {alpha}")
     current: MLResult | None = None
+    accepted = ""
     table, fits = [], {}
-    for m in models:
+    for i, entry in enumerate(models):
+        m, extra = entry if isinstance(entry, tuple) else (entry, {})
         model = get_model(m)
-        fit = fit_ml(model, data, **fit_options)
-        fits[model.name] = fit
+        fit = fit_ml(model, data, **{**fit_options, **dict(extra)})
+        name = model.name if not extra else f"{model.name} {_describe(extra)}"
+        if name in fits:
+            name = f"{name} #{i + 1}"
+        fits[name] = fit
         row = {
-            "model": model.name,
+            "model": name,
             "n_free": fit.n_free,
             "loglik": fit.loglik,
             "aic": fit.aic,
@@ -66,6 +75,13 @@ def forward_selection_lr(
             row.update(statistic=test["statistic"], df=test["df"], pvalue=test["pvalue"])
             row["accepted"] = test["pvalue"] < alpha
         if row["accepted"]:
-            current = fit
+            current, accepted = fit, name
         table.append(row)
-    return {"accepted": current.model.name, "table": table, "fits": fits}
+    return {"accepted": accepted, "table": table, "fits": fits}
+
+
+def _describe(options) -> str:
+    fixed = options.get("fixed") or {}
+    if fixed and len(options) == 1:
+        return "(" + ", ".join(f"{k}={v:g}" for k, v in fixed.items()) + ")"
+    return "(" + ", ".join(f"{k}={v!r}" for k, v in options.items()) + ")"

@@ -209,6 +209,8 @@ def estimate_command(args) -> int:
     opts = DataOptions(args)
     if len(opts.specs) != 1:
         raise UsageError("jaxbox estimate takes one DATA")
+    if getattr(opts, "train", None) or getattr(opts, "valid", None):
+        raise UsageError("--train and --validate do not apply to estimate: it filters all of DATA")
     out = Path(args.out)
     if not out.parent.exists():
         raise UsageError(f"--out {out}: folder {out.parent} does not exist")

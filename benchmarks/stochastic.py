@@ -79,7 +79,7 @@ def bench_starts(data, n_starts=64, repeats=3):
         "wall_s": wall,
         "hessian_s": res.timing["hessian_s"],
         "loglik": res.loglik,
-        "at_best": res.starts.n_at_best(rtol=1e-6),
+        "at_best": res.n_at_best(),
         "converged": int(res.starts.converged.sum()),
         "steps_median": float(np.median(res.starts.steps)),
         "result": res,

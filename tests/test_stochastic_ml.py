@@ -72,6 +72,10 @@ def test_ml_recovers_parameters_and_reports_statistics(fit, ti, data):
         assert ci[n][1] - ci[n][0] == pytest.approx(2 * q * fit.sd[n])
     R = fit.correlation
     assert np.allclose(np.diag(R), 1.0) and np.all(np.abs(R) <= 1 + 1e-12)
+    # the objective per observation is negative here: starts at the best are still counted
+    assert fit.starts.cost[fit.best] < 0
+    assert 1 <= fit.n_at_best() <= STARTS
+    assert fit.n_at_best() == int(np.sum(fit.starts.cost <= fit.starts.cost[fit.best] + 1e-6))
     table = fit.params_table()
     assert table["sigma_zon"]["unit"] == "K/√s" and table["sigma_y_zon"]["unit"] == "K"
     assert "log-likelihood" in fit.summary()

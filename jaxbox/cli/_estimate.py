@@ -123,7 +123,7 @@ def ml_json(result, ident, valid, spec, total_s: float) -> dict:
             "converged": starts.count("converged"),
             "max_steps": starts.count("max_steps"),
             "failed": sum(s not in ("converged", "max_steps") for s in starts),
-            "at_best": result.starts.n_at_best(rtol=1e-6),
+            "at_best": result.n_at_best(),
             "best": result.best,
         },
         residuals={

@@ -53,8 +53,9 @@ def fit_model(
 
     ``method="ml"`` estimates the stochastic form of the model by maximum likelihood instead
     (:func:`jaxbox.stochastic.fit_ml`, which takes ``free``, ``fixed``, ``bounds``, ``guess``,
-    ``starts``, ``seed``, ``concentration`` and, through ``ml_options``, ``priors``, ``hold``,
-    ``x0_std``, ``max_steps``) and returns its :class:`~jaxbox.stochastic.MLResult`.
+    ``starts``, ``seed``, ``concentration``, ``max_steps`` (the output-error default becomes the
+    BFGS default) and, through ``ml_options``, ``priors``, ``hold``, ``x0_std``) and returns its
+    :class:`~jaxbox.stochastic.MLResult`.
 
     Args:
         model: an :class:`~jaxbox.models.RCModel` or a library model name.

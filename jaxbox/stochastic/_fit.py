@@ -398,18 +398,18 @@ def fit_ml_many(
 def fit_ml_method(args: dict) -> MLResult:
     """``jaxbox.fit_model(..., method="ml")``: the output-error arguments that carry over to
     :func:`fit_ml`; output weights and simulator options do not apply to the likelihood."""
-    from ..fit._defaults import DEFAULT_MAX_STEPS, DEFAULT_STARTS
+    from ..fit._defaults import DEFAULT_MAX_STEPS
 
     for name, default in (("weights", None), ("sim_options", None), ("solver", None)):
         if args.get(name) is not default:
             raise FitError(f"{name} does not apply to method='ml'")
+    if args.get("simulator", "exact") != "exact":
+        raise FitError("simulator does not apply to method='ml' (the Kalman filter is exact)")
     opts = dict(args.get("ml_options") or {})
-    bad = sorted(set(opts) - {"priors", "hold", "x0_std", "rtol", "atol"})
+    bad = sorted(set(opts) - {"priors", "hold", "x0_std"})
     if bad:
         raise FitError(f"unknown argument(s) for method='ml': {', '.join(bad)}")
     starts = args["starts"]
-    if isinstance(starts, int) and starts == DEFAULT_STARTS:
-        starts = DEFAULT_ML_STARTS
     max_steps = args["max_steps"]
     return fit_ml(
         args["model"],

@@ -106,6 +106,13 @@ class MLResult:
     def model(self):
         return self.problem.model
 
+    def n_at_best(self, rtol: float = 1e-6) -> int:
+        """Usable starts whose objective is within ``rtol · max(1, |best|)`` of the best (the
+        objective per observation, which may be negative)."""
+        best = self.starts.cost[self.best]
+        tol = rtol * max(1.0, abs(best))
+        return int(np.sum(self.starts.usable & (self.starts.cost <= best + tol)))
+
     @property
     def free(self) -> tuple[str, ...]:
         return self.problem.free
@@ -200,7 +207,7 @@ class MLResult:
             f"({'converged' if self.converged else 'NOT converged'})",
             f"log-likelihood {self.loglik:.3f}, AIC {self.aic:.2f}, BIC {self.bic:.2f}",
             f"starts: {self.starts.n} ({self.starts.status_summary()}), "
-            f"{self.starts.n_at_best(rtol=1e-6)} reached the best",
+            f"{self.n_at_best()} reached the best",
             f"{'parameter':<14} {'value':>12} {'sd':>10} {'t':>8} {'p':>9} {'unit':<5} note",
         ]
         for n, row in self.params_table().items():
@@ -264,7 +271,7 @@ class MLResult:
             "starts": {
                 "n": self.starts.n,
                 "status": self.starts.status_summary(),
-                "at_best": self.starts.n_at_best(rtol=1e-6),
+                "at_best": self.n_at_best(),
             },
             "timing": dict(self.timing),
         }

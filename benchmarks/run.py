@@ -930,7 +930,7 @@ def report(res: dict) -> str:
 
 
 #: section files of the topic benchmarks, appended to RESULTS.md in this order
-_TOPICS = ("CONVERGENCE", "ZOO", "STOCHASTIC", "FLEET", "DESIGN")
+_TOPICS = ("CONVERGENCE", "ZOO", "GAPS", "STOCHASTIC", "FLEET", "DESIGN")
 
 _SECTIONS = (
     "jaxbox",

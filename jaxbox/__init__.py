@@ -24,6 +24,7 @@ _SUBPACKAGES = (
     "report",
     "select",
     "simulate",
+    "stochastic",
     "validate",
 )
 #: public name -> the module that defines it
@@ -51,6 +52,8 @@ _NAMES = {
     "forward_selection_many": "select",
     "Simulation": "simulate",
     "simulate_model": "simulate",
+    "MLResult": "stochastic",
+    "fit_ml": "stochastic",
 }
 
 __all__ = sorted([*_SUBPACKAGES, *_NAMES, "__version__"])

@@ -61,6 +61,12 @@ def add_fit_arguments(p) -> None:
     )
     p.add_argument("--simulator", choices=("exact", "diffrax"), default="exact")
     p.add_argument(
+        "--method",
+        choices=("oe", "ml"),
+        default="oe",
+        help="oe: output error (default); ml: maximum likelihood of the stochastic form",
+    )
+    p.add_argument(
         "--max-steps",
         type=int_option,
         default=None,
@@ -104,6 +110,10 @@ def fit_command(args) -> int:
     from ..models import get_model
     from ..validate import validate
 
+    if getattr(args, "method", "oe") == "ml":
+        from ._estimate import ml_fit_command
+
+        return ml_fit_command(args)
     # every option first, nothing loaded or computed yet
     model = get_model(args.model)
     fixed = floats(args.fix, "--fix", "gA=2.5")

@@ -19,6 +19,7 @@ import warnings
 
 from ._commands import add_fit_arguments, fit_command, models_command
 from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
+from ._estimate import add_estimate_arguments, estimate_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]
@@ -30,6 +31,8 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
   jaxbox fit DATA --model NAME       fit one model, cross-validate, print the estimate
   jaxbox select DATA                 forward selection from simple to complex models
   jaxbox demo                        forward selection on the bundled twin-house data + report
+  jaxbox estimate DATA --model NAME --params FIT.json --out STATES.csv
+                                     states of a stochastic (--method ml) fit, to a CSV
 """
 
 
@@ -63,6 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
         "demo", help="forward selection on the bundled twin-house data, with an HTML report"
     )
     add_demo_arguments(p)
+
+    p = sub.add_parser("estimate", help="filtered and smoothed states from an ML fit, to a CSV")
+    add_estimate_arguments(p)
     return parser
 
 
@@ -114,6 +120,7 @@ _COMMANDS = {
     "fit": fit_command,
     "select": select_command,
     "demo": demo_command,
+    "estimate": estimate_command,
 }
 
 

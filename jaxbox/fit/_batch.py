@@ -46,8 +46,16 @@ def fit_model(
     concentration: float = 4.0,
     solver: optx.AbstractLeastSquaresSolver | None = None,
     slots: int | None = None,
+    method: str = "oe",
+    **ml_options,
 ) -> FitResult:
     """Estimate the parameters of ``model`` from ``data`` by output-error least squares.
+
+    ``method="ml"`` estimates the stochastic form of the model by maximum likelihood instead
+    (:func:`jaxbox.stochastic.fit_ml`, which takes ``free``, ``fixed``, ``bounds``, ``guess``,
+    ``starts``, ``seed``, ``concentration``, ``max_steps`` (the output-error default becomes the
+    BFGS default) and, through ``ml_options``, ``priors``, ``hold``, ``x0_std``) and returns its
+    :class:`~jaxbox.stochastic.MLResult`.
 
     Args:
         model: an :class:`~jaxbox.models.RCModel` or a library model name.
@@ -83,6 +91,16 @@ def fit_model(
     Raises:
         FitError: an ill-posed problem, or every start failed.
     """
+    if method == "ml":
+        from ..stochastic._fit import fit_ml_method
+
+        return fit_ml_method(locals())
+    if method != "oe" or ml_options:
+        raise FitError(
+            f"method must be 'oe' (output error) or 'ml' (maximum likelihood), got {method!r}"
+            if method != "oe"
+            else f"unknown fit argument(s): {', '.join(ml_options)}"
+        )
     return fit_batch(
         [
             {
@@ -112,7 +130,7 @@ def fit_model(
 _DEFAULTS = {
     name: p.default
     for name, p in inspect.signature(fit_model).parameters.items()
-    if p.kind is inspect.Parameter.KEYWORD_ONLY and name != "slots"
+    if p.kind is inspect.Parameter.KEYWORD_ONLY and name not in ("slots", "method")
 }
 #: the problem arguments, the solver settings (requests solved together share them) and the
 #: start arguments of a request

@@ -1,0 +1,426 @@
+"""Maximum-likelihood (and MAP) estimation of the stochastic form of an RC model.
+
+Every start (the guess plus Latin-hypercube samples, :func:`jaxbox.fit.sample_starts`) of every
+dataset runs BFGS (``optimistix.BFGS``) on the negative log-likelihood per observation, in the
+bound transform's unbounded coordinates, under one ``vmap`` in one compiled call per model
+structure, free/fixed split and data shape (kept in :mod:`jaxbox._compiled`). The gradient is
+reverse-mode autodiff through the Kalman filter's ``lax.scan``.
+
+At the best start, the exact Hessian of the NLL (plus the log prior) with respect to the
+physical free parameters (``jax.hessian``) gives the covariance of the estimates, their
+correlations, t-statistics and two-sided p-values (t distribution with ``N_obs − k`` degrees of
+freedom), as CTSM reports them.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .. import _compiled
+from .._x64 import require_x64
+from ..fit._problem import FitError
+from ..fit._result import StartReport
+from ..fit._starts import sample_starts
+from ..fit._transforms import Transform
+from ..models import get_model
+from ._kalman import kalman_scan
+from ._problem import StochasticProblem, make_stochastic_problem, stochastic_arrays, system
+from ._result import MLResult
+
+__all__ = ["fit_ml", "fit_ml_many", "DEFAULT_ML_STARTS", "DEFAULT_ML_MAX_STEPS"]
+
+DEFAULT_ML_STARTS = 16
+DEFAULT_ML_MAX_STEPS = 400
+_CONVERGED, _MAX_STEPS, _NONFINITE = 0, 1, 2
+
+
+def _objective(full: Transform, model, hold: str):
+    """Objective per observation over every parameter: free ones from the coordinates ``z``
+    (through ``full``), fixed ones from ``values`` (their coordinates are ignored, so their
+    gradient is zero and BFGS leaves them where they are)."""
+    names = full.names
+
+    def f(z, mask, values, lo, hi, sc, pm, ps, x0_std, dt, scale, u, y):
+        p = jnp.where(mask, full.to_physical(z, lo, hi, sc), values)
+        theta = {n: p[..., i] for i, n in enumerate(names)}
+        mats, C, D, r, m0, P0 = system(model, theta, dt, hold, x0_std)
+        nll = kalman_scan(mats, C, D, r, m0, P0, u, y)
+        has = mask & jnp.isfinite(ps)
+        d = jnp.where(has, (p - pm) / jnp.where(has, ps, 1.0), 0.0)
+        return (nll + 0.5 * jnp.sum(d * d)) / scale
+
+    return f
+
+
+def _build(full, model, hold, max_steps: int, rtol: float, atol: float, per_member: bool):
+    solver = optx.BFGS(rtol=rtol, atol=atol)
+    obj = _objective(full, model, hold)
+
+    def one(z0, *args):
+        def fn(z, _):
+            v = obj(z, *args)
+            return jnp.where(jnp.isfinite(v), v, jnp.inf)
+
+        sol = optx.minimise(fn, solver, z0, max_steps=max_steps, throw=False)
+        val = obj(sol.value, *args)
+        steps = sol.stats["num_steps"]
+        ok = sol.result == optx.RESULTS.successful
+        code = jnp.where(
+            ~jnp.isfinite(val),
+            _NONFINITE,
+            jnp.where(ok, _CONVERGED, jnp.where(steps >= max_steps, _MAX_STEPS, _NONFINITE)),
+        )
+        return sol.value, val, code.astype(jnp.int32), steps
+
+    d = 0 if per_member else None
+    axes = (0,) * 11 + (d, d)
+    return jax.jit(jax.vmap(one, in_axes=axes))
+
+
+def solve_ml(
+    jobs: Sequence[tuple[StochasticProblem, np.ndarray, tuple]],
+    *,
+    max_steps: int = DEFAULT_ML_MAX_STEPS,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+) -> dict:
+    """BFGS from every start of every job in one compiled, batched call.
+
+    A job is ``(problem, starts [S, k] physical, (dt, u, y))``. Jobs must share the model
+    structure, the hold, the transform kinds and the data shapes; they may differ in data,
+    bounds, fixed values, priors and in which parameters are free. The compiled solve is kept
+    per model structure, hold, transform kinds, shapes and solver settings.
+
+    Returns per member: ``job``, ``p`` [B, k] (each job's free parameters), ``objective`` [B]
+    (NLL + prior per observation), ``code`` (0 converged, 1 step cap, 2 non-finite),
+    ``steps``; and ``compile_s``, ``fit_s``.
+    """
+    if not jobs:
+        raise FitError("no job to solve")
+    fulls = [sp.full_transform() for sp, _, _ in jobs]
+    keys = {
+        (sp.model.structure, sp.hold, f[0].kinds, f[0].style)
+        for (sp, _, _), f in zip(jobs, fulls, strict=True)
+    }
+    if len(keys) > 1:
+        raise FitError(
+            "jobs solved together need the same model structure, hold and bound transforms"
+        )
+    shapes = {(np.shape(a[1]), np.shape(a[2])) for _, _, a in jobs}
+    if len(shapes) > 1:
+        raise FitError(
+            f"datasets solved together need the same length and columns; got {sorted(shapes)}"
+        )
+    sp0, full0 = jobs[0][0], fulls[0][0]
+    n_all = len(full0.names)
+    cols: list[list] = [[] for _ in range(12)]
+    us, ys, counts, free_idx = [], [], [], []
+    for (sp, starts, (dt, u, y)), (full, mask, values) in zip(jobs, fulls, strict=True):
+        starts = np.atleast_2d(np.asarray(starts, dtype=float))
+        s = len(starts)
+        idx = np.flatnonzero(mask)
+        z0 = np.zeros((s, n_all))
+        z0[:, idx] = np.where(np.isfinite(starts), sp.transform.to_internal(starts), np.nan)
+        pm = np.zeros(n_all)
+        ps = np.full(n_all, np.inf)
+        pm[idx], ps[idx] = sp.prior_arrays()
+        rows = (mask, values, full.lower, full.upper, full.scale, pm, ps, sp.x0_std)
+        cols[0].append(z0)
+        for c, a in zip(cols[1:9], rows, strict=True):
+            a = np.asarray(a, dtype=float)
+            c.append(np.broadcast_to(a, (s, len(a))))
+        cols[9].append(np.full(s, float(dt)))
+        cols[10].append(np.full(s, float(np.isfinite(y).sum())))
+        us.append(u)
+        ys.append(y)
+        counts.append(s)
+        free_idx.append(idx)
+    members = [np.concatenate(c, axis=0) for c in cols[:11]]
+    per_member = len(jobs) > 1
+    if per_member:
+        u = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(us, counts, strict=True)])
+        y = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(ys, counts, strict=True)])
+    else:
+        u, y = us[0], ys[0]
+    args = [jnp.asarray(a, dtype=float) for a in (*members, u, y)]
+    args[1] = args[1].astype(bool)
+    key = (
+        "stochastic",
+        "ml",
+        sp0.model.structure,
+        sp0.hold,
+        full0.kinds,
+        full0.style,
+        tuple(a.shape for a in args),
+        max_steps,
+        rtol,
+        atol,
+    )
+    t0 = time.perf_counter()
+    compiled, built = _compiled.cached(
+        key,
+        lambda: (
+            _build(full0, sp0.model, sp0.hold, max_steps, rtol, atol, per_member)
+            .lower(*args)
+            .compile()
+        ),
+    )
+    compile_s = time.perf_counter() - t0 if built else 0.0
+    t0 = time.perf_counter()
+    z, val, code, steps = jax.block_until_ready(compiled(*args))
+    fit_s = time.perf_counter() - t0
+    p_all = np.asarray(full0.to_physical(jnp.asarray(z), members[3], members[4], members[5]))
+    parts, start = [], 0
+    for c, idx in zip(counts, free_idx, strict=True):
+        parts.append(p_all[start : start + c][:, idx])
+        start += c
+    width = {p.shape[1] for p in parts}
+    return {
+        "job": np.repeat(np.arange(len(jobs)), counts),
+        "p": np.concatenate(parts, axis=0) if len(width) == 1 else parts,
+        "p_jobs": parts,
+        "objective": np.asarray(val),
+        "code": np.asarray(code),
+        "steps": np.asarray(steps),
+        "compile_s": compile_s,
+        "fit_s": fit_s,
+    }
+
+
+def _hessian_fn(sp: StochasticProblem, shapes):
+    """NLL, its gradient and its exact Hessian in *every* parameter (physical and noise, in
+    ``param_names`` order), compiled once per model structure, hold and data shape: fits with
+    different free/fixed splits share it."""
+    key = ("stochastic", "hessian", sp.model.structure, sp.hold, shapes)
+    names = sp.param_names
+
+    def build():
+        def f(values, x0_std, dt, u, y):
+            theta = {n: values[i] for i, n in enumerate(names)}
+            mats, C, D, r, m0, P0 = system(sp.model, theta, dt, sp.hold, x0_std)
+            return kalman_scan(mats, C, D, r, m0, P0, u, y)
+
+        return jax.jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)))
+
+    return _compiled.cached(key, build)[0]
+
+
+def _status(code: int, val: float, p) -> str:
+    if not (np.isfinite(val) and np.all(np.isfinite(p))):
+        return "nonfinite"
+    return {_CONVERGED: "converged", _MAX_STEPS: "max_steps"}.get(int(code), "nonfinite")
+
+
+def _result(sp, data, arrays, starts, out, sl, settings, timing) -> MLResult:
+    job = int(out["job"][sl][0])
+    p = out["p_jobs"][job]
+    val, code, steps = out["objective"][sl], out["code"][sl], out["steps"][sl]
+    status = tuple(_status(c, v, q) for c, v, q in zip(code, val, p, strict=True))
+    report = StartReport(initial=starts, params=p, cost=val, steps=steps, status=status)
+    best = report.best_index()
+    if best is None:
+        raise FitError(
+            f"all {len(status)} maximum-likelihood starts failed for {sp.model.name} "
+            f"({report.status_summary()}); check the data and bounds, or add starts"
+        )
+    dt, u, y = arrays
+    pb = p[best]
+    values = {**sp.fixed_dict, **dict(zip(sp.free, pb, strict=True))}
+    vec = np.asarray([values[n] for n in sp.param_names], dtype=float)
+    hess = _hessian_fn(sp, (u.shape, y.shape))
+    t0 = time.perf_counter()
+    args = (vec, np.asarray(sp.x0_std), dt, u, y)
+    nll, grad, H = hess(*(jnp.asarray(a, dtype=float) for a in args))
+    idx = np.asarray([sp.param_names.index(n) for n in sp.free])
+    grad, H = np.asarray(grad)[idx], np.asarray(H)[np.ix_(idx, idx)]
+    pm, ps = sp.prior_arrays()
+    has = np.isfinite(ps)
+    prior = 0.5 * float(np.sum(((pb - pm)[has] / ps[has]) ** 2))
+    grad = grad + np.where(has, (pb - pm) / np.where(has, ps, 1.0) ** 2, 0.0)
+    H = H + np.diag(np.where(has, 1.0 / np.where(has, ps, 1.0) ** 2, 0.0))
+    timing = {**timing, "hessian_s": time.perf_counter() - t0}
+    return MLResult.build(
+        problem=sp,
+        data=data,
+        arrays=arrays,
+        p_free=pb,
+        nll=float(nll),
+        objective=float(nll) + prior,
+        grad=grad,
+        hessian=H,
+        starts=report,
+        best=best,
+        timing=timing,
+        settings=settings,
+    )
+
+
+def fit_ml(
+    model,
+    data,
+    *,
+    free: Sequence[str] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    guess: Mapping[str, float] | None = None,
+    priors: Mapping[str, tuple[float, float]] | None = None,
+    starts: int | np.ndarray = DEFAULT_ML_STARTS,
+    seed: int | None = 0,
+    concentration: float = 4.0,
+    hold: str = "foh",
+    x0_std: float | Mapping[str, float] | None = None,
+    max_steps: int = DEFAULT_ML_MAX_STEPS,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+) -> MLResult:
+    """Maximum-likelihood (with ``priors``: MAP) estimate of the stochastic form of ``model``.
+
+    Args:
+        model: an :class:`~jaxbox.models.RCModel` or a library model name.
+        data: the identification :class:`~jaxbox.data.Dataset`.
+        free: parameters to estimate, physical and noise (default: all not ``fixed``).
+        fixed: values held fixed (SI), e.g. ``{"sigma_wal": 0.0}`` for a state without
+            diffusion.
+        bounds: ``{name: (lower, upper)}`` (SI); noise parameters default to
+            ``sigma_*`` ∈ [1e-7, 0.1] K/√s and ``sigma_y_*`` ∈ [1e-4, 5] K.
+        guess: initial guesses (SI); physical ones default as for output error.
+        priors: ``{name: (mean, sd)}`` Gaussian priors on free parameters (SI): a MAP estimate.
+        starts: number of starts (the guess plus Latin-hypercube samples), or an array
+            [S, k] of explicit starts in physical units (columns in ``problem.free`` order).
+        seed, concentration: of the Latin hypercube (:func:`jaxbox.fit.sample_starts`).
+        hold: ``"foh"`` (inputs linear between samples, as the output-error fit) or ``"zoh"``.
+        x0_std: standard deviation [K] of the initial states around ``T_*0`` (one value, or
+            per state name); default 1 K.
+        max_steps: BFGS iterations per start.
+        rtol, atol: BFGS tolerances on the NLL per observation and on the coordinates.
+
+    Returns:
+        :class:`MLResult`: estimates, intervals from the exact Hessian, log-likelihood, AIC,
+        BIC, every start's outcome.
+    """
+    return fit_ml_many(
+        model,
+        [data],
+        free=free,
+        fixed=fixed,
+        bounds=bounds,
+        guess=guess,
+        priors=priors,
+        starts=starts,
+        seed=seed,
+        concentration=concentration,
+        hold=hold,
+        x0_std=x0_std,
+        max_steps=max_steps,
+        rtol=rtol,
+        atol=atol,
+    )[0]
+
+
+def fit_ml_many(
+    model,
+    datasets: Sequence,
+    *,
+    free: Sequence[str] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    guess: Mapping[str, float] | None = None,
+    priors: Mapping[str, tuple[float, float]] | None = None,
+    starts: int | np.ndarray = DEFAULT_ML_STARTS,
+    seed: int | None = 0,
+    concentration: float = 4.0,
+    hold: str = "foh",
+    x0_std: float | Mapping[str, float] | None = None,
+    max_steps: int = DEFAULT_ML_MAX_STEPS,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+) -> list[MLResult]:
+    """:func:`fit_ml` on several datasets of the same length and step, in one compiled call
+    (every start of every dataset under one ``vmap``). Returns one result per dataset."""
+    require_x64()
+    model = get_model(model)
+    datasets = list(datasets)
+    if not datasets:
+        raise FitError("fit_ml_many needs at least one dataset")
+    jobs, all_starts, arrays_list, problems = [], [], [], []
+    for data in datasets:
+        sp = make_stochastic_problem(
+            model,
+            data,
+            free=free,
+            fixed=fixed,
+            bounds=bounds,
+            guess=guess,
+            priors=priors,
+            hold=hold,
+            x0_std=x0_std,
+        )
+        arrays = stochastic_arrays(model, data)
+        if isinstance(starts, int | np.integer):
+            if starts < 1:
+                raise FitError(f"starts must be at least 1, got {starts}")
+            x0s = sample_starts(sp, data, int(starts), seed, concentration)
+        else:
+            x0s = np.atleast_2d(np.asarray(starts, dtype=float))
+            if x0s.shape[1] != len(sp.free):
+                raise FitError(
+                    "explicit starts need one column per free parameter "
+                    f"({', '.join(sp.free)}), got shape {x0s.shape}"
+                )
+        jobs.append((sp, x0s, arrays))
+        all_starts.append(x0s)
+        arrays_list.append(arrays)
+        problems.append(sp)
+    out = solve_ml(jobs, max_steps=max_steps, rtol=rtol, atol=atol)
+    settings = {
+        "method": "ml" if not priors else "map",
+        "max_steps": max_steps,
+        "rtol": rtol,
+        "atol": atol,
+        "seed": seed,
+        "hold": hold,
+        "optimizer": "optimistix.BFGS",
+    }
+    timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(jobs)}
+    results = []
+    for i, (sp, data) in enumerate(zip(problems, datasets, strict=True)):
+        sl = out["job"] == i
+        results.append(_result(sp, data, arrays_list[i], all_starts[i], out, sl, settings, timing))
+    return results
+
+
+def fit_ml_method(args: dict) -> MLResult:
+    """``jaxbox.fit_model(..., method="ml")``: the output-error arguments that carry over to
+    :func:`fit_ml`; output weights and simulator options do not apply to the likelihood."""
+    from ..fit._defaults import DEFAULT_MAX_STEPS
+
+    for name, default in (("weights", None), ("sim_options", None), ("solver", None)):
+        if args.get(name) is not default:
+            raise FitError(f"{name} does not apply to method='ml'")
+    if args.get("simulator", "exact") != "exact":
+        raise FitError("simulator does not apply to method='ml' (the Kalman filter is exact)")
+    opts = dict(args.get("ml_options") or {})
+    bad = sorted(set(opts) - {"priors", "hold", "x0_std"})
+    if bad:
+        raise FitError(f"unknown argument(s) for method='ml': {', '.join(bad)}")
+    starts = args["starts"]
+    max_steps = args["max_steps"]
+    return fit_ml(
+        args["model"],
+        args["data"],
+        free=args["free"],
+        fixed=args["fixed"],
+        bounds=args["bounds"],
+        guess=args["guess"],
+        starts=starts,
+        seed=args["seed"],
+        concentration=args["concentration"],
+        max_steps=DEFAULT_ML_MAX_STEPS if max_steps in (None, DEFAULT_MAX_STEPS) else max_steps,
+        **opts,
+    )

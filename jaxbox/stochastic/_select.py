@@ -1,0 +1,87 @@
+"""Forward selection by likelihood-ratio tests (Bacher & Madsen 2011)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ..models import get_model
+from ._fit import fit_ml
+from ._result import MLResult, likelihood_ratio_test
+
+__all__ = ["forward_selection_lr"]
+
+
+def forward_selection_lr(
+    models: Sequence,
+    data,
+    *,
+    alpha: float = 0.05,
+    **fit_options,
+) -> dict:
+    """Fit a sequence of nested models from simple to complex by maximum likelihood and keep
+    the last one that is a significant improvement.
+
+    Each model is compared with the model currently accepted by a likelihood-ratio test
+    (:func:`likelihood_ratio_test`); it replaces it when it has more free parameters and the
+    test's p-value is below ``alpha``. The models must be nested in that order (each extends the
+    one before, as the ``bacher-madsen`` family does from ``BM_Ti``); the test is not valid
+    otherwise.
+
+    Args:
+        models: model names or :class:`~jaxbox.models.RCModel`, simplest first; an entry may
+            be a pair ``(model, options)`` whose options (e.g. ``{"fixed": {"sigma_wal": 0}}``)
+            update ``fit_options`` for that model: a model nested in the next by fixed
+            parameters (a diffusion that may not be needed).
+        data: the identification dataset.
+        alpha: significance level.
+        fit_options: passed to :func:`fit_ml` (``starts``, ``seed``, ``fixed``…).
+
+    Returns:
+        ``{"accepted": name, "table": [row per model], "fits": {name: MLResult}}`` (a model
+        with options is named with them, ``"BM_Ti (sigma_zon=0)"``); a row holds
+        ``model``, ``n_free``, ``loglik``, ``aic``, ``bic``, the LR ``statistic``, ``df`` and
+        ``pvalue`` against the model accepted before it, and ``accepted``.
+    """
+    if not models:
+        raise ValueError("forward_selection_lr needs at least one model")
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    current: MLResult | None = None
+    accepted = ""
+    table, fits = [], {}
+    for i, entry in enumerate(models):
+        m, extra = entry if isinstance(entry, tuple) else (entry, {})
+        model = get_model(m)
+        fit = fit_ml(model, data, **{**fit_options, **dict(extra)})
+        name = model.name if not extra else f"{model.name} {_describe(extra)}"
+        if name in fits:
+            name = f"{name} #{i + 1}"
+        fits[name] = fit
+        row = {
+            "model": name,
+            "n_free": fit.n_free,
+            "loglik": fit.loglik,
+            "aic": fit.aic,
+            "bic": fit.bic,
+            "statistic": None,
+            "df": None,
+            "pvalue": None,
+            "accepted": False,
+        }
+        if current is None:
+            row["accepted"] = True
+        elif fit.n_free > current.n_free:
+            test = likelihood_ratio_test(current, fit)
+            row.update(statistic=test["statistic"], df=test["df"], pvalue=test["pvalue"])
+            row["accepted"] = test["pvalue"] < alpha
+        if row["accepted"]:
+            current, accepted = fit, name
+        table.append(row)
+    return {"accepted": accepted, "table": table, "fits": fits}
+
+
+def _describe(options) -> str:
+    fixed = options.get("fixed") or {}
+    if fixed and len(options) == 1:
+        return "(" + ", ".join(f"{k}={v:g}" for k, v in fixed.items()) + ")"
+    return "(" + ", ".join(f"{k}={v!r}" for k, v in options.items()) + ")"

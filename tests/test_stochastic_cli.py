@@ -1,0 +1,92 @@
+"""``jaxbox fit --method ml`` and ``jaxbox estimate``: JSON shape, the states CSV, one-line
+errors."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_stochastic import _dataset
+from test_stochastic_ml import STARTS, TI
+
+import jaxbox
+from jaxbox.cli._main import main
+
+
+@pytest.fixture(scope="module")
+def csv_file(tmp_path_factory):
+    data = _dataset(jaxbox.get_model("BM_Ti"), TI, 300, seed=7, x0_std=1.0)
+    path = tmp_path_factory.mktemp("ml") / "building.csv"
+    data.frame.to_csv(path, index_label="time")
+    return path
+
+
+@pytest.fixture(scope="module")
+def fit_doc(csv_file, tmp_path_factory):
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(
+            ["fit", str(csv_file), "--model", "BM_Ti", "--method", "ml"]
+            + ["--starts", str(STARTS), "--json"]
+        )
+    assert code == 0
+    path = tmp_path_factory.mktemp("fit") / "fit.json"
+    path.write_text(out.getvalue())
+    return json.loads(out.getvalue()), path
+
+
+def test_fit_method_ml_json(fit_doc):
+    doc, _ = fit_doc
+    assert doc["method"] == "ml"
+    assert {"loglik", "aic", "bic", "residuals", "k_step_rmse", "simulation_rmse"} <= set(doc)
+    assert {"sigma_zon", "sigma_y_zon", "C_zon"} <= set(doc["params"])
+    assert doc["aic"] == pytest.approx(2 * doc["n_free"] - 2 * doc["loglik"])
+    lb = doc["residuals"]["outputs"]["T_zon"]["ljung_box"]
+    assert 0 <= lb["p_value"] <= 1
+    assert doc["table"]["R_wal"]["sd"] > 0
+    assert doc["data"]["n_train"] == 150
+
+
+def test_estimate_writes_states(fit_doc, csv_file, tmp_path, capsys):
+    _, path = fit_doc
+    out = tmp_path / "states.csv"
+    code = main(
+        ["estimate", str(csv_file), "--model", "BM_Ti", "--params", str(path), "--out", str(out)]
+        + ["--json"]
+    )
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    frame = pd.read_csv(out, index_col="time")
+    assert len(frame) == 300
+    assert {"T_zon_filtered", "T_zon_filtered_sd", "T_zon_smoothed", "T_zon_innovation"} <= set(
+        frame.columns
+    )
+    assert summary["current"]["states"]["T_zon"] == pytest.approx(frame["T_zon_filtered"].iloc[-1])
+    # smoothing never increases the uncertainty of the filter
+    assert np.all(frame["T_zon_smoothed_sd"] <= frame["T_zon_filtered_sd"] + 1e-12)
+
+
+def test_fit_method_ml_text(csv_file, capsys):
+    code = main(["fit", str(csv_file), "--model", "BM_Ti", "--method", "ml", "--starts", "4"])
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "log-likelihood" in out and "Ljung–Box" in out and "k-step RMSE" in out
+
+
+def test_bad_input_is_one_line(csv_file, tmp_path, capsys):
+    code = main(["fit", str(csv_file), "--model", "BM_Ti", "--method", "ml", "--fix", "sigma_x=1"])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "sigma_x" in err[0]
+    bad = tmp_path / "p.json"
+    bad.write_text(json.dumps({"params": {"C_zon": 5e6}}))
+    code = main(
+        ["estimate", str(csv_file), "--model", "BM_Ti", "--params", str(bad)]
+        + ["--out", str(tmp_path / "s.csv")]
+    )
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "sigma_y_zon" in err[0]

@@ -1,0 +1,178 @@
+"""Maximum likelihood of stochastic grey-box models: recovery on synthetic SDE data, the
+output-error limit, the exact Hessian against finite differences, priors, likelihood ratios."""
+
+import numpy as np
+import pytest
+from scipy import stats
+from test_stochastic import _dataset
+
+import jaxbox
+from jaxbox.fit import FitError
+from jaxbox.stochastic import (
+    estimate_states,
+    fit_ml,
+    fit_ml_many,
+    forward_selection_lr,
+    likelihood_ratio_test,
+)
+
+TI = {
+    "C_zon": 5e6,
+    "R_wal": 1e-2,
+    "gA": 3.0,
+    "T_zon0": 20.0,
+    "sigma_zon": 1e-3,
+    "sigma_y_zon": 0.1,
+}
+N = 150
+STARTS = 4
+
+
+@pytest.fixture(scope="module")
+def ti():
+    return jaxbox.get_model("BM_Ti")
+
+
+@pytest.fixture(scope="module")
+def data(ti):
+    return _dataset(ti, TI, N, seed=5, x0_std=1.0)
+
+
+@pytest.fixture(scope="module")
+def fit(ti, data):
+    return fit_ml(ti, data, starts=STARTS)
+
+
+@pytest.fixture(scope="module")
+def fit_quiet(ti, data):
+    """Diffusion fixed at (almost) zero and a sharp initial state: the output-error limit."""
+    return fit_ml(ti, data, starts=STARTS, fixed={"sigma_zon": 1e-10}, x0_std=1e-5)
+
+
+def test_ml_recovers_parameters_and_reports_statistics(fit, ti, data):
+    assert fit.converged
+    assert fit.free == ("C_zon", "R_wal", "gA", "T_zon0", "sigma_zon", "sigma_y_zon")
+    for n in fit.free:
+        assert abs(fit.params[n] - TI[n]) < 4 * fit.sd[n], n
+    # the likelihood through the state estimator (another compiled path) at the estimate
+    est = estimate_states(ti, fit.params, data)
+    assert abs(est.loglik - fit.loglik) < 1e-9 * abs(fit.loglik)
+    k, n_obs = 6, N
+    assert fit.aic == pytest.approx(2 * k - 2 * fit.loglik, rel=1e-12)
+    assert fit.bic == pytest.approx(k * np.log(n_obs) - 2 * fit.loglik, rel=1e-12)
+    # stationarity: the gradient in scaled coordinates is tiny
+    p = np.asarray([fit.params[n] for n in fit.free])
+    assert np.all(np.abs(fit.gradient * p) < 1e-3)
+    # t statistics, p-values, intervals and correlations are consistent with the covariance
+    t, pv, ci = fit.tstat(), fit.pvalue(), fit.intervals(0.9)
+    q = stats.t.ppf(0.95, fit.dof)
+    for n in fit.free:
+        assert t[n] == pytest.approx(fit.params[n] / fit.sd[n])
+        assert pv[n] == pytest.approx(2 * stats.t.sf(abs(t[n]), n_obs - k))
+        assert ci[n][1] - ci[n][0] == pytest.approx(2 * q * fit.sd[n])
+    R = fit.correlation
+    assert np.allclose(np.diag(R), 1.0) and np.all(np.abs(R) <= 1 + 1e-12)
+    # the objective per observation is negative here: starts at the best are still counted
+    assert fit.starts.cost[fit.best] < 0
+    assert 1 <= fit.n_at_best() <= STARTS
+    assert fit.n_at_best() == int(np.sum(fit.starts.cost <= fit.starts.cost[fit.best] + 1e-6))
+    table = fit.params_table()
+    assert table["sigma_zon"]["unit"] == "K/√s" and table["sigma_y_zon"]["unit"] == "K"
+    assert "log-likelihood" in fit.summary()
+
+
+def test_hessian_matches_finite_differences(fit, ti, data):
+    """Second differences of the likelihood (through the state estimator) in relative steps."""
+    p0 = dict(fit.params)
+
+    def nll(**change):
+        return estimate_states(ti, {**p0, **change}, data).nll
+
+    f0 = nll()
+    H = fit.hessian
+    for i, a in enumerate(fit.free):
+        h = 1e-4 * p0[a]
+        fd = (nll(**{a: p0[a] + h}) - 2 * f0 + nll(**{a: p0[a] - h})) / h**2
+        assert fd == pytest.approx(H[i, i], rel=2e-3), a
+    i, j = fit.free.index("C_zon"), fit.free.index("R_wal")
+    ha, hb = 1e-4 * p0["C_zon"], 1e-4 * p0["R_wal"]
+    fd = (
+        nll(C_zon=p0["C_zon"] + ha, R_wal=p0["R_wal"] + hb)
+        - nll(C_zon=p0["C_zon"] + ha, R_wal=p0["R_wal"] - hb)
+        - nll(C_zon=p0["C_zon"] - ha, R_wal=p0["R_wal"] + hb)
+        + nll(C_zon=p0["C_zon"] - ha, R_wal=p0["R_wal"] - hb)
+    ) / (4 * ha * hb)
+    assert fd == pytest.approx(H[i, j], rel=2e-3)
+
+
+def test_vanishing_diffusion_gives_output_error_estimates(fit_quiet, ti, data):
+    oe = jaxbox.fit_model(ti, data, starts=STARTS)
+    for n in ti.param_names:
+        assert fit_quiet.params[n] == pytest.approx(oe.params[n], rel=1e-3), n
+    # the measurement noise is the RMS output error
+    assert fit_quiet.params["sigma_y_zon"] == pytest.approx(np.sqrt(oe.cost), rel=1e-3)
+
+
+def test_likelihood_ratio_test_of_nested_fits(fit, fit_quiet):
+    lr = likelihood_ratio_test(fit_quiet, fit)
+    assert lr["df"] == 1
+    assert lr["statistic"] == pytest.approx(2 * (fit.loglik - fit_quiet.loglik))
+    assert lr["pvalue"] == pytest.approx(stats.chi2.sf(lr["statistic"], 1))
+    assert lr["pvalue"] < 0.01  # the data have a diffusion of 1e-3 K/√s
+    with pytest.raises(ValueError, match="nested"):
+        likelihood_ratio_test(fit, fit_quiet)
+
+
+def test_map_prior_pulls_the_estimate(ti, data, fit):
+    post = fit_ml(ti, data, starts=STARTS, priors={"gA": (2.0, 1e-3)})
+    assert post.method == "map"
+    assert post.params["gA"] == pytest.approx(2.0, abs=5e-3)
+    assert post.sd["gA"] < 1e-3
+    assert post.objective > post.nll
+    assert post.loglik < fit.loglik
+
+
+def test_fit_model_method_ml(ti, data, fit):
+    res = jaxbox.fit_model(ti, data, method="ml", starts=STARTS)
+    assert isinstance(res, jaxbox.MLResult)
+    assert res.loglik == pytest.approx(fit.loglik, rel=1e-9)
+    with pytest.raises(FitError, match="method"):
+        jaxbox.fit_model(ti, data, method="mle")
+    with pytest.raises(FitError, match="weights"):
+        jaxbox.fit_model(ti, data, method="ml", weights=[1.0])
+
+
+def test_validation_views(fit, data):
+    tests = fit.innovation_tests()
+    assert tests["T_zon"].ljung_box.p_value > 0.001  # innovations of the true model are white
+    ks = fit.k_step_errors((1, 4))
+    assert ks[1]["rmse"]["T_zon"] < ks[4]["rmse"]["T_zon"]
+    sim = fit.simulation_rmse()
+    assert sim["T_zon"] > ks[1]["rmse"]["T_zon"]
+
+
+@pytest.mark.slow
+def test_interval_coverage_small(ti):
+    """95 % intervals over replications of synthetic SDE data, batched in one call."""
+    sets = [_dataset(ti, TI, N, seed=100 + i, x0_std=1.0) for i in range(16)]
+    fits = fit_ml_many(ti, sets, starts=STARTS)
+    inside = [
+        fit.intervals()[n][0] <= TI[n] <= fit.intervals()[n][1] for fit in fits for n in fit.free
+    ]
+    assert np.mean(inside) >= 0.75
+
+
+def test_forward_selection_by_likelihood_ratio(ti, data, fit, fit_quiet):
+    """A model without diffusion, then the same with it: the data have one, so the second is
+    accepted by the likelihood-ratio test."""
+    quiet = ("BM_Ti", {"fixed": {"sigma_zon": 1e-10}, "x0_std": 1e-5})
+    sel = forward_selection_lr([quiet, "BM_Ti"], data, starts=STARTS)
+    first, second = sel["table"]
+    assert first["accepted"] and first["loglik"] == pytest.approx(fit_quiet.loglik, rel=1e-9)
+    assert second["loglik"] == pytest.approx(fit.loglik, rel=1e-9)
+    assert second["df"] == 1
+    assert second["statistic"] == pytest.approx(2 * (second["loglik"] - first["loglik"]))
+    assert second["pvalue"] < 0.05 and second["accepted"]
+    assert sel["accepted"] == "BM_Ti"
+    with pytest.raises(ValueError, match="alpha"):
+        forward_selection_lr(["BM_Ti"], data, alpha=2.0)

@@ -19,6 +19,7 @@ import warnings
 
 from ._commands import add_fit_arguments, fit_command, models_command
 from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
+from ._fleet import add_fleet_arguments, fleet_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]
@@ -30,6 +31,7 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
   jaxbox fit DATA --model NAME       fit one model, cross-validate, print the estimate
   jaxbox select DATA                 forward selection from simple to complex models
   jaxbox demo                        forward selection on the bundled twin-house data + report
+  jaxbox fleet DIR --out OUT         every building of a fleet on Dask: models, KPIs, Parquet
 """
 
 
@@ -63,6 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
         "demo", help="forward selection on the bundled twin-house data, with an HTML report"
     )
     add_demo_arguments(p)
+
+    p = sub.add_parser("fleet", help="a fleet of buildings on Dask (or: fleet make DIR --n N)")
+    add_fleet_arguments(p)
     return parser
 
 
@@ -114,6 +119,7 @@ _COMMANDS = {
     "fit": fit_command,
     "select": select_command,
     "demo": demo_command,
+    "fleet": fleet_command,
 }
 
 

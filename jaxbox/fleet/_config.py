@@ -120,8 +120,11 @@ class FleetConfig:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise FleetError(f"{name} must be a positive integer, got {v!r}")
-        if self.max_steps is not None and (not isinstance(self.max_steps, int) or self.max_steps < 1):
-            raise FleetError(f"identify.max_steps must be a positive integer, got {self.max_steps!r}")
+        steps = self.max_steps
+        if steps is not None and (
+            not isinstance(steps, int) or isinstance(steps, bool) or steps < 1
+        ):
+            raise FleetError(f"identify.max_steps must be a positive integer, got {steps!r}")
         if self.criterion not in CRITERIA:
             raise FleetError(
                 f"identify.criterion {self.criterion!r} is not known; use one of "
@@ -182,9 +185,7 @@ def _read_toml(path: Path) -> dict:
         raise FleetError(f"{path}: not valid TOML ({err})") from None
 
 
-def load_config(
-    path: str | os.PathLike | None = None, **overrides
-) -> FleetConfig:
+def load_config(path: str | os.PathLike | None = None, **overrides) -> FleetConfig:
     """The :class:`FleetConfig` of a TOML file (tables ``data``, ``windows``, ``identify``,
     ``run``), with ``overrides`` (attribute names) on top; defaults without a file.
 

@@ -14,6 +14,7 @@ import dataclasses
 import os
 import sys
 import time
+import uuid
 from collections import Counter
 from collections.abc import Callable
 from contextlib import ExitStack
@@ -87,8 +88,7 @@ def _partitions(buildings: list[Building], size: int) -> list[list[Building]]:
 def _failed_rows(part: list[Building], index: int, err: BaseException) -> list[dict]:
     text = f"task failed: {type(err).__name__}: {err}"
     return [
-        {"building": b.name, "status": "failed", "message": text, "partition": index}
-        for b in part
+        {"building": b.name, "status": "failed", "message": text, "partition": index} for b in part
     ]
 
 
@@ -179,7 +179,7 @@ def run_fleet(
     buildings = discover(source, out)
     todo = [b for b in buildings if b.name not in done]
     parts = _partitions(todo, cfg.partition_size)
-    run = time.strftime("%Y%m%dT%H%M%S") + f"-{os.getpid()}"
+    run = time.strftime("%Y%m%dT%H%M%S") + f"-{uuid.uuid4().hex[:8]}"  # unique per run
     meta = {
         "source": str(source),
         "config": cfg.to_dict(),

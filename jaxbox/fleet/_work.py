@@ -194,22 +194,33 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
     from ..fit import FitError, fit_batch
 
     names = list(checked)
-    requests = [
-        {
+    extra = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
+
+    def request(n):
+        return {
             "model": model,
             "data": checked[n][0],
             "starts": cfg.starts,
             "seed": cfg.seed,
-            **({"max_steps": cfg.max_steps} if cfg.max_steps is not None else {}),
+            **extra,
         }
-        for n in names
-    ]
-    t0 = time.perf_counter()
-    try:
-        results = fit_batch(requests, errors="return")
-    except Exception as err:  # a batch that cannot run at all: every building fails alone
-        results = [FitError(f"{type(err).__name__}: {err}")] * len(names)
-    wall = time.perf_counter() - t0
+
+    shapes: dict[tuple, list[str]] = {}
+    for n in names:
+        shapes.setdefault((len(checked[n][0]), round(checked[n][0].step, 6)), []).append(n)
+    fitted: dict[str, object] = {}
+    for members in shapes.values():
+        # a partition's batches are padded to its size (repeating a building; the copies are
+        # dropped): every batch of a worker has one shape and reuses one compiled solve
+        pad = max(0, cfg.partition_size - len(members))
+        reqs = [request(n) for n in members] + [request(members[0])] * pad
+        try:
+            outcome = fit_batch(reqs, errors="return")[: len(members)]
+        except Exception as err:  # a batch that cannot run at all: each building fails
+            outcome = [FitError(f"{type(err).__name__}: {err}")] * len(members)
+        for n, r in zip(members, outcome, strict=True):
+            fitted[n] = r
+    results = [fitted[n] for n in names]
     for name, result in zip(names, results, strict=True):
         ident, valid, load_s, _ = checked[name]
         if isinstance(result, Exception):
@@ -218,7 +229,7 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
         batch = int(result.timing.get("batch", 1))
         timing = {
             "load_s": load_s,
-            "fit_s": float(result.timing.get("fit_s", wall)) / max(batch, 1),
+            "fit_s": float(result.timing.get("fit_s", 0.0)) / max(batch, 1),
             "compile_s": float(result.timing.get("compile_s", 0.0)),
             "batch": batch,
         }
@@ -281,13 +292,19 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
         if case is None:
             done = [gb.cases[c] for c in sel.order if gb.cases[c].result is not None]
             if not done:
-                out[n] = (_empty_row(n, "failed", f"no model could be fitted: {sel.stopped}"),
-                          None, timing)
+                out[n] = (
+                    _empty_row(n, "failed", f"no model could be fitted: {sel.stopped}"),
+                    None,
+                    timing,
+                )
                 continue
             case = min(done, key=lambda c: c.se_cross if math.isfinite(c.se_cross) else math.inf)
         try:
             validation, unc, verdict, kp, report, more = _judge(
-                case.result, case.valid, validation=case.validation, verdict=case.verdict,
+                case.result,
+                case.valid,
+                validation=case.validation,
+                verdict=case.verdict,
                 fit_json=fit_json,
             )
         except Exception as err:
@@ -297,9 +314,7 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
         row = _fit_row(n, case.result, validation, unc, verdict, kp)
         if sel.case is None:
             row["status"] = "no_valid_model"
-            row["message"] = f"{sel.stopped}; best attempt {case.name}: " + "; ".join(
-                case.reasons
-            )
+            row["message"] = f"{sel.stopped}; best attempt {case.name}: " + "; ".join(case.reasons)
         if report is not None:
             report["selection"] = sel.to_dict()
             if cfg.reports:
@@ -375,8 +390,16 @@ def process_partition(
     return {"rows": rows, "docs": docs, "html": html}
 
 
-_TIMINGS = ("load_s", "fit_s", "select_s", "compile_s", "validate_s", "kpi_s", "report_s",
-            "total_s")
+_TIMINGS = (
+    "load_s",
+    "fit_s",
+    "select_s",
+    "compile_s",
+    "validate_s",
+    "kpi_s",
+    "report_s",
+    "total_s",
+)
 
 
 def _row_timing(timing: dict) -> dict:

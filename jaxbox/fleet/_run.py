@@ -104,7 +104,7 @@ def _local_cluster(workers: int, stack: ExitStack):
                 n_workers=workers,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",
                 silence_logs=40,
             )
         )

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import jax
 import jax.numpy as jnp
@@ -137,11 +137,7 @@ class Kpis:
         pct = round(100 * self.level)
         lines = [f"{'indicator':<16} {'value':>11} {'std':>10} {f'{pct}% interval':>24}  unit"]
         for k in self.all():
-            ci = (
-                f"[{k.ci95[0]:.4g}, {k.ci95[1]:.4g}]"
-                if all(map(math.isfinite, k.ci95))
-                else "-"
-            )
+            ci = f"[{k.ci95[0]:.4g}, {k.ci95[1]:.4g}]" if all(map(math.isfinite, k.ci95)) else "-"
             lines.append(f"{k.name:<16} {k.value:>11.5g} {k.std:>10.3g} {ci:>24}  {k.unit}")
         return "\n".join(lines)
 
@@ -333,4 +329,3 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
         gradient=grad,
         free=free,
     )
-

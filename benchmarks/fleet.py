@@ -282,7 +282,13 @@ def main() -> None:
     ap.add_argument("--batches", default="64,256,1024,4096")
     ap.add_argument("--out", default=str(HERE / "FLEET.md"))
     ap.add_argument("--json", default=str(HERE / "fleet.json"))
+    ap.add_argument("--report-only", action="store_true", help="rewrite --out from --json")
     args = ap.parse_args()
+    if args.report_only:
+        doc = json.loads(Path(args.json).read_text())
+        Path(args.out).write_text(_markdown(doc))
+        print(_markdown(doc))
+        return
 
     import jaxbox
 

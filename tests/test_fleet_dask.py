@@ -15,6 +15,7 @@ import pytest
 from jaxbox.cli._main import main
 from jaxbox.datasets import make_fleet
 from jaxbox.fleet import load_config, read_results, run_fleet
+from jaxbox.fleet._run import _WORKER_ENV
 
 pytestmark = pytest.mark.slow
 
@@ -86,7 +87,8 @@ def test_fleet_command_on_a_separately_started_cluster(fleet, inline, cache, tmp
 
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "JAXBOX_CACHE": "1", "JAXBOX_CACHE_DIR": cache}
+    env = {**os.environ, **_WORKER_ENV, "PYTHONPATH": str(ROOT), "JAXBOX_CACHE": "1"}
+    env["JAXBOX_CACHE_DIR"] = cache
     logs = open(tmp_path / "dask.log", "w")  # noqa: SIM115 - closed below
     procs = [
         subprocess.Popen(
@@ -163,3 +165,22 @@ def test_fleet_command_on_a_separately_started_cluster(fleet, inline, cache, tmp
             except subprocess.TimeoutExpired:
                 p.kill()
         logs.close()
+
+
+def test_forward_selection_per_building_with_a_report(fleet, tmp_path):
+    """Several models: the forward selection runs on each building (in this process), the
+    accepted model's row, fit document (with the selection) and report are written."""
+    cfg = load_config(models=["Zon", "ZonWal"], starts=2, partition_size=2, reports=True)
+    sub = tmp_path / "two"
+    sub.mkdir()
+    for name in ("b0", "b1"):
+        (sub / f"{name}.csv").write_bytes((fleet / f"{name}.csv").read_bytes())
+    summary = run_fleet(sub, tmp_path / "out", cfg, workers=0)
+    rows = read_results(tmp_path / "out").set_index("building")
+    assert summary.processed == 2
+    assert set(rows["model"]) <= {"Zon", "ZonWal"}
+    assert (rows["status"] == "ok").any()
+    assert np.all(rows["select_s"] > 0)
+    doc = json.loads((tmp_path / "out" / "fits" / "b0.json").read_text())
+    assert doc["selection"]["order"][0] == "Zon"
+    assert (tmp_path / "out" / "reports" / "b0.html").read_text().count("<table>") >= 2

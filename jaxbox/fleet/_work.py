@@ -108,10 +108,10 @@ def _params(result, unc) -> list[dict]:
 
 
 def _kpi_columns(kp) -> dict:
+    """``hlc``/``solar_aperture`` with ``_std``, ``_lo``, ``_hi``; time constants as lists."""
     out: dict = {}
-    for key, k in (("hlc", None if kp is None else kp.hlc), ("solar_aperture", None)):
-        if key == "solar_aperture" and kp is not None:
-            k = kp.solar_aperture
+    for key in ("hlc", "solar_aperture"):
+        k = None if kp is None else getattr(kp, key)
         out[key] = math.nan if k is None else k.value
         out[f"{key}_std"] = math.nan if k is None else k.std
         out[f"{key}_lo"] = math.nan if k is None else k.ci95[0]
@@ -222,7 +222,7 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
             fitted[n] = r
     results = [fitted[n] for n in names]
     for name, result in zip(names, results, strict=True):
-        ident, valid, load_s, _ = checked[name]
+        _, valid, load_s, _ = checked[name]
         if isinstance(result, Exception):
             out[name] = (_empty_row(name, "failed", str(result)), None, {"load_s": load_s})
             continue

@@ -56,6 +56,7 @@ def _run(source: Path, out: Path, workers: int, cache: Path) -> dict:
     os.environ["JAXBOX_CACHE_DIR"] = str(cache)
     stamps: list[tuple[float, int]] = []
     cfg = load_config(models=MODEL, starts=STARTS, partition_size=16)
+    load = os.getloadavg()[0]
     t0 = time.perf_counter()
     summary = run_fleet(
         source,
@@ -78,6 +79,7 @@ def _run(source: Path, out: Path, workers: int, cache: Path) -> dict:
         "per_s": summary.processed / wall,
         "steady_per_s": done / span if span > 0 else float("nan"),
         "counts": summary.counts,
+        "load": load,
         "rows": rows,
     }
 
@@ -153,19 +155,25 @@ def _scipy_loop(folder: Path, names: list[str]) -> dict:
     from jaxbox.fit import make_problem
     from jaxbox.fit._fit import make_starts
 
-    hlc, seconds = {}, []
+    hlc, seconds, cpu = {}, [], []
     for name in names:
         data = load(folder / f"{name}.csv")
         ident, _ = data.split()
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         problem = make_problem(jaxbox.get_model(MODEL), ident)
         starts = make_starts(problem, ident, STARTS, 0, 4.0)
         lo = np.asarray(problem.transform.lower, dtype=float)
         hi = np.asarray(problem.transform.upper, dtype=float)
         p = _scipy_fit(ident, np.clip(starts, lo, hi), lo, hi)
         seconds.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
         hlc[name] = 1.0 / p[list(problem.free).index("R_wal")]
-    return {"n": len(names), "per_building_s": float(np.mean(seconds)), "hlc": hlc}
+    return {
+        "n": len(names),
+        "per_building_s": float(np.mean(seconds)),
+        "cpu_per_building_s": float(np.mean(cpu)),
+        "hlc": hlc,
+    }
 
 
 # ---- GPU batch ----------------------------------------------------------------------------
@@ -223,15 +231,19 @@ def _markdown(doc: dict) -> str:
         "`results.parquet`, on a fresh LocalCluster (its start and the compilations included "
         "in *wall*; *steady* counts from the end of each worker's first partition).",
         "",
-        "| buildings | workers | wall [s] | buildings/s (wall) | buildings/s (steady) "
-        "| ok | no valid model | failed |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| buildings | workers | load average | wall [s] | buildings/s (wall) "
+        "| buildings/s (steady) | ok | no valid model | bad data | failed |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in doc["runs"]:
         c = r["counts"]
+        later = f" ({r['date']})" if r.get("date") else ""
         lines.append(
-            f"| {r['buildings']} | {r['workers']} | {r['wall_s']:.1f} | {r['per_s']:.1f} | "
-            f"{r['steady_per_s']:.1f} | {c['ok']} | {c['no_valid_model']} | {c['failed']} |"
+            f"| {r['buildings']} | {r['workers']}{later} | "
+            + (f"{r['load']:.1f}" if "load" in r else "–")
+            + f" | {r['wall_s']:.1f} | {r['per_s']:.1f} | "
+            f"{r['steady_per_s']:.1f} | {c['ok']} | {c['no_valid_model']} | {c['bad_data']} | "
+            f"{c['failed']} |"
         )
     cov = doc["coverage"]
     sp = doc["scipy"]
@@ -245,12 +257,14 @@ def _markdown(doc: dict) -> str:
         "",
         f"**Against a scipy loop**: `least_squares` (trf, bounds, finite differences, numpy "
         f"simulation, the same {STARTS} starts) took {sp['per_building_s']:.2f} s per "
-        f"building on one core (the fit alone, {sp['n']} buildings): "
+        f"building on one core (the fit alone, {sp['n']} buildings"
+        + (f"; {sp['cpu_per_building_s']:.2f} s of CPU time" if "cpu_per_building_s" in sp else "")
+        + "): "
         f"{1 / sp['per_building_s']:.2f} buildings/s. The fleet on "
         f"{doc['ratio_workers']} workers ({doc['ratio_per_s']:.1f} buildings/s steady, with "
         f"validation, KPIs and files) is **{doc['ratio']:.0f}×** the scipy loop on "
         f"{doc['ratio_workers']} cores ({doc['ratio_workers'] / sp['per_building_s']:.2f} "
-        f"buildings/s); the HLCs agree to a median {100 * sp['hlc_rel_diff']:.3f} %.",
+        f"buildings/s); the HLCs agree to a median {100 * sp['hlc_rel_diff']:.2g} %.",
         "",
     ]
     if doc.get("gpu"):
@@ -268,6 +282,11 @@ def _markdown(doc: dict) -> str:
         lines.append("")
     else:
         lines += ["GPU: not measured in this run (`python benchmarks/fleet.py --gpu-batch`).", ""]
+    lines += [
+        "The cores were shared with other jobs during these runs (load average column): the "
+        "rates are those of the share the fleet got, and vary from run to run with it.",
+        "",
+    ]
     if doc.get("notes"):
         lines += [doc["notes"], ""]
     return "\n".join(lines)
@@ -283,6 +302,11 @@ def main() -> None:
     ap.add_argument("--out", default=str(HERE / "FLEET.md"))
     ap.add_argument("--json", default=str(HERE / "fleet.json"))
     ap.add_argument("--report-only", action="store_true", help="rewrite --out from --json")
+    ap.add_argument(
+        "--append",
+        action="store_true",
+        help="measure every --sizes × --workers run and add it to the runs of --json",
+    )
     args = ap.parse_args()
     if args.report_only:
         doc = json.loads(Path(args.json).read_text())
@@ -310,6 +334,23 @@ def main() -> None:
         source = tmp / "fleet"
         truth, gen_s = _fleet(max(sizes), source)
         print(f"fleet of {len(truth)} generated in {gen_s:.1f} s", flush=True)
+        if args.append:
+            old = json.loads(Path(args.json).read_text())
+            for n in sizes:
+                for w in workers:
+                    r = _run(source, tmp / f"out-{n}-{w}", w, tmp / "cache")
+                    r = {k: v for k, v in r.items() if k != "rows"}
+                    r["date"] = doc["date"]
+                    print(r, flush=True)
+                    old["runs"].append(r)
+            old["notes"] = (
+                f"Runs dated {doc['date']} were measured by a later invocation "
+                "(`--append`) on the same machine."
+            )
+            Path(args.json).write_text(json.dumps(old, indent=1, default=float))
+            Path(args.out).write_text(_markdown(old))
+            print(_markdown(old))
+            return
         runs = []
         cache = tmp / "cache"
         for n in sizes:

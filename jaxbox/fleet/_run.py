@@ -105,7 +105,7 @@ def _local_cluster(workers: int, stack: ExitStack):
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=":0",
-                silence_logs=40,
+                silence_logs=50,  # a worker's heartbeat at shutdown is no news
             )
         )
     finally:

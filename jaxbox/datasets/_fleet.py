@@ -1,7 +1,8 @@
 """A synthetic fleet: library models with random plausible parameters, driven by real weather.
 
 Each building is a library model (``ZonWal`` by default, or ``Zon``) whose heat-loss
-coefficient, capacities and solar aperture are drawn at random in plausible ranges, simulated
+coefficient, capacities and solar aperture are drawn at random in plausible ranges (capacities
+and aperture in proportion to the HLC), simulated
 exactly over a window of the bundled twin-house weather (outdoor air and global horizontal
 irradiance measured in Holzkirchen, 2013; each building its own start day), with random on/off
 heating sized to its HLC and white measurement noise on the zone temperature. The true
@@ -26,13 +27,14 @@ TRUTH_FILE = "truth.csv"
 
 
 def _draw(model: str, rng: np.random.Generator) -> dict[str, float]:
-    """Random plausible parameters (SI): HLC 60–400 W/K, about 20 kJ/K per W/K of loss in the
-    zone, 10× that in the envelope, aperture 0.5–4 m²."""
+    """Random plausible parameters (SI): HLC 60–400 W/K; per W/K of loss 10–30 kJ/K in the
+    zone, 150–400 kJ/K in the envelope and a solar aperture of 0.004–0.02 m² (so that full sun
+    would warm the zone by 3–16 K at steady state)."""
     hlc = float(np.exp(rng.uniform(np.log(60.0), np.log(400.0))))
     theta = {
         "R_wal": 1.0 / hlc,
         "C_zon": hlc * float(rng.uniform(1.0e4, 3.0e4)),
-        "gA": float(rng.uniform(0.5, 4.0)),
+        "gA": hlc * float(rng.uniform(0.004, 0.02)),
         "T_zon0": float(rng.uniform(18.0, 24.0)),
     }
     if model == "ZonWal":

@@ -13,8 +13,8 @@ buildings, one building after the other.
 
 ``--gpu-batch`` measures the batched fits alone (no Dask): buildings × 16 starts in one
 compiled :func:`jaxbox.fit_batch` call per size, on whatever device JAX uses (a GPU when there
-is one), and writes the throughput curve. Writes ``benchmarks/FLEET.md`` (or ``--out``) and
-``benchmarks/fleet.json``.
+is one): the throughput curve goes to ``benchmarks/fleet_gpu.json`` and joins the report of
+an earlier fleet run. Writes ``benchmarks/FLEET.md`` (or ``--out``) and ``benchmarks/fleet.json``.
 """
 
 from __future__ import annotations
@@ -327,6 +327,11 @@ def main() -> None:
         if args.gpu_batch:
             doc["gpu"] = gpu_batch([int(x) for x in args.batches.split(",")], tmp / "gpu")
             Path(args.json).with_name("fleet_gpu.json").write_text(json.dumps(doc, indent=1))
+            if Path(args.json).exists():  # the curve joins the fleet report
+                old = json.loads(Path(args.json).read_text())
+                old["gpu"] = doc["gpu"]
+                Path(args.json).write_text(json.dumps(old, indent=1, default=float))
+                Path(args.out).write_text(_markdown(old))
             print(json.dumps(doc, indent=1))
             return
         sizes = [int(x) for x in args.sizes.split(",")]

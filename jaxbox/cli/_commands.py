@@ -210,6 +210,8 @@ def _print_fit(spec, doc, result, validation, *, several: bool) -> None:
         print(f"== {spec}")
     print(result.summary())
     print(_rmse_line(validation))
+    if doc.get("kpis"):
+        print(_kpi_line(doc["kpis"]))
     print("valid model" if doc["valid"] else "NOT a valid model:")
     for reason in doc["reasons"]:
         print(f"  - {reason}")
@@ -232,3 +234,22 @@ def _rmse_line(validation) -> str:
         cross = ", ".join(f"{k} {v:.3f} K" for k, v in validation.rmse_cross.items())
         line += f" | validation: {cross}"
     return line
+
+
+def _kpi_line(kpis) -> str:
+    """HLC, solar aperture and time constants with their 95 % intervals, on one line."""
+
+    def one(k, fmt=".4g"):
+        ci = k["ci95"]
+        interval = "" if ci is None else f" [{ci[0]:{fmt}}, {ci[1]:{fmt}}]"
+        return f"{k['value']:{fmt}}{interval} {k['unit']}"
+
+    parts = []
+    if kpis.get("hlc") and kpis["hlc"]["value"] is not None:
+        parts.append(f"HLC {one(kpis['hlc'])}")
+    if kpis.get("solar_aperture") and kpis["solar_aperture"]["value"] is not None:
+        parts.append(f"solar aperture {one(kpis['solar_aperture'])}")
+    taus = [one(t, ".3g") for t in kpis.get("time_constants", []) if t["value"] is not None]
+    if taus:
+        parts.append("time constants " + ", ".join(taus))
+    return "KPIs (95 % intervals): " + "; ".join(parts)

@@ -20,6 +20,7 @@ import warnings
 from ._commands import add_fit_arguments, fit_command, models_command
 from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
 from ._estimate import add_estimate_arguments, estimate_command
+from ._fleet import add_fleet_arguments, fleet_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]
@@ -33,6 +34,7 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
   jaxbox demo                        forward selection on the bundled twin-house data + report
   jaxbox estimate DATA --model NAME --params FIT.json --out STATES.csv
                                      states of a stochastic (--method ml) fit, to a CSV
+  jaxbox fleet DIR --out OUT         every building of a fleet on Dask: models, KPIs, Parquet
 """
 
 
@@ -69,6 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("estimate", help="filtered and smoothed states from an ML fit, to a CSV")
     add_estimate_arguments(p)
+    p = sub.add_parser("fleet", help="a fleet of buildings on Dask (or: fleet make DIR --n N)")
+    add_fleet_arguments(p)
     return parser
 
 
@@ -121,6 +125,7 @@ _COMMANDS = {
     "select": select_command,
     "demo": demo_command,
     "estimate": estimate_command,
+    "fleet": fleet_command,
 }
 
 

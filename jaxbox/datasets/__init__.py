@@ -6,6 +6,9 @@ name (``twinhouse_exp1:N2``, ``twinhouse_exp1:O5``, ``twinhouse_exp1:N2@10min``â
 :data:`NAMES`), as the command line addresses them.
 """
 
+from ._fleet import FLEET_MODELS as FLEET_MODELS
+from ._fleet import TRUTH_FILE as TRUTH_FILE
+from ._fleet import make_fleet as make_fleet
 from ._names import NAMES as NAMES
 from ._names import bundled as bundled
 from ._names import is_bundled as is_bundled

@@ -144,6 +144,7 @@ def _accepted_section(case, selection) -> list[str]:
         )
     tc = ", ".join(f"{t:.3g} h" for t in doc["time_constants_h"])
     out.append(f"<p>Time constants: {tc}.</p>")
+    out += _kpi_table(doc.get("kpis"))
     out.append("<h3>Fit on identification and validation data</h3>")
     figures = [
         lambda: plot_fit(v),
@@ -167,6 +168,31 @@ def _accepted_section(case, selection) -> list[str]:
         except Exception as err:  # one failing figure must not cost the report
             out.append(f"<p class=bad>figure failed: {_e(err)}</p>")
     return out
+
+
+def _kpi_table(kpis) -> list[str]:
+    """The physical indicators with their intervals (see :func:`jaxbox.validate.kpis`)."""
+    if not kpis:
+        return []
+    rows = [("heat-loss coefficient", kpis["hlc"])]
+    rows += [(f"solar aperture ({k})", v) for k, v in kpis["apertures"].items()]
+    if len(kpis["apertures"]) > 1:
+        rows.append(("solar aperture (total)", kpis["solar_aperture"]))
+    rows += [(f"time constant {i + 1}", t) for i, t in enumerate(kpis["time_constants"])]
+    out = [
+        "<table><tr><th class=l>indicator</th><th>value</th><th class=l>unit</th>"
+        "<th>std</th><th>95 % interval</th></tr>"
+    ]
+    for name, k in rows:
+        if k is None:
+            continue
+        ci = k["ci95"]
+        out.append(
+            f"<tr><td class=l>{_e(name)}</td><td>{_num(k['value'], '.4g')}</td>"
+            f"<td class=l>{_e(k['unit'])}</td><td>{_num(k['std'], '.3g')}</td>"
+            f"<td>{'–' if ci is None else f'{ci[0]:.4g} … {ci[1]:.4g}'}</td></tr>"
+        )
+    return out + ["</table>"]
 
 
 def greybox_report(gb, selection=None, *, title: str | None = None) -> str:

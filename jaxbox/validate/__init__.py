@@ -1,5 +1,9 @@
 """Validation: post-simulation, error metrics, uncertainty, residual analysis, verdicts, plots."""
 
+from ._kpi import KPI as KPI
+from ._kpi import Kpis as Kpis
+from ._kpi import kpi_values as kpi_values
+from ._kpi import kpis as kpis
 from ._metrics import rmse as rmse
 from ._metrics import simulation_error as simulation_error
 from ._multistart import MultistartView as MultistartView

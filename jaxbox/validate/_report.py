@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from .._io import to_jsonable
 
 __all__ = ["fit_report", "save_plots", "jsonable"]
@@ -63,9 +65,11 @@ def fit_report(
         name: value, unit, lower, upper, free, at_bound, std, ci95, rel_ci), ``correlation``,
         ``identifiability``, ``sigma``, ``dof``, ``residuals`` (``auto`` and ``cross``
         summaries per output), ``valid``, ``reasons``, ``warnings``, ``time_constants_h``,
-        ``rmse_auto``, ``rmse_cross``, ``se_auto``, ``se_cross``, ``multistart`` and
-        ``prediction``.
+        ``rmse_auto``, ``rmse_cross``, ``se_auto``, ``se_cross``, ``multistart``,
+        ``prediction`` and ``kpis`` (HLC, solar aperture and time constants with intervals,
+        see :func:`~jaxbox.validate.kpis`; ``None`` without a covariance).
     """
+    from ._kpi import kpis
     from ._multistart import multistart_view
     from ._postsim import validate
     from ._prediction import prediction_performance
@@ -98,6 +102,10 @@ def fit_report(
     except ValueError as err:  # data too short for any horizon
         prediction = {"error": str(err)}
 
+    try:
+        indicators = None if uncertainty is None else kpis(result, uncertainty).to_dict()
+    except (ValueError, np.linalg.LinAlgError):  # no finite optimum, a singular model
+        indicators = None
     table = result.params_table()
     unc = {} if uncertainty is None else uncertainty.table()
     params = {}
@@ -148,6 +156,7 @@ def fit_report(
         "se_cross": validation.se_cross,
         "multistart": ms.to_dict(),
         "prediction": prediction,
+        "kpis": indicators,
     }
     return jsonable(report)
 

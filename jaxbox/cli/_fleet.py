@@ -1,0 +1,140 @@
+"""The ``jaxbox fleet`` command: a fleet of buildings on Dask, and a synthetic fleet to try it.
+
+``jaxbox fleet SOURCE --out OUT`` identifies every building of SOURCE (a folder of CSV files or
+a long-format table with a ``building`` column) on a local Dask cluster, or on a running one
+with ``--scheduler tcp://HOST:PORT``; ``jaxbox fleet make DIR --n N`` writes a synthetic fleet
+with its answer key ``truth.csv``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ._common import UsageError, int_option, print_json
+
+__all__ = ["add_fleet_arguments", "fleet_command"]
+
+
+def add_fleet_arguments(p) -> None:
+    """Declare the arguments of ``jaxbox fleet``."""
+    p.add_argument(
+        "source",
+        metavar="SOURCE",
+        help="folder with one CSV/Parquet file per building, or a long-format .parquet/.csv "
+        "file with a 'building' column; or 'make' to write a synthetic fleet into DIR",
+    )
+    p.add_argument("dir", nargs="?", metavar="DIR", help="(with 'make') the folder to write")
+    p.add_argument("--out", metavar="OUT", help="output folder (results.parquet, fits/)")
+    p.add_argument("--config", metavar="FILE.toml", help="settings (see the README)")
+    p.add_argument(
+        "--models",
+        "--model",
+        dest="models",
+        metavar="A,B,…|FAMILY|all",
+        help="one model (fitted as given) or several, a family or 'all' (forward selection); "
+        "default: the config, else all",
+    )
+    p.add_argument("--starts", type=int_option, help="starts per fit (default: the config)")
+    p.add_argument("--seed", type=int_option, help="seed of the starts (default 0)")
+    p.add_argument("--partition-size", type=int_option, help="buildings per Dask task (default 16)")
+    p.add_argument(
+        "--scheduler", metavar="tcp://HOST:PORT", help="address of a running Dask scheduler"
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        help="local worker processes (default: one per core; 0: in this process, no Dask)",
+    )
+    p.add_argument("--resume", action="store_true", help="skip buildings already in OUT")
+    p.add_argument("--no-fits", action="store_true", help="no fit JSON per building")
+    p.add_argument("--json", action="store_true", help="print the run summary as JSON")
+    # jaxbox fleet make DIR
+    p.add_argument("--n", type=int_option, default=20, help="(make) number of buildings")
+    p.add_argument("--days", type=float, default=31.0, help="(make) days of hourly data")
+    p.add_argument("--noise", type=float, default=0.1, help="(make) noise on T_zon [K]")
+
+
+def _models(text: str | None):
+    if text is None:
+        return None
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise UsageError("--models must name models (A,B,…), a family or 'all'")
+    return names[0] if len(names) == 1 and "," not in text else tuple(names)
+
+
+def _make(args) -> int:
+    from ..datasets import FLEET_MODELS, make_fleet
+
+    if args.dir is None:
+        raise UsageError("jaxbox fleet make DIR --n N: give the folder to write")
+    model = args.models or "ZonWal"
+    if model not in FLEET_MODELS:
+        raise UsageError(f"--model {model!r}: the generator draws {', '.join(FLEET_MODELS)}")
+    try:
+        _, truth = make_fleet(
+            args.n,
+            args.dir,
+            model=model,
+            days=args.days,
+            noise=args.noise,
+            seed=0 if args.seed is None else args.seed,
+        )
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+    if args.json:
+        print_json({"dir": args.dir, "buildings": len(truth), "truth": f"{args.dir}/truth.csv"})
+    else:
+        print(f"{len(truth)} buildings ({model}) in {args.dir}, answer key {args.dir}/truth.csv")
+    return 0
+
+
+def fleet_command(args) -> int:
+    """``jaxbox fleet SOURCE --out OUT`` (or ``jaxbox fleet make DIR --n N``)."""
+    from ..fleet import FleetError, load_config, run_fleet
+
+    if args.source == "make" and args.dir is not None:
+        return _make(args)
+    if args.dir is not None:
+        raise UsageError(f"unexpected argument {args.dir!r} (one SOURCE, and --out OUT)")
+    if not args.out:
+        raise UsageError("give the output folder: jaxbox fleet SOURCE --out OUT")
+    if args.workers is not None and args.workers < 0:
+        raise UsageError(f"--workers must be 0 or more, got {args.workers}")
+    if args.scheduler is not None:
+        if args.workers is not None:
+            raise UsageError("--scheduler and --workers exclude each other")
+        if "://" not in args.scheduler:
+            raise UsageError(f"--scheduler {args.scheduler!r}: give an address tcp://HOST:PORT")
+    try:
+        config = load_config(
+            args.config,
+            models=_models(args.models),
+            starts=args.starts,
+            seed=args.seed,
+            partition_size=args.partition_size,
+        )
+        summary = run_fleet(
+            args.source,
+            args.out,
+            config,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            resume=args.resume,
+            fit_json=not args.no_fits,
+            progress=None if not args.json else False,
+        )
+    except FleetError as err:
+        raise UsageError(str(err)) from None
+    doc = summary.to_dict()
+    if args.json:
+        print_json(doc)
+        return 0
+    counts = ", ".join(f"{v} {k}" for k, v in doc["counts"].items() if v)
+    skipped = f" ({doc['skipped']} done before, skipped)" if doc["skipped"] else ""
+    print(
+        f"{doc['processed']} buildings{skipped}: {counts or 'none'}; "
+        f"{doc['elapsed_s']:.1f} s, {doc['buildings_per_s']:.1f} buildings/s"
+    )
+    print(f"results: {args.out}/results.parquet", file=sys.stdout)
+    return 0

@@ -1,0 +1,216 @@
+"""Settings of a fleet run, from keyword arguments or a TOML file.
+
+A TOML file has up to four tables; every key is optional::
+
+    [data]                      # how each building's file is read (see jaxbox.data.load)
+    columns = { T_zon = "indoor", Q_hea = "heating_kW" }   # canonical name = your column
+    time = "timestamp"          # time column (default "time")
+    resample = "1h"             # average onto this grid
+    scale = { Q_hea = 1000 }    # factors (after renaming), e.g. kW -> W
+    sep = ","
+    decimal = "."
+
+    [windows]                   # identification / validation periods of every building
+    fraction = 0.5              # first share identifies, the rest validates (default halves)
+    # or absolute periods, the same for every building:
+    # train = ["2024-01-01", "2024-01-15 23:00"]
+    # valid = ["2024-01-16", "2024-01-31 23:00"]
+
+    [identify]
+    models = "all"              # one name: that model; several, a family or "all": selection
+    starts = 16
+    seed = 0
+    max_steps = 200
+    criterion = "se_cross"      # selection criterion (the validation simulation error)
+    margin = 0.0
+    patience = 1
+
+    [run]
+    partition_size = 16         # buildings per Dask task
+    reports = false             # an HTML report per building (selection only)
+
+Without a file the defaults of ``jaxbox select`` apply: forward selection over every library
+model the data can feed, the data split in halves.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+__all__ = ["FleetConfig", "FleetError", "load_config"]
+
+
+class FleetError(ValueError):
+    """A fleet run that cannot start: a bad setting, source or output folder."""
+
+
+def _selection_default(name: str):
+    from ..select import forward_selection
+
+    return inspect.signature(forward_selection).parameters[name].default
+
+
+#: the selection criteria understood (the forward selection ranks by validation SE)
+CRITERIA = ("se_cross",)
+
+
+@dataclasses.dataclass(frozen=True)
+class FleetConfig:
+    """Settings of a fleet run (see the module docstring for the TOML form).
+
+    Attributes:
+        columns: canonical name -> column name in the files.
+        time: name of the time column (``None``: ``time``).
+        resample: pandas frequency to average onto (``None``: as recorded).
+        scale: canonical name -> factor.
+        sep, decimal: CSV separator and decimal mark.
+        fraction: identification share of each building's data (without ``train``).
+        train, valid: absolute (start, end) periods, the same for every building.
+        models: one model name (fitted as given), several names, a family or ``"all"``
+            (forward selection among them).
+        starts, seed, max_steps: multistart settings per fit.
+        criterion: selection criterion (``"se_cross"``).
+        margin, patience: forward-selection settings.
+        partition_size: buildings per task.
+        reports: write an HTML report per building (selection only).
+    """
+
+    columns: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    time: str | None = None
+    resample: str | None = None
+    scale: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    sep: str | None = None
+    decimal: str | None = None
+    fraction: float = 0.5
+    train: tuple[str, str] | None = None
+    valid: tuple[str, str] | None = None
+    models: str | tuple[str, ...] = "all"
+    starts: int = dataclasses.field(default_factory=lambda: _selection_default("starts"))
+    seed: int = 0
+    max_steps: int | None = None
+    criterion: str = "se_cross"
+    margin: float = 0.0
+    patience: int = 1
+    partition_size: int = 16
+    reports: bool = False
+
+    def __post_init__(self) -> None:
+        if not 0.0 < float(self.fraction) < 1.0:
+            raise FleetError(f"windows.fraction must be between 0 and 1, got {self.fraction}")
+        if (self.train is None) != (self.valid is None):
+            raise FleetError("windows: give both train and valid periods, or neither")
+        for name in ("train", "valid"):
+            v = getattr(self, name)
+            if v is not None:
+                if not isinstance(v, list | tuple) or len(v) != 2:
+                    raise FleetError(f"windows.{name} must be [start, end], got {v!r}")
+                object.__setattr__(self, name, (str(v[0]), str(v[1])))
+        models = self.models
+        if isinstance(models, list | tuple):
+            if not models or not all(isinstance(m, str) and m for m in models):
+                raise FleetError(f"identify.models must name models, got {models!r}")
+            object.__setattr__(self, "models", tuple(models))
+        elif not isinstance(models, str) or not models.strip():
+            raise FleetError(f"identify.models must be a name, a list or 'all', got {models!r}")
+        for name in ("starts", "partition_size", "patience"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise FleetError(f"{name} must be a positive integer, got {v!r}")
+        steps = self.max_steps
+        if steps is not None and (
+            not isinstance(steps, int) or isinstance(steps, bool) or steps < 1
+        ):
+            raise FleetError(f"identify.max_steps must be a positive integer, got {steps!r}")
+        if self.criterion not in CRITERIA:
+            raise FleetError(
+                f"identify.criterion {self.criterion!r} is not known; use one of "
+                f"{', '.join(CRITERIA)} (the validation simulation error)"
+            )
+        if not 0.0 <= float(self.margin) < 1.0:
+            raise FleetError(f"identify.margin must be in [0, 1), got {self.margin}")
+        object.__setattr__(self, "columns", dict(self.columns))
+        object.__setattr__(self, "scale", {k: float(v) for k, v in dict(self.scale).items()})
+
+    @property
+    def fixed_model(self) -> str | None:
+        """The model name when exactly one model is given (fitted without selection)."""
+        from ..models import families, list_models
+
+        m = self.models
+        if isinstance(m, tuple) and len(m) == 1:
+            return m[0]
+        if isinstance(m, str) and m != "all" and m not in families() and m in list_models():
+            return m
+        return None
+
+    def load_options(self) -> dict:
+        """Keyword arguments of :func:`jaxbox.data.load`."""
+        out = {
+            "columns": self.columns or None,
+            "time": self.time,
+            "resample": self.resample,
+            "scale": self.scale or None,
+            "sep": self.sep,
+            "decimal": self.decimal,
+        }
+        return {k: v for k, v in out.items() if v is not None}
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["models"] = list(self.models) if isinstance(self.models, tuple) else self.models
+        return d
+
+
+_TABLES = {
+    "data": ("columns", "time", "resample", "scale", "sep", "decimal"),
+    "windows": ("fraction", "train", "valid"),
+    "identify": ("models", "starts", "seed", "max_steps", "criterion", "margin", "patience"),
+    "run": ("partition_size", "reports"),
+}
+
+
+def _read_toml(path: Path) -> dict:
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as err:
+        raise FleetError(f"{path}: not valid TOML ({err})") from None
+
+
+def load_config(path: str | os.PathLike | None = None, **overrides) -> FleetConfig:
+    """The :class:`FleetConfig` of a TOML file (tables ``data``, ``windows``, ``identify``,
+    ``run``), with ``overrides`` (attribute names) on top; defaults without a file.
+
+    Raises:
+        FleetError: an unknown table or key, or a bad value (naming it).
+        OSError: the file cannot be read.
+    """
+    values: dict = {}
+    if path is not None:
+        doc = _read_toml(Path(path))
+        for table, content in doc.items():
+            if table not in _TABLES or not isinstance(content, dict):
+                raise FleetError(
+                    f"{path}: unknown table [{table}]; the tables are "
+                    + ", ".join(f"[{t}]" for t in _TABLES)
+                )
+            for key, value in content.items():
+                if key not in _TABLES[table]:
+                    raise FleetError(
+                        f"{path}: unknown key {key!r} in [{table}]; known: "
+                        + ", ".join(_TABLES[table])
+                    )
+                values[key] = value
+    values.update({k: v for k, v in overrides.items() if v is not None})
+    try:
+        return FleetConfig(**values)
+    except TypeError as err:
+        raise FleetError(str(err)) from None

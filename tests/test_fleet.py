@@ -1,0 +1,183 @@
+"""Fleets in this process: sources, broken buildings, results, resume, config, command line.
+
+A small synthetic fleet (one week of hourly data, ZonWal, 4 starts) fitted without Dask; the
+Dask runs are in test_fleet_dask.py.
+"""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from jaxbox.cli._main import main
+from jaxbox.datasets import make_fleet
+from jaxbox.fleet import FleetError, load_config, read_results, run_fleet
+from jaxbox.validate import kpi_values
+
+N = 6
+CFG = {"models": "ZonWal", "starts": 4, "partition_size": 3}
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    """Six good buildings, and four broken ones: a NaN, a missing column, no heating (HLC not
+    identifiable) and a zone temperature that is a random walk (no model reproduces it)."""
+    folder = tmp_path_factory.mktemp("fleet") / "in"
+    _, truth = make_fleet(N, folder, days=7, seed=5)
+    rng = np.random.default_rng(0)
+    f = pd.read_csv(folder / "b0.csv")
+    f.loc[10, "T_zon"] = np.nan
+    f.to_csv(folder / "x_nan.csv", index=False)
+    f = pd.read_csv(folder / "b1.csv")
+    f.drop(columns=["Q_hea"]).to_csv(folder / "x_nocol.csv", index=False)
+    f = pd.read_csv(folder / "b2.csv").assign(Q_hea=0.0)
+    f.to_csv(folder / "x_noheat.csv", index=False)
+    f = pd.read_csv(folder / "b3.csv")
+    f["T_zon"] = 20 + np.cumsum(rng.normal(0, 1.5, len(f)))
+    f.to_csv(folder / "x_walk.csv", index=False)
+    return folder, truth
+
+
+@pytest.fixture(scope="module")
+def inline(fleet, tmp_path_factory):
+    folder, _ = fleet
+    out = tmp_path_factory.mktemp("out")
+    summary = run_fleet(folder, out, load_config(**CFG), workers=0)
+    return out, summary, read_results(out)
+
+
+def test_make_fleet_truth_is_the_model_kpis(fleet):
+    folder, truth = fleet
+    assert sorted(p.name for p in folder.glob("b*.csv")) == [f"b{k}.csv" for k in range(N)]
+    back = pd.read_csv(folder / "truth.csv", index_col="building")
+    assert np.allclose(back["hlc"], truth["hlc"])
+    assert np.allclose(truth["hlc"], 1 / truth["R_wal"], rtol=1e-10)
+    row = truth.iloc[0]
+    v = kpi_values("ZonWal", row[["C_zon", "C_wal", "R_wal", "gA", "T_zon0", "T_wal0"]])
+    assert v["time_constants"] == pytest.approx(list(row[["tau1", "tau2"]]), rel=1e-12)
+    again, truth2 = make_fleet(2, days=7, seed=5)
+    assert truth2.iloc[0].equals(truth.iloc[0])
+
+
+def test_every_building_is_a_row_with_its_status(inline, fleet):
+    out, summary, rows = inline
+    _, truth = fleet
+    assert summary.processed == N + 4 and summary.workers == 0
+    status = dict(zip(rows["building"], rows["status"], strict=True))
+    assert status["x_nan"] == "bad_data" and status["x_nocol"] == "bad_data"
+    assert status["x_noheat"] == "no_valid_model"
+    assert status["x_walk"] == "no_valid_model"
+    assert all(status[f"b{k}"] == "ok" for k in range(N))
+    msg = dict(zip(rows["building"], rows["message"], strict=True))
+    assert "T_zon" in msg["x_nan"] and "Q_hea" in msg["x_nocol"]
+    assert "not identifiable" in msg["x_noheat"]
+    assert summary.counts == {"ok": N, "no_valid_model": 2, "bad_data": 2, "failed": 0}
+
+
+def test_rows_hold_params_intervals_kpis_and_timings(inline, fleet):
+    out, _, rows = inline
+    _, truth = fleet
+    ok = rows[rows["status"] == "ok"].set_index("building")
+    true = truth.loc[ok.index, "hlc"]
+    assert np.all(ok["hlc_lo"] < ok["hlc"]) and np.all(ok["hlc"] < ok["hlc_hi"])
+    assert np.allclose(ok["hlc"], true, rtol=0.05)  # 0.1 K noise, a week of data
+    assert (ok["hlc_lo"] <= true).sum() + (true <= ok["hlc_hi"]).sum() >= 2 * N - 2
+    first = ok.iloc[0]
+    params = {p["name"]: p for p in first["params"]}
+    assert set(params) == {"C_zon", "C_wal", "R_wal", "gA", "T_zon0", "T_wal0"}
+    r = params["R_wal"]
+    assert r["ci_lo"] < r["value"] < r["ci_hi"] and r["std"] > 0
+    assert first["hlc"] == pytest.approx(1 / r["value"], rel=1e-10)
+    assert np.isnan(params["T_zon0"]["std"])  # initial states get no interval
+    assert len(first["tau_h"]) == 2 and first["tau_lo_h"][1] < first["tau_h"][1]
+    assert np.all(ok["rmse_cross"] < 0.3) and np.all(ok["valid"])
+    assert np.all(ok["total_s"] > 0) and np.all(ok["batch"] >= 1)
+    doc = json.loads((out / "fits" / f"{first.name}.json").read_text())
+    assert doc["status"] == "ok" and doc["model"] == "ZonWal"
+    assert doc["kpis"]["hlc"]["value"] == pytest.approx(first["hlc"])
+    assert json.loads((out / "fits" / "x_nan.json").read_text())["status"] == "bad_data"
+    meta = json.loads((out / "fleet.json").read_text())
+    assert meta["status"] == "done" and meta["processed"] == N + 4
+
+
+def test_long_format_parquet_and_csv_give_the_same_rows(inline, fleet, tmp_path):
+    folder, _ = fleet
+    frames = [pd.read_csv(folder / f"b{k}.csv").assign(building=f"b{k}") for k in (0, 4)]
+    long = pd.concat(frames, ignore_index=True)
+    long.to_parquet(tmp_path / "long.parquet")
+    long.to_csv(tmp_path / "long.csv", index=False)
+    cfg = load_config(**CFG)
+    base = inline[2].set_index("building")
+    for name in ("long.parquet", "long.csv"):
+        out = tmp_path / f"out-{name}"
+        run_fleet(tmp_path / name, out, cfg, workers=0, fit_json=False)
+        rows = read_results(out).set_index("building")
+        assert list(rows.index) == ["b0", "b4"]
+        assert np.allclose(rows["hlc"], base.loc[["b0", "b4"], "hlc"], rtol=1e-6)
+    assert not (tmp_path / "out-long.csv" / "fits").exists()
+
+
+def test_resume_after_a_crash_runs_only_the_rest(fleet, tmp_path):
+    """A run that dies after its first partition is written; ``resume`` does the rest once."""
+    folder, _ = fleet
+    cfg = load_config(**CFG)
+
+    def crash(index, rows):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_fleet(folder, tmp_path, cfg, workers=0, fit_json=False, on_partition=crash)
+    first = read_results(tmp_path)
+    assert list(first["building"]) == ["b0", "b1", "b2"]
+    with pytest.raises(FleetError, match="resume"):
+        run_fleet(folder, tmp_path, cfg, workers=0)
+    summary = run_fleet(folder, tmp_path, cfg, workers=0, resume=True, fit_json=False)
+    assert summary.skipped == 3 and summary.processed == N + 1
+    rows = read_results(tmp_path)
+    assert len(rows) == N + 4 and rows["building"].is_unique
+    parts = sorted((tmp_path / "results.parquet").glob("part-*.parquet"))
+    assert len(parts) == 1 + 3  # the crashed run's part, and the three of the resumed run
+    again = run_fleet(folder, tmp_path, cfg, workers=0, resume=True)
+    assert again.processed == 0 and again.skipped == N + 4
+
+
+def test_config_from_toml(tmp_path):
+    path = tmp_path / "fleet.toml"
+    path.write_text(
+        '[data]\ncolumns = { T_zon = "indoor" }\nresample = "1h"\n'
+        '[windows]\nfraction = 0.6\n[identify]\nmodels = ["ZonWal"]\nstarts = 8\n'
+        "[run]\npartition_size = 5\n",
+        encoding="utf-8",
+    )
+    cfg = load_config(path, starts=3)
+    assert cfg.fixed_model == "ZonWal" and cfg.starts == 3 and cfg.fraction == 0.6
+    assert cfg.load_options() == {"columns": {"T_zon": "indoor"}, "resample": "1h"}
+    assert load_config().fixed_model is None and load_config().models == "all"
+    path.write_text("[identify]\nstart = 3\n", encoding="utf-8")
+    with pytest.raises(FleetError, match="unknown key 'start' in \\[identify\\]"):
+        load_config(path)
+    path.write_text("[identify]\ncriterion = 'aic'\n", encoding="utf-8")
+    with pytest.raises(FleetError, match="criterion"):
+        load_config(path)
+    with pytest.raises(FleetError, match="fraction"):
+        load_config(fraction=1.5)
+
+
+def test_cli_make_run_and_bad_input(tmp_path, capsys):
+    fleet = tmp_path / "in"
+    assert main(["fleet", "make", str(fleet), "--n", "2", "--days", "7"]) == 0
+    assert (fleet / "truth.csv").exists() and "2 buildings" in capsys.readouterr().out
+    out = tmp_path / "out"
+    args = ["fleet", str(fleet), "--out", str(out), "--model", "ZonWal", "--starts", "4"]
+    args += ["--partition-size", "3"]
+    assert main([*args, "--workers", "0", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["processed"] == 2 and doc["counts"]["ok"] + doc["counts"]["no_valid_model"] == 2
+    assert main([*args, "--workers", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and "resume" in err and "\n" not in err
+    assert main([*args, "--scheduler", "localhost"]) == 2
+    assert "tcp://HOST:PORT" in capsys.readouterr().err
+    assert main(["fleet", str(tmp_path / "none"), "--out", str(tmp_path / "o2")]) == 2
+    assert "no such file" in capsys.readouterr().err

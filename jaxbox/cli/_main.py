@@ -19,6 +19,7 @@ import warnings
 
 from ._commands import add_fit_arguments, fit_command, models_command
 from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
+from ._design import add_design_arguments, design_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]
@@ -30,6 +31,7 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
   jaxbox fit DATA --model NAME       fit one model, cross-validate, print the estimate
   jaxbox select DATA                 forward selection from simple to complex models
   jaxbox demo                        forward selection on the bundled twin-house data + report
+  jaxbox design --model NAME --out CSV   plan the heating of an identification experiment
 """
 
 
@@ -63,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
         "demo", help="forward selection on the bundled twin-house data, with an HTML report"
     )
     add_demo_arguments(p)
+    add_design_arguments(sub.add_parser("design", help="plan an identification experiment"))
     return parser
 
 
@@ -114,6 +117,7 @@ _COMMANDS = {
     "fit": fit_command,
     "select": select_command,
     "demo": demo_command,
+    "design": design_command,
 }
 
 

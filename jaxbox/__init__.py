@@ -18,6 +18,7 @@ __version__ = "0.1.0"
 _SUBPACKAGES = (
     "data",
     "datasets",
+    "design",
     "fit",
     "models",
     "reference",
@@ -34,6 +35,7 @@ _NAMES = {
     "DataError": "data",
     "Dataset": "data",
     "load": "data",
+    "design_experiment": "design",
     "FitError": "fit",
     "FitResult": "fit",
     "LevenbergMarquardt": "fit",

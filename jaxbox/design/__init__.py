@@ -1,12 +1,13 @@
 """Experiment design: plan the heating of an identification experiment by differentiating the
 Fisher information through the simulator.
 
-:func:`plan` finds the heating schedule, within power bounds (optionally on/off), a comfort band
-and an energy budget, that minimises a criterion of the predicted covariance of the estimates
-(D, A, or the variance of the heat-loss coefficient), and compares it with PRBS, ROLBS and
-constant-step (co-heating) schedules of equal length and energy. :func:`evaluate` predicts the
-standard deviations of any schedule. See :mod:`jaxbox.design._fisher` for the criteria and
-:mod:`jaxbox.design._plan` for the optimisation.
+:func:`plan` (also ``jaxbox.design_experiment``) finds the heating schedule, within power bounds
+(optionally on/off), a comfort band and an energy budget, that minimises a criterion of the
+predicted covariance of the estimates (D, A, or the variance of the heat-loss coefficient), and
+compares it with PRBS, ROLBS and constant-step (co-heating) schedules of equal length and
+energy. :func:`evaluate` predicts the standard deviations of any schedule. See
+:mod:`jaxbox.design._fisher` for the criteria and :mod:`jaxbox.design._plan` for the
+optimisation.
 """
 
 from ._context import Context as Context
@@ -24,3 +25,6 @@ from ._sequences import SEQUENCES as SEQUENCES
 from ._sequences import prbs as prbs
 from ._sequences import rolbs as rolbs
 from ._sequences import step as step
+
+#: the verb, as re-exported at the top level
+design_experiment = plan

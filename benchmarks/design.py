@@ -4,9 +4,10 @@ For ``ZonWal`` and ``ZonWalIntInf`` with the parameters fitted on the bundled tw
 (house N2, identification half, hourly) and output noise σ = 0.05 K, on the bundled weather from
 2013-08-21:
 
-1. the reference: the predicted standard deviation of the heat-loss coefficient (HLC) from a
-   14-day ROLBS switching between 0 and 3 kW;
-2. the days each design needs to reach it: the designed schedule (``jaxbox.design.plan``,
+1. the references: the predicted standard deviation of the heat-loss coefficient (HLC) from a
+   14-day ROLBS switching between 0 and 500 W (the levels of the twin-house experiment) and
+   between 0 and 3 kW (the design's limit);
+2. the days each design needs to reach each: the designed schedule (``jaxbox.design.plan``,
    c-optimal for the HLC, comfort band 15–35 °C, 0–3 kW, re-planned for each horizon), a PRBS
    (0/3 kW, the best clock period for the HLC), a ROLBS (0/3 kW) and a constant step (1.5 kW,
    co-heating); with the predicted temperature range of each;
@@ -64,7 +65,11 @@ def prior_of(model: str) -> dict:
     return {k: float(v) for k, v in result.params.items()}
 
 
-def context(model, prior, days):
+#: start temperatures (the building held there before the experiment), as ``plan`` tries them
+STARTS = tuple(float(t) for t in np.linspace(COMFORT[0] + 1.0, COMFORT[1] - 1.0, 5))
+
+
+def context(model, prior, days, start):
     return _prepare(
         model,
         prior,
@@ -75,42 +80,58 @@ def context(model, prior, days):
         free=None,
         heating=None,
         comfort=COMFORT,
-        start_temperature=25.0,
+        start_temperature=start,
     )[2]
 
 
-def baselines(model, prior, days):
-    """PRBS, ROLBS at 0/3 kW and the step at 1.5 kW over ``days``: their predictions."""
-    ctx = context(model, prior, days)
-    s = design.baseline_schedules(ctx, *POWER, None, criterion="hlc")
-    return {k: ctx.report(v) for k, v in s.items()}
+def baselines(model, prior, days, power=POWER):
+    """PRBS, ROLBS at 0/3 kW and the step at 1.5 kW over ``days``: their predictions, each
+    from its best start temperature (the same choice the design gets)."""
+    best = {}
+    for start in STARTS:
+        ctx = context(model, prior, days, start)
+        s = design.baseline_schedules(ctx, *power, None, criterion="hlc")
+        for k, v in s.items():
+            rep = ctx.report(v)
+            rep["start_temperature"] = start
+            if k not in best or rep["hlc_std"] < best[k]["hlc_std"]:
+                best[k] = rep
+    return best
 
 
-def days_needed_baselines(model, prior, target):
-    out = {k: None for k in ("prbs", "rolbs", "step")}
-    seen = {}
+def _strip(rep):
+    return None if rep is None else {k: v for k, v in rep.items() if k != "outputs"}
+
+
+def days_needed(trail: list, target: float):
+    """The first (days, report) of a trail whose HLC std reaches ``target``, or (None, None)."""
+    return next(((d, r) for d, r in trail if r["hlc_std"] <= target), (None, None))
+
+
+def baseline_trails(model, prior, target):
+    """PRBS, ROLBS and step predictions for 1, 2, … days until each reaches ``target``."""
+    trails = {k: [] for k in ("prbs", "rolbs", "step")}
     for days in range(1, MAX_BASELINE_DAYS + 1):
-        reps = baselines(model, prior, days)
-        for k, rep in reps.items():
-            if out[k] is None and rep["hlc_std"] <= target:
-                out[k] = days
-                seen[k] = rep
-        if all(v is not None for v in out.values()):
+        for k, rep in baselines(model, prior, days).items():
+            trails[k].append((days, _strip(rep)))
+        if all(days_needed(t, target)[0] is not None for t in trails.values()):
             break
-    return out, seen
+    return trails
 
 
-def days_needed_design(model, prior, target):
+def design_trail(model, prior, target):
+    """The designed schedule re-planned for 1, 2, … days until it reaches ``target``."""
     trail = []
     for days in range(1, MAX_DESIGN_DAYS + 1):
         d = design.plan(
             model, prior, sigma=SIGMA, days=days, power=POWER, comfort=COMFORT, criterion="hlc"
         )
-        rep = d.reports["designed"]
-        trail.append((days, rep["hlc_std"]))
+        rep = dict(d.reports["designed"], start_temperature=d.settings["start_temperature"])
+        trail.append((days, _strip(rep)))
+        print(f"  designed {days} d: HLC std {rep['hlc_std']:.4f}", flush=True)
         if rep["hlc_std"] <= target:
-            return days, rep, trail
-    return None, None, trail
+            break
+    return trail
 
 
 # ---- the plain approach ------------------------------------------------------------------------
@@ -240,9 +261,14 @@ def measure(model: str, plain_budget: float) -> dict:
     t = time.perf_counter()
     prior = prior_of(model)
     print(f"fit {time.perf_counter() - t:.1f} s", flush=True)
-    ref = baselines(model, prior, REFERENCE_DAYS)["rolbs"]
-    target = ref["hlc_std"]
-    print(f"14-day ROLBS: HLC {ref['hlc']:.2f} ± {target:.4f} W/K", flush=True)
+    refs = {
+        "ROLBS 0/500 W (the twin-house levels)": baselines(
+            model, prior, REFERENCE_DAYS, (0.0, 500.0)
+        )["rolbs"],
+        "ROLBS 0/3 kW": baselines(model, prior, REFERENCE_DAYS)["rolbs"],
+    }
+    for k, r in refs.items():
+        print(f"14-day {k}: HLC {r['hlc']:.2f} ± {r['hlc_std']:.4f} W/K", flush=True)
     # the design of a 7-day hourly schedule, timed (first call compiles)
     jaxbox.fit.clear_compile_cache()
     t = time.perf_counter()
@@ -252,39 +278,33 @@ def measure(model: str, plain_budget: float) -> dict:
     d7 = design.plan(model, prior, sigma=SIGMA, days=7, power=POWER, comfort=COMFORT)
     again = time.perf_counter() - t
     print(f"7-day design: {first:.1f} s first, {again:.1f} s again", flush=True)
-    days_design, rep_design, trail = days_needed_design(model, prior, target)
-    print(f"designed: {days_design} days", flush=True)
-    days_base, reps_base = days_needed_baselines(model, prior, target)
-    print(f"baselines: {days_base}", flush=True)
+    hardest = min(r["hlc_std"] for r in refs.values())
+    trails = {"designed": design_trail(model, prior, hardest)}
+    trails.update(baseline_trails(model, prior, hardest))
     ctx7 = d7.context
     design_loss = d7.reports["designed"]["loss"]["hlc"]
     plain = plain_design(ctx7, plain_budget, design_loss) if plain_budget > 0 else None
     if plain:
         print(f"plain: {plain}", flush=True)
+    needed = {}
+    for k, r in refs.items():
+        needed[k] = {}
+        for name, trail in trails.items():
+            days, rep = days_needed(trail, r["hlc_std"])
+            needed[k][name] = {"days": days, "report": rep}
     return {
         "model": model,
         "prior": prior,
-        "reference": {k: v for k, v in ref.items() if k != "outputs"},
-        "target_hlc_std": target,
+        "references": {k: _strip(r) for k, r in refs.items()},
+        "needed": needed,
         "design7": {
             "first_call_s": first,
             "again_s": again,
             "timing": d7.timing,
-            "reports": {
-                k: {kk: vv for kk, vv in v.items() if kk != "outputs"}
-                for k, v in d7.reports.items()
-            },
+            "start_temperature": d7.settings["start_temperature"],
+            "reports": {k: _strip(v) for k, v in d7.reports.items()},
         },
-        "days": {"designed": days_design, **days_base},
-        "at_days": {
-            "designed": None
-            if rep_design is None
-            else {k: v for k, v in rep_design.items() if k != "outputs"},
-            **{
-                k: {kk: vv for kk, vv in v.items() if kk != "outputs"} for k, v in reps_base.items()
-            },
-        },
-        "design_trail": trail,
+        "trails": trails,
         "plain": plain,
     }
 
@@ -314,7 +334,8 @@ def report(results: list[dict], machine: str) -> str:
         f"Parameters fitted on twin house N2 (identification half, hourly); noise σ = {SIGMA} K; "
         f"bundled weather from 2013-08-21; hourly schedules; heater {POWER[0]:g}–{POWER[1]:g} W. "
         "Predicted standard deviations from the Fisher information (all parameters estimated, "
-        "initial states included; the building held at 25 °C before the start). The designed "
+        "initial states included). Every schedule starts from the building held at the best of "
+        f"{', '.join(f'{t:g}' for t in STARTS)} °C (its steady state). The designed "
         "schedule is c-optimal for the HLC under the comfort band 15–35 °C and is re-planned for "
         "each horizon; PRBS and ROLBS switch 0/3 kW (PRBS clock: the best for the HLC), the step "
         "holds 1.5 kW. *T range*: predicted zone temperature over the experiment that reaches "
@@ -322,20 +343,23 @@ def report(results: list[dict], machine: str) -> str:
     )
     w("")
     w(
-        "| model | HLC [W/K] | target: std of 14-day ROLBS [W/K] | design | days needed | "
-        "HLC std then [W/K] | T range [°C] |"
+        "| model | reference (14 days) | its HLC std [W/K] | design | days needed | "
+        "HLC std then [W/K] | start [°C] | T range [°C] |"
     )
-    w("|---|---:|---:|---|---:|---:|---|")
+    w("|---|---|---:|---|---:|---:|---:|---|")
     for r in results:
-        for k in ("designed", "prbs", "rolbs", "step"):
-            days = r["days"][k]
-            rep = r["at_days"].get(k)
-            w(
-                f"| {r['model']} | {r['reference']['hlc']:.2f} | {r['target_hlc_std']:.4f} | {k} | "
-                f"{'> ' + str(MAX_DESIGN_DAYS if k == 'designed' else MAX_BASELINE_DAYS) if days is None else days} | "  # noqa: E501
-                f"{'' if rep is None else format(rep['hlc_std'], '.4f')} | "
-                f"{'' if rep is None else format(rep['t_min'], '.1f') + '–' + format(rep['t_max'], '.1f')} |"  # noqa: E501
-            )
+        for ref, ref_rep in r["references"].items():
+            for k, item in r["needed"][ref].items():
+                days, rep = item["days"], item["report"]
+                cap = MAX_DESIGN_DAYS if k == "designed" else MAX_BASELINE_DAYS
+                w(
+                    f"| {r['model']} | {ref} | {ref_rep['hlc_std']:.4f} | {k} | "
+                    f"{'> ' + str(cap) if days is None else days} | "
+                    f"{'' if rep is None else format(rep['hlc_std'], '.4f')} | "
+                    f"{'' if rep is None else format(rep['start_temperature'], 'g')} | "
+                    f"{'' if rep is None else format(rep['t_min'], '.1f')}–"
+                    f"{'' if rep is None else format(rep['t_max'], '.1f')} |"
+                )
     w("")
     w("### Designing a 7-day hourly schedule")
     w("")
@@ -391,9 +415,17 @@ def report(results: list[dict], machine: str) -> str:
         "Targets: the designed experiment reaches the 14-day ROLBS's HLC precision in ≤ 7 days "
         "within 15–35 °C and 3 kW; designing a 7-day hourly schedule takes ≤ 60 s on 2 cores."
     )
-    met = all(r["days"]["designed"] is not None and r["days"]["designed"] <= 7 for r in results)
+    met = {
+        ref: all(
+            r["needed"][ref]["designed"]["days"] is not None
+            and r["needed"][ref]["designed"]["days"] <= 7
+            for r in results
+        )
+        for ref in results[0]["references"]
+    }
+    days_text = "; ".join(f"against the {k}: {'yes' if v else 'no'}" for k, v in met.items())
     fast = all(r["design7"]["first_call_s"] <= 60 for r in results)
-    w(f"Met here: days {'yes' if met else 'no'}; time {'yes' if fast else 'no'}.")
+    w(f"Met here — ≤ 7 days {days_text}; design time {'yes' if fast else 'no'}.")
     w("")
     return "\n".join(L) + "\n"
 

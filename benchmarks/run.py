@@ -921,10 +921,11 @@ def report(res: dict) -> str:
             w(f"- {key}: {err}")
         w("")
     w(res.get("notes", ""))
-    convergence = HERE / "CONVERGENCE.md"
-    if convergence.exists():  # written by benchmarks/convergence.py (its own run and date)
-        w("")
-        w(convergence.read_text())
+    for section in ("CONVERGENCE.md", "DESIGN.md"):  # benchmarks/convergence.py, design.py
+        path = HERE / section
+        if path.exists():  # written by its own script (its own run and date)
+            w("")
+            w(path.read_text())
     return "\n".join(L) + "\n"
 
 

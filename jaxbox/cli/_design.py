@@ -23,9 +23,7 @@ def add_design_arguments(p) -> None:
     p.add_argument("--model", "-m", help="library model name (default: the one of --params)")
     p.add_argument("--params", metavar="FIT.json", help="prior values: a `jaxbox fit --json` file")
     p.add_argument("--days", type=float, default=7.0, help="horizon [days] (default 7)")
-    p.add_argument(
-        "--step", default="1h", help="sample step: 1h, 30min, 3600 [s]… (default 1h)"
-    )
+    p.add_argument("--step", default="1h", help="sample step: 1h, 30min, 3600 [s]… (default 1h)")
     p.add_argument("--sigma", type=float, default=0.05, help="output noise std [K] (default 0.05)")
     p.add_argument("--power", default="0:3000", help="heater power MIN:MAX [W] (default 0:3000)")
     p.add_argument("--binary", action="store_true", help="on/off heater: only MIN or MAX")
@@ -39,7 +37,11 @@ def add_design_arguments(p) -> None:
         metavar="DATA",
         help="weather inputs (CSV or bundled name); default the bundled twin-house weather",
     )
-    p.add_argument("--start-temperature", type=float, help="zone held at [°C] before the start")
+    p.add_argument(
+        "--start-temperature",
+        type=float,
+        help="zone held at [°C] before the start (default: the best of 5 in the band)",
+    )
     p.add_argument(
         "--robust", type=int_option, default=0, metavar="N", help="average over N prior samples"
     )

@@ -48,6 +48,7 @@ __all__ = ["Design", "plan", "evaluate", "baseline_schedules"]
 _MARGIN = 0.1  # K inside the comfort band
 _RHO0 = 100.0
 _MU = 2.0
+_START_GRID = 5  # start temperatures tried across the comfort band
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -121,7 +122,8 @@ class Design:
         lines = [
             f"design of {self.model} ({self.criterion}-optimal, {len(self.power)} samples of "
             f"{self.settings['step']:g} s, σ = {self.settings['sigma']:g} K) in "
-            f"{self.timing['design_s']:.1f} s (+{self.timing['compile_s']:.1f} s compiling)"
+            f"{self.timing['design_s']:.1f} s (+{self.timing['compile_s']:.1f} s compiling), "
+            f"the building held at {self.settings['start_temperature']:.3g} °C before the start"
         ]
         if self.rounding_loss is not None:
             lines.append(
@@ -246,6 +248,62 @@ def baseline_schedules(
         out["step"] = np.full(n, min(hi, max(lo, energy_j / (n * ctx.step))))
     out["step"] = np.asarray(out["step"]) * step(n)
     return out
+
+
+def _args(ctx, lo, hi, tlo, thi, emax, rho, mu):
+    extra = (lo, hi, tlo, thi, emax, ctx.step, rho, mu)
+    return (*ctx.args(), *(jnp.asarray(float(v)) for v in extra))
+
+
+def _design_one(ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_energy, binary):
+    """Solve one design problem: the relaxed optimum (ρ raised while a constraint is violated),
+    then, for on/off heaters, the binary phase and the rounding."""
+
+    def to_power(z):
+        return lo + (hi - lo) * 0.5 * (1.0 + np.sin(np.asarray(z)))
+
+    def violation(u):
+        rep = ctx.report(u)
+        v = 0.0
+        if comfort:
+            v = max(v, rep["t_max"] - comfort[1], comfort[0] - rep["t_min"])
+        if max_energy is not None:
+            v = max(v, (np.sum(u) * ctx.step - max_energy) / max_energy * 10)
+        return v
+
+    def best_of(Zs, losses):
+        order = np.argsort(np.asarray(losses))
+        for i in order:
+            if violation(to_power(Zs[i])) <= 1e-6:
+                return int(i)
+        return int(order[0])
+
+    rho = _RHO0
+    Zs, losses, _ = solve(Z, _args(ctx, lo, hi, tlo, thi, emax, rho, 0.0))
+    for _ in range(3):
+        i = best_of(np.asarray(Zs), losses)
+        if violation(to_power(np.asarray(Zs)[i])) <= 1e-6:
+            break
+        rho *= 10.0
+        Zs, losses, _ = solve(Zs, _args(ctx, lo, hi, tlo, thi, emax, rho, 0.0))
+    i = best_of(np.asarray(Zs), losses)
+    relaxed = to_power(np.asarray(Zs)[i])
+    rounding_loss = None
+    designed = relaxed
+    if binary:
+        Zb, lb, _ = solve(Zs, _args(ctx, lo, hi, tlo, thi, emax, rho, _MU))
+        zb = np.asarray(Zb)[best_of(np.asarray(Zb), lb)]
+        designed = np.where(np.sin(zb) >= 0.0, hi, lo)
+        rounding_loss = (
+            ctx.report(designed)["loss"][criterion] - ctx.report(relaxed)["loss"][criterion]
+        )
+    return {
+        "designed": designed,
+        "relaxed": relaxed,
+        "rounding_loss": rounding_loss,
+        "loss": ctx.report(designed)["loss"][criterion],
+        "violation": violation(designed),
+    }
 
 
 # ---- the front end -----------------------------------------------------------------------------
@@ -375,7 +433,9 @@ def plan(
         criterion: ``"D"`` (log det), ``"A"`` (trace) of the covariance of the model parameters
             in relative terms, or ``"hlc"`` (variance of the heat-loss coefficient).
         start_temperature: zone temperature [°C] the building is held at before the experiment
-            (its initial state is that steady state); default the middle of the comfort band.
+            (its initial state is that steady state); default: the best of five temperatures
+            across the comfort band (1 K inside it), each designed for (preheating is part of
+            the experiment; the baselines get the same start).
         robust: number of prior samples (> 1: the criterion is averaged over them; the first is
             the nominal prior).
         spread: standard deviation of ``log θ`` of the prior samples (e.g. 0.3); None: the
@@ -405,84 +465,46 @@ def plan(
     if starts < 1 or max_steps < 1:
         raise ModelError("starts and max_steps must be ≥ 1")
     if start_temperature is None:
-        start_temperature = 0.5 * (comfort[0] + comfort[1]) if comfort else 20.0
-    prior, setup, ctx = _prepare(
-        model,
-        params,
-        sigma=sigma,
-        days=days,
-        step_s=step,
-        weather=weather,
-        free=free,
-        heating=heating,
-        comfort=comfort,
-        start_temperature=start_temperature,
-        robust=robust,
-        spread=spread,
-        seed=seed,
-    )
-    solve, built = _solver_fn(setup, criterion, max_steps)
+        band = comfort or (15.0, 30.0)
+        temperatures = list(np.linspace(band[0] + 1.0, band[1] - 1.0, _START_GRID))
+    else:
+        temperatures = [float(start_temperature)]
     tlo, thi = (comfort[0] + _MARGIN, comfort[1] - _MARGIN) if comfort else (-1e9, 1e9)
     emax = max_energy if max_energy is not None else math.inf
-
-    def args(rho, mu):
-        return (
-            *ctx.args(),
-            *(jnp.asarray(float(v)) for v in (lo, hi, tlo, thi, emax, ctx.step, rho, mu)),
-        )
-
-    Z = jnp.asarray(_starts(ctx.n, starts, seed, ctx.step))
-    t0 = time.perf_counter()
     compile_s = 0.0
-    if built:
-        solve.lower(Z, args(_RHO0, 0.0)).compile()
-        compile_s = time.perf_counter() - t0
     t1 = time.perf_counter()
-
-    def to_power(z):
-        return lo + (hi - lo) * 0.5 * (1.0 + np.sin(np.asarray(z)))
-
-    def violation(u):
-        rep = ctx.report(u)
-        v = 0.0
-        if comfort:
-            v = max(v, rep["t_max"] - comfort[1], comfort[0] - rep["t_min"])
-        if max_energy is not None:
-            v = max(v, (np.sum(u) * ctx.step - max_energy) / max_energy * 10)
-        return v, rep
-
-    def best_of(Zs, losses):
-        order = np.argsort(np.asarray(losses))
-        for i in order:
-            v, _ = violation(to_power(Zs[i]))
-            if v <= 1e-6:
-                return int(i), v
-        i = int(order[0])
-        return i, violation(to_power(Zs[i]))[0]
-
-    rho = _RHO0
-    Zs, losses, _ = solve(Z, args(rho, 0.0))
-    for _ in range(3):
-        i, v = best_of(np.asarray(Zs), losses)
-        if v <= 1e-6:
-            break
-        rho *= 10.0
-        Zs, losses, _ = solve(Zs, args(rho, 0.0))
-    i, _ = best_of(np.asarray(Zs), losses)
-    z = np.asarray(Zs)[i]
-    relaxed = to_power(z)
-    rounding_loss = None
-    if binary:
-        Zb, lb, _ = solve(jnp.asarray(np.asarray(Zs)), args(rho, _MU))
-        ib, _ = best_of(np.asarray(Zb), lb)
-        zb = np.asarray(Zb)[ib]
-        designed = np.where(np.sin(zb) >= 0.0, hi, lo)
-        rounding_loss = (
-            ctx.report(designed)["loss"][criterion] - ctx.report(relaxed)["loss"][criterion]
+    best = None
+    for temperature in temperatures:
+        prior, setup, ctx = _prepare(
+            model,
+            params,
+            sigma=sigma,
+            days=days,
+            step_s=step,
+            weather=weather,
+            free=free,
+            heating=heating,
+            comfort=comfort,
+            start_temperature=temperature,
+            robust=robust,
+            spread=spread,
+            seed=seed,
         )
-    else:
-        designed = relaxed
-    design_s = time.perf_counter() - t1
+        solve, built = _solver_fn(setup, criterion, max_steps)
+        Z = jnp.asarray(_starts(ctx.n, starts, seed, ctx.step))
+        if built:
+            t0 = time.perf_counter()
+            solve.lower(Z, _args(ctx, lo, hi, tlo, thi, emax, _RHO0, 0.0)).compile()
+            compile_s += time.perf_counter() - t0
+        one = _design_one(
+            ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_energy, binary
+        )
+        score = (one["violation"] > 1e-6, one["loss"])
+        if best is None or score < best[0]:
+            best = (score, temperature, prior, setup, ctx, one)
+    _, start_temperature, prior, setup, ctx, one = best
+    designed, relaxed, rounding_loss = one["designed"], one["relaxed"], one["rounding_loss"]
+    design_s = time.perf_counter() - t1 - compile_s
     energy = float(np.sum(designed) * ctx.step)
     schedules = {"designed": designed}
     schedules.update(

@@ -154,7 +154,13 @@ class Design:
 # ---- the compiled solver -----------------------------------------------------------------------
 
 
-def _solver_fn(setup: Setup, criterion: str, max_steps: int):
+def _solver_fn(setup: Setup, criterion: str, max_steps: int, Z, args):
+    """The solver compiled ahead of time for these shapes: ``(executable, compiled now)``.
+
+    One compilation per model structure, criterion, horizon, number of starts and of prior
+    samples; bounds, comfort, energy, noise, weather and prior values are arguments."""
+    shapes = tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves((Z, args)))
+
     def build():
         def loss(z, args):
             mats, tangents, c, U0, sigma, lo, hi, tlo, thi, emax, dt, rho, mu = args
@@ -177,9 +183,10 @@ def _solver_fn(setup: Setup, criterion: str, max_steps: int):
 
             return jax.vmap(one)(Z0)
 
-        return jax.jit(solve)
+        return jax.jit(solve).lower(Z, args).compile()
 
-    return cached(("design", "solve", setup.key, criterion, int(max_steps)), build)
+    key = ("design", "solve", setup.key, criterion, int(max_steps), shapes)
+    return cached(key, build)
 
 
 def _starts(n: int, count: int, seed: int, step_s: float) -> np.ndarray:
@@ -490,11 +497,12 @@ def plan(
             spread=spread,
             seed=seed,
         )
-        solve, built = _solver_fn(setup, criterion, max_steps)
         Z = jnp.asarray(_starts(ctx.n, starts, seed, ctx.step))
+        t0 = time.perf_counter()
+        solve, built = _solver_fn(
+            setup, criterion, max_steps, Z, _args(ctx, lo, hi, tlo, thi, emax, _RHO0, 0.0)
+        )
         if built:
-            t0 = time.perf_counter()
-            solve.lower(Z, _args(ctx, lo, hi, tlo, thi, emax, _RHO0, 0.0)).compile()
             compile_s += time.perf_counter() - t0
         one = _design_one(
             ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_energy, binary

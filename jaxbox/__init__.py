@@ -18,6 +18,7 @@ __version__ = "0.1.0"
 _SUBPACKAGES = (
     "data",
     "datasets",
+    "design",
     "fit",
     "fleet",
     "models",
@@ -36,6 +37,7 @@ _NAMES = {
     "DataError": "data",
     "Dataset": "data",
     "load": "data",
+    "design_experiment": "design",
     "FitError": "fit",
     "FitResult": "fit",
     "LevenbergMarquardt": "fit",

@@ -21,6 +21,7 @@ from ._commands import add_fit_arguments, fit_command, models_command
 from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
 from ._estimate import add_estimate_arguments, estimate_command
 from ._fleet import add_fleet_arguments, fleet_command
+from ._design import add_design_arguments, design_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]
@@ -35,6 +36,7 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
   jaxbox estimate DATA --model NAME --params FIT.json --out STATES.csv
                                      states of a stochastic (--method ml) fit, to a CSV
   jaxbox fleet DIR --out OUT         every building of a fleet on Dask: models, KPIs, Parquet
+  jaxbox design --model NAME --out CSV   plan the heating of an identification experiment
 """
 
 
@@ -73,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_estimate_arguments(p)
     p = sub.add_parser("fleet", help="a fleet of buildings on Dask (or: fleet make DIR --n N)")
     add_fleet_arguments(p)
+    add_design_arguments(sub.add_parser("design", help="plan an identification experiment"))
     return parser
 
 
@@ -126,6 +129,7 @@ _COMMANDS = {
     "demo": demo_command,
     "estimate": estimate_command,
     "fleet": fleet_command,
+    "design": design_command,
 }
 
 

@@ -1,0 +1,553 @@
+"""Plan a heating sequence that maximises the information of an identification experiment.
+
+The heating power per sample is ``u = P_min + (P_max − P_min) · s``, ``s = (1 + sin z)/2`` (the
+power bounds hold by construction, and a power on a bound can leave it again: unlike a logistic,
+the sine does not flatten out, so the switching times of a bang-bang schedule keep moving; the
+logistic got stuck in worse local optima); the optimiser (:class:`optimistix.BFGS`, gradients
+by autodiff through the simulator and its sensitivities) minimises::
+
+    loss(z) = criterion(u) + ρ · (comfort + energy) [+ μ · binary]
+
+* ``criterion``: D, A or hlc (:mod:`~jaxbox.design._fisher`), averaged over the prior samples in
+  a robust design;
+* ``comfort``: mean squared excursion [K²] of the predicted outputs (nominal prior) outside the
+  comfort band shrunk by a margin of 0.1 K;
+* ``energy``: squared relative excess of the energy ``step · Σ u`` over the maximum;
+* ``binary`` (on/off heaters): ``mean s(1 − s)``, added in a second
+  phase that starts from the relaxed optimum and pushes it to 0/1 before rounding.
+
+ρ starts at 100 and grows tenfold (up to three times) while a constraint is violated. Several
+starts (constant mid power, PRBS, ROLBS and random patterns) are optimised together under
+``vmap``; the best feasible one is kept. The compiled solver is reused for every design of the
+same model structure, criterion and horizon.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Mapping
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+import pandas as pd
+
+from .._compiled import cached
+from .._x64 import require_x64
+from ..models import ModelError
+from ._context import Context, default_weather, make_context
+from ._fisher import CRITERIA, Setup, make_setup
+from ._prior import load_prior, prior_samples
+from ._sequences import levels, prbs, rolbs, step
+
+__all__ = ["Design", "plan", "evaluate", "baseline_schedules"]
+
+_MARGIN = 0.1  # K inside the comfort band
+_RHO0 = 100.0
+_MU = 2.0
+_START_GRID = 5  # start temperatures tried across the comfort band
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Design:
+    """A planned experiment and what it predicts, with the baselines of equal length and energy.
+
+    Attributes:
+        model: the model name.
+        criterion: ``"D"``, ``"A"`` or ``"hlc"``.
+        heating: the designed input.
+        index: time stamps of the schedule.
+        power: the designed heating [W] per sample (rounded to the power bounds when binary).
+        relaxed: the continuous optimum before rounding (binary designs), else None.
+        schedules: every schedule [W] by name: ``designed``, ``prbs``, ``rolbs``, ``step``.
+        reports: what each schedule predicts (:meth:`Context.report`), by the same names.
+        rounding_loss: criterion after rounding minus the relaxed one (log units; binary only).
+        settings: the inputs of the design (sigma, step, power, comfort, max energy…).
+        timing: ``compile_s`` and ``design_s``.
+        context: the design problem, to evaluate other schedules (:meth:`Context.report`).
+    """
+
+    model: str
+    criterion: str
+    heating: str
+    index: pd.DatetimeIndex
+    power: np.ndarray
+    relaxed: np.ndarray | None
+    schedules: dict
+    reports: dict
+    rounding_loss: float | None
+    settings: dict
+    timing: dict
+    context: Context
+
+    def schedule(self, baselines: bool = False) -> pd.DataFrame:
+        """The schedule: heating [W] and predicted outputs [°C] per time stamp (with the
+        baselines' heating as ``<heating>_<name>`` columns on request)."""
+        rep = self.reports["designed"]
+        frame = pd.DataFrame({self.heating: self.power}, index=self.index)
+        for j, o in enumerate(self.context.setup.model.outputs):
+            frame[f"{o}_predicted"] = rep["outputs"][:, j]
+        if baselines:
+            for name, p in self.schedules.items():
+                if name != "designed":
+                    frame[f"{self.heating}_{name}"] = p
+        frame.index.name = "time"
+        return frame
+
+    def to_csv(self, path, baselines: bool = False) -> None:
+        """Write :meth:`schedule` as CSV (time stamps in the first column)."""
+        self.schedule(baselines).to_csv(path, float_format="%.6g")
+
+    def table(self) -> pd.DataFrame:
+        """Predicted standard deviation [SI] of every free parameter and of the HLC [W/K], with
+        energy and predicted temperature range, per schedule (columns)."""
+        rows = {}
+        for name, rep in self.reports.items():
+            col = dict(rep["std"])
+            col["HLC [W/K]"] = rep["hlc_std"]
+            col["HLC rel. std"] = rep["hlc_std"] / rep["hlc"]
+            col["energy [kWh]"] = rep["energy_kwh"]
+            col["T min [°C]"] = rep["t_min"]
+            col["T max [°C]"] = rep["t_max"]
+            col[f"loss {self.criterion}"] = rep["loss"][self.criterion]
+            rows[name] = col
+        return pd.DataFrame(rows)
+
+    def summary(self) -> str:
+        """A plain-text table of the predicted standard deviations, designed vs baselines."""
+        t = self.table()
+        lines = [
+            f"design of {self.model} ({self.criterion}-optimal, {len(self.power)} samples of "
+            f"{self.settings['step']:g} s, σ = {self.settings['sigma']:g} K) in "
+            f"{self.timing['design_s']:.1f} s (+{self.timing['compile_s']:.1f} s compiling), "
+            f"the building held at {self.settings['start_temperature']:.3g} °C before the start"
+        ]
+        if self.rounding_loss is not None:
+            lines.append(
+                f"on/off rounding changed the criterion by {self.rounding_loss:+.3g} (log units)"
+            )
+        names = list(t.columns)
+        lines.append(f"{'predicted std':<16}" + "".join(f"{n:>12}" for n in names))
+        for row, values in t.iterrows():
+            lines.append(f"{row:<16}" + "".join(f"{v:>12.4g}" for v in values))
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: settings, timing, rounding loss and each schedule's predictions."""
+        reps = {
+            k: {kk: vv for kk, vv in v.items() if kk != "outputs"} for k, v in self.reports.items()
+        }
+        return {
+            "model": self.model,
+            "criterion": self.criterion,
+            "heating": self.heating,
+            "settings": self.settings,
+            "timing": self.timing,
+            "rounding_loss": self.rounding_loss,
+            "predictions": reps,
+        }
+
+
+# ---- the compiled solver -----------------------------------------------------------------------
+
+
+def _solver_fn(setup: Setup, criterion: str, max_steps: int, Z, args):
+    """The solver compiled ahead of time for these shapes: ``(executable, compiled now)``.
+
+    One compilation per model structure, criterion, horizon, number of starts and of prior
+    samples; bounds, comfort, energy, noise, weather and prior values are arguments."""
+    shapes = tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves((Z, args)))
+
+    def build():
+        def loss(z, args):
+            mats, tangents, c, U0, sigma, lo, hi, tlo, thi, emax, dt, rho, mu = args
+            s = 0.5 * (1.0 + jnp.sin(z))
+            u = lo + (hi - lo) * s
+            U = U0.at[:, setup.heat_index].set(u)
+            F = setup.information(mats, tangents, U, sigma)
+            value = jnp.mean(jax.vmap(lambda f, cc: setup.criterion(criterion, f, cc))(F, c))
+            y = setup.simulate(jax.tree_util.tree_map(lambda a: a[0], mats), U)
+            comfort = jnp.mean(jax.nn.relu(y - thi) ** 2 + jax.nn.relu(tlo - y) ** 2)
+            energy = jax.nn.relu(dt * jnp.sum(u) / emax - 1.0) ** 2
+            return value + rho * (comfort + energy) + mu * jnp.mean(s * (1.0 - s))
+
+        solver = optx.BFGS(rtol=1e-8, atol=1e-8)
+
+        def solve(Z0, args):
+            def one(z):
+                sol = optx.minimise(loss, solver, z, args, max_steps=max_steps, throw=False)
+                return sol.value, loss(sol.value, args), sol.stats["num_steps"]
+
+            return jax.vmap(one)(Z0)
+
+        return jax.jit(solve).lower(Z, args).compile()
+
+    key = ("design", "solve", setup.key, criterion, int(max_steps), shapes)
+    return cached(key, build)
+
+
+def _starts(n: int, count: int, seed: int, step_s: float) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    Z = [np.zeros(n)]
+    hours = max(1, int(round(3600 / step_s)))
+    patterns = [rolbs(n, 1, 48 * hours, 6, seed), prbs(n, 8 * hours, seed + 1)]
+    for p in patterns:
+        Z.append(1.2 * (2.0 * p - 1.0))
+    while len(Z) < count:
+        Z.append(rng.uniform(-1.5, 1.5, n))
+    return np.asarray(Z[:count])
+
+
+# ---- baselines ---------------------------------------------------------------------------------
+
+
+def baseline_schedules(
+    ctx: Context,
+    lo: float,
+    hi: float,
+    energy_j: float | None,
+    *,
+    criterion: str = "hlc",
+    prbs_clock: int | None = None,
+    rolbs_longest: int | None = None,
+    seed: int = 0,
+) -> dict:
+    """PRBS, ROLBS and step schedules [W] of the context's length.
+
+    With ``energy_j`` [J] the binary ones switch between ``lo`` and the level that gives that
+    energy (capped at ``hi``) and the step holds the mean power; without it they switch between
+    ``lo`` and ``hi`` and the step holds the middle. The PRBS clock is the best for ``criterion``
+    among 1, 2, 4, … samples (up to a quarter of the horizon) unless given; the ROLBS durations
+    span one sample to ``rolbs_longest`` (default 72 h, at most a quarter of the horizon).
+    """
+    n = ctx.n
+    hours = max(1, int(round(3600 / ctx.step)))
+
+    def scaled(pattern):
+        if energy_j is None:
+            return levels(pattern, lo, hi)
+        on = pattern.sum()
+        target = energy_j / ctx.step
+        high = hi if on == 0 else min(hi, max(lo, lo + (target - n * lo) / on))
+        return levels(pattern, lo, high)
+
+    out = {}
+    if prbs_clock is None:
+        best = None
+        clock = 1
+        while clock <= max(1, n // 4):
+            u = scaled(prbs(n, clock, seed + 1))
+            value = ctx.report(u)["loss"][criterion]
+            if best is None or value < best[0]:
+                best = (value, u)
+            clock *= 2
+        out["prbs"] = best[1]
+    else:
+        out["prbs"] = scaled(prbs(n, int(prbs_clock), seed + 1))
+    longest = rolbs_longest or min(72 * hours, max(1, n // 4))
+    out["rolbs"] = scaled(rolbs(n, 1, int(longest), 6, seed))
+    if energy_j is None:
+        out["step"] = np.full(n, 0.5 * (lo + hi))
+    else:
+        out["step"] = np.full(n, min(hi, max(lo, energy_j / (n * ctx.step))))
+    out["step"] = np.asarray(out["step"]) * step(n)
+    return out
+
+
+def _args(ctx, lo, hi, tlo, thi, emax, rho, mu):
+    extra = (lo, hi, tlo, thi, emax, ctx.step, rho, mu)
+    return (*ctx.args(), *(jnp.asarray(float(v)) for v in extra))
+
+
+def _design_one(ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_energy, binary):
+    """Solve one design problem: the relaxed optimum (ρ raised while a constraint is violated),
+    then, for on/off heaters, the binary phase and the rounding."""
+
+    def to_power(z):
+        return lo + (hi - lo) * 0.5 * (1.0 + np.sin(np.asarray(z)))
+
+    def violation(u):
+        rep = ctx.report(u)
+        v = 0.0
+        if comfort:
+            v = max(v, rep["t_max"] - comfort[1], comfort[0] - rep["t_min"])
+        if max_energy is not None:
+            v = max(v, (np.sum(u) * ctx.step - max_energy) / max_energy * 10)
+        return v
+
+    def best_of(Zs, losses):
+        order = np.argsort(np.asarray(losses))
+        for i in order:
+            if violation(to_power(Zs[i])) <= 1e-6:
+                return int(i)
+        return int(order[0])
+
+    rho = _RHO0
+    Zs, losses, _ = solve(Z, _args(ctx, lo, hi, tlo, thi, emax, rho, 0.0))
+    for _ in range(3):
+        i = best_of(np.asarray(Zs), losses)
+        if violation(to_power(np.asarray(Zs)[i])) <= 1e-6:
+            break
+        rho *= 10.0
+        Zs, losses, _ = solve(Zs, _args(ctx, lo, hi, tlo, thi, emax, rho, 0.0))
+    i = best_of(np.asarray(Zs), losses)
+    relaxed = to_power(np.asarray(Zs)[i])
+    rounding_loss = None
+    designed = relaxed
+    if binary:
+        Zb, lb, _ = solve(Zs, _args(ctx, lo, hi, tlo, thi, emax, rho, _MU))
+        zb = np.asarray(Zb)[best_of(np.asarray(Zb), lb)]
+        designed = np.where(np.sin(zb) >= 0.0, hi, lo)
+        rounding_loss = (
+            ctx.report(designed)["loss"][criterion] - ctx.report(relaxed)["loss"][criterion]
+        )
+    return {
+        "designed": designed,
+        "relaxed": relaxed,
+        "rounding_loss": rounding_loss,
+        "loss": ctx.report(designed)["loss"][criterion],
+        "violation": violation(designed),
+    }
+
+
+# ---- the front end -----------------------------------------------------------------------------
+
+
+def _check_pair(name, pair, unit):
+    try:
+        a, b = (float(pair[0]), float(pair[1]))
+    except (TypeError, ValueError, IndexError):
+        raise ModelError(f"{name} must be a pair (low, high) in {unit}, got {pair!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b) and a < b):
+        raise ModelError(f"{name} must be finite with low < high [{unit}], got ({a:g}, {b:g})")
+    return a, b
+
+
+def _prepare(
+    model,
+    params,
+    *,
+    sigma,
+    days,
+    step_s,
+    weather,
+    free,
+    heating,
+    comfort,
+    start_temperature,
+    robust=0,
+    spread=None,
+    seed=0,
+):
+    require_x64()
+    if not (math.isfinite(sigma) and sigma > 0):
+        raise ModelError(f"sigma must be a noise standard deviation > 0 [K], got {sigma}")
+    if not (math.isfinite(step_s) and step_s > 0):
+        raise ModelError(f"step must be > 0 [s], got {step_s}")
+    n = int(round(days * 86400.0 / step_s))
+    if not (math.isfinite(days) and n >= 4):
+        raise ModelError(f"the horizon of {days} days holds {n} steps of {step_s:g} s; give ≥ 4")
+    prior = load_prior(model, params, free)
+    setup = make_setup(prior.model, prior.free, heating)
+    weather = default_weather(step_s) if weather is None else weather
+    if start_temperature is None:
+        start_temperature = 0.5 * (comfort[0] + comfort[1]) if comfort else 20.0
+    names = tuple(setup.free[i] for i in setup.interest if setup.log[i])
+    samples = None
+    if robust and robust > 1:
+        samples = prior_samples(prior, names, int(robust), spread, seed)
+    ctx = make_context(prior, setup, weather, n, step_s, sigma, start_temperature, samples, names)
+    return prior, setup, ctx
+
+
+def evaluate(
+    power,
+    model=None,
+    params=None,
+    *,
+    sigma: float = 0.05,
+    step: float = 3600.0,
+    weather=None,
+    free=None,
+    heating: str | None = None,
+    start_temperature: float = 25.0,
+) -> dict:
+    """What a heating schedule ``power`` [W per sample] predicts: :meth:`Context.report`
+    (standard deviations of every free parameter and of the HLC, energy, temperatures).
+
+    The other arguments as in :func:`plan`; the horizon is the schedule's length.
+    """
+    power = np.asarray(power, dtype=float)
+    days = len(power) * step / 86400.0
+    _, _, ctx = _prepare(
+        model,
+        params,
+        sigma=sigma,
+        days=days,
+        step_s=step,
+        weather=weather,
+        free=free,
+        heating=heating,
+        comfort=None,
+        start_temperature=start_temperature,
+    )
+    return ctx.report(power)
+
+
+def plan(
+    model=None,
+    params: Mapping | str | None = None,
+    *,
+    sigma: float = 0.05,
+    days: float = 7.0,
+    step: float = 3600.0,
+    weather=None,
+    power: tuple[float, float] = (0.0, 3000.0),
+    binary: bool = False,
+    comfort: tuple[float, float] | None = (15.0, 35.0),
+    max_energy: float | None = None,
+    criterion: str = "hlc",
+    start_temperature: float | None = None,
+    robust: int = 0,
+    spread: float | None = None,
+    free=None,
+    heating: str | None = None,
+    starts: int = 4,
+    max_steps: int = 1000,
+    seed: int = 0,
+    prbs_clock: int | None = None,
+) -> Design:
+    """Plan the heating of an identification experiment: the schedule that minimises the
+    predicted uncertainty of the estimates (see :mod:`jaxbox.design`).
+
+    Args:
+        model: an :class:`~jaxbox.models.RCModel` or library name (optional with a fit JSON).
+        params: prior parameter values: the path of a fit JSON (``jaxbox fit --json``), a mapping
+            ``name -> value`` [SI], or None for the model's defaults.
+        sigma: standard deviation of the measurement noise of the outputs [K].
+        days: horizon [days]; the schedule has ``round(days · 86400 / step)`` samples.
+        step: sample step [s] of the schedule and of the data the fit will see.
+        weather: a :class:`~jaxbox.data.Dataset` with the model's other inputs (a forecast or a
+            typical period) from the start of the experiment; default the bundled twin-house
+            weather (Holzkirchen, from 2013-08-21).
+        power: heater power bounds (min, max) [W].
+        binary: on/off heater: only min or max power (relaxed, then rounded).
+        comfort: band (low, high) [°C] for the predicted outputs (the zone temperature), or None.
+        max_energy: maximum heating energy ``step · Σ power`` [J] (1 kWh = 3.6e6 J), or None.
+        criterion: ``"D"`` (log det), ``"A"`` (trace) of the covariance of the model parameters
+            in relative terms, or ``"hlc"`` (variance of the heat-loss coefficient).
+        start_temperature: zone temperature [°C] the building is held at before the experiment
+            (its initial state is that steady state); default: the best of five temperatures
+            across the comfort band (1 K inside it), each designed for (preheating is part of
+            the experiment; the baselines get the same start).
+        robust: number of prior samples (> 1: the criterion is averaged over them; the first is
+            the nominal prior).
+        spread: standard deviation of ``log θ`` of the prior samples (e.g. 0.3); None: the
+            fit's covariance (with a fit JSON).
+        free: parameters the experiment will estimate (default the fit's free ones, or all).
+        heating: the designed input (default the model's only ``Q_hea*``).
+        starts: optimiser starts (constant, ROLBS-, PRBS-shaped, random), solved together.
+        max_steps: BFGS iterations per start and phase.
+        seed: seed of the random starts, prior samples and baselines.
+        prbs_clock: PRBS clock period [samples] of the baseline (default: the best of 1, 2, 4…).
+
+    Returns:
+        :class:`Design`: the schedule, its predicted standard deviations and those of the
+        baselines (PRBS, ROLBS, step) of equal length and energy.
+    """
+    if criterion not in CRITERIA:
+        raise ModelError(f"unknown criterion {criterion!r}; choose one of {', '.join(CRITERIA)}")
+    lo, hi = _check_pair("power", power, "W")
+    if lo < 0:
+        raise ModelError(f"power bounds must be ≥ 0 W (a heater), got {lo:g}")
+    if comfort is not None:
+        comfort = _check_pair("comfort", comfort, "°C")
+        if comfort[1] - comfort[0] <= 2 * _MARGIN:
+            raise ModelError(f"the comfort band {comfort} is narrower than {2 * _MARGIN} K")
+    if max_energy is not None and not (math.isfinite(max_energy) and max_energy > 0):
+        raise ModelError(f"max_energy must be > 0 [J], got {max_energy}")
+    if starts < 1 or max_steps < 1:
+        raise ModelError("starts and max_steps must be ≥ 1")
+    if start_temperature is None:
+        band = comfort or (15.0, 30.0)
+        temperatures = list(np.linspace(band[0] + 1.0, band[1] - 1.0, _START_GRID))
+    else:
+        temperatures = [float(start_temperature)]
+    tlo, thi = (comfort[0] + _MARGIN, comfort[1] - _MARGIN) if comfort else (-1e9, 1e9)
+    emax = max_energy if max_energy is not None else math.inf
+    compile_s = 0.0
+    t1 = time.perf_counter()
+    best = None
+    for temperature in temperatures:
+        prior, setup, ctx = _prepare(
+            model,
+            params,
+            sigma=sigma,
+            days=days,
+            step_s=step,
+            weather=weather,
+            free=free,
+            heating=heating,
+            comfort=comfort,
+            start_temperature=temperature,
+            robust=robust,
+            spread=spread,
+            seed=seed,
+        )
+        Z = jnp.asarray(_starts(ctx.n, starts, seed, ctx.step))
+        t0 = time.perf_counter()
+        solve, built = _solver_fn(
+            setup, criterion, max_steps, Z, _args(ctx, lo, hi, tlo, thi, emax, _RHO0, 0.0)
+        )
+        if built:
+            compile_s += time.perf_counter() - t0
+        one = _design_one(
+            ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_energy, binary
+        )
+        score = (one["violation"] > 1e-6, one["loss"])
+        if best is None or score < best[0]:
+            best = (score, temperature, prior, setup, ctx, one)
+    _, start_temperature, prior, setup, ctx, one = best
+    designed, relaxed, rounding_loss = one["designed"], one["relaxed"], one["rounding_loss"]
+    design_s = time.perf_counter() - t1 - compile_s
+    energy = float(np.sum(designed) * ctx.step)
+    schedules = {"designed": designed}
+    schedules.update(
+        baseline_schedules(
+            ctx, lo, hi, energy, criterion=criterion, prbs_clock=prbs_clock, seed=seed
+        )
+    )
+    reports = {k: ctx.report(v) for k, v in schedules.items()}
+    settings = {
+        "sigma": float(sigma),
+        "days": float(days),
+        "step": float(step),
+        "samples": ctx.n,
+        "power": [lo, hi],
+        "binary": bool(binary),
+        "comfort": None if comfort is None else list(comfort),
+        "max_energy_j": max_energy,
+        "start_temperature": float(start_temperature),
+        "robust": int(robust),
+        "spread": spread,
+        "free": list(setup.free),
+        "prior": prior.source,
+        "weather_start": str(ctx.index[0]),
+    }
+    return Design(
+        model=setup.model.name,
+        criterion=criterion,
+        heating=setup.heating,
+        index=ctx.index,
+        power=np.asarray(designed),
+        relaxed=relaxed if binary else None,
+        schedules=schedules,
+        reports=reports,
+        rounding_loss=None if rounding_loss is None else float(rounding_loss),
+        settings=settings,
+        timing={"compile_s": compile_s, "design_s": design_s},
+        context=ctx,
+    )

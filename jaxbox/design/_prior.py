@@ -1,0 +1,149 @@
+"""Prior parameter values for a design: from an earlier fit's JSON, a mapping, or the defaults;
+and prior samples for a robust design."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..models import ModelError, RCModel, get_model
+
+__all__ = ["Prior", "load_prior", "prior_samples"]
+
+
+class Prior:
+    """Model, prior parameter values [SI], the estimated parameters and, from a fit, the
+    covariance of the model parameters in log coordinates.
+
+    Attributes:
+        model: the RC model.
+        theta: every parameter's prior value [SI].
+        free: the parameters the planned experiment will estimate (initial states included).
+        log_cov: covariance of ``log θ`` of the ratio-scale free parameters (from the standard
+            deviations and correlations of a fit JSON), or None.
+        log_names: the parameters of ``log_cov``.
+        source: where the values came from.
+    """
+
+    def __init__(self, model, theta, free, log_cov=None, log_names=(), source="defaults"):
+        self.model = model
+        self.theta = dict(theta)
+        self.free = tuple(free)
+        self.log_cov = log_cov
+        self.log_names = tuple(log_names)
+        self.source = source
+
+
+def _from_json(path: Path, model: RCModel | None) -> Prior:
+    try:
+        doc = json.loads(Path(path).read_text())
+    except json.JSONDecodeError as err:
+        raise ModelError(
+            f"{path}: not a JSON document ({err.msg}); give the output of `jaxbox fit --json`"
+        ) from None
+    if not isinstance(doc, dict) or "params" not in doc or "model" not in doc:
+        raise ModelError(f"{path}: no 'model' and 'params'; give the output of `jaxbox fit --json`")
+    fitted = get_model(doc["model"])
+    if model is not None and model.name != fitted.name:
+        raise ModelError(f"{path} holds a fit of {fitted.name}, not of {model.name}")
+    model = model or fitted
+    params = doc["params"]
+    missing = [n for n in model.param_names if n not in params]
+    if missing:
+        raise ModelError(f"{path}: no value for parameter(s) {', '.join(missing)}")
+    theta = {n: float(params[n]["value"]) for n in model.param_names}
+    free = [n for n in doc.get("free", model.param_names) if n in theta]
+    # covariance of log θ from the fit's standard deviations and correlations
+    names = [
+        n
+        for n in free
+        if n.startswith(("R_", "C_", "gA", "fra_"))
+        and params[n].get("std") is not None
+        and theta[n] > 0
+        and math.isfinite(params[n]["std"])
+    ]
+    log_cov = None
+    if names:
+        rel = np.asarray([params[n]["std"] / theta[n] for n in names])
+        corr = np.eye(len(names))
+        table = doc.get("correlation") or {}
+        for i, a in enumerate(names):
+            for j, b in enumerate(names):
+                v = (table.get(a) or {}).get(b)
+                if i != j and v is not None and math.isfinite(v):
+                    corr[i, j] = v
+        log_cov = corr * np.outer(rel, rel)
+    return Prior(model, theta, free, log_cov, names, source=str(path))
+
+
+def load_prior(model=None, params=None, free=None) -> Prior:
+    """The prior of a design.
+
+    Args:
+        model: an :class:`~jaxbox.models.RCModel` or library name (optional with a fit JSON).
+        params: ``None`` (the model's defaults), a mapping ``name -> value`` [SI] (the others
+            from the defaults), or the path of a fit JSON written by ``jaxbox fit --json``
+            (its estimates, free parameters, standard deviations and correlations).
+        free: the parameters the experiment will estimate (default: the fit's free parameters,
+            or every parameter).
+    """
+    model = None if model is None else get_model(model)
+    if isinstance(params, str | Path):
+        prior = _from_json(Path(params), model)
+    else:
+        if model is None:
+            raise ModelError("give a model (or the JSON of a fit, which names it)")
+        theta = model.defaults()
+        if params is not None:
+            bad = [k for k in params if k not in theta]
+            if bad:
+                raise ModelError(
+                    f"model {model.name} has no parameter(s) {', '.join(bad)}; its parameters "
+                    f"are {', '.join(model.param_names)}"
+                )
+            theta.update({k: float(v) for k, v in params.items()})
+        prior = Prior(model, theta, model.param_names, source="values" if params else "defaults")
+    if free is not None:
+        prior.free = tuple(free)
+    for n in prior.free:
+        v = prior.theta.get(n)
+        if v is None or not math.isfinite(v):
+            raise ModelError(f"prior value of {n} is {v}; give a finite number")
+        if n.startswith(("R_", "C_")) and not v > 0:
+            raise ModelError(f"prior value of {n} is {v:g}; resistances and capacities are > 0")
+    return prior
+
+
+def prior_samples(prior: Prior, names, n: int, spread: float | None, seed: int = 0) -> np.ndarray:
+    """``n`` samples of ``log θ`` of ``names`` [n, len(names)]; the first is the prior value.
+
+    ``spread``: standard deviation of ``log θ`` of every parameter (a log-normal prior, e.g.
+    0.3 for about ±30 %), or ``None`` for the fit's covariance (which must be known).
+    """
+    mean = np.log([prior.theta[k] for k in names])
+    if n <= 1:
+        return mean[None, :]
+    if spread is None:
+        if prior.log_cov is None:
+            raise ModelError(
+                "a robust design from the fit's covariance needs the JSON of a fit with "
+                "standard deviations; give a spread (e.g. 0.3) instead"
+            )
+        cov = np.zeros((len(names), len(names)))
+        idx = {k: i for i, k in enumerate(prior.log_names)}
+        for i, a in enumerate(names):
+            for j, b in enumerate(names):
+                if a in idx and b in idx:
+                    cov[i, j] = prior.log_cov[idx[a], idx[b]]
+    else:
+        if not (math.isfinite(spread) and spread >= 0):
+            raise ModelError(f"spread must be a finite number ≥ 0, got {spread}")
+        cov = np.eye(len(names)) * spread**2
+    rng = np.random.default_rng(seed)
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    L = V * np.sqrt(np.clip(w, 0.0, None))
+    draws = mean + rng.standard_normal((n - 1, len(names))) @ L.T
+    return np.concatenate([mean[None, :], draws], axis=0)

@@ -1,0 +1,366 @@
+"""Experiment design: the Fisher information, its gradient, the planned schedule, the baselines,
+and a Monte-Carlo check of the predicted standard deviations against repeated fits."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbox
+from jaxbox import design
+from jaxbox.cli._main import main
+from jaxbox.models import ModelError
+
+# ZonWal with the values fitted on the bundled twin-house data (house N2, first half)
+PRIOR = {"C_zon": 2.615e7, "C_wal": 3.115e8, "R_wal": 7.129e-3, "gA": 1.79}
+DAYS = 2
+STARTS = 4
+
+
+@pytest.fixture(scope="module")
+def planned():
+    return design.plan(
+        "ZonWal",
+        PRIOR,
+        sigma=0.05,
+        days=DAYS,
+        power=(0.0, 3000.0),
+        comfort=(15.0, 35.0),
+        criterion="hlc",
+        starts=STARTS,
+    )
+
+
+def _solver_args(ctx, rho=100.0, mu=0.0, lo=0.0, hi=3000.0):
+    extra = (lo, hi, 15.1, 34.9, np.inf, ctx.step, rho, mu)
+    return (*ctx.args(), *(jnp.asarray(float(v)) for v in extra))
+
+
+def _loss(ctx, criterion):
+    """The solver's loss, rebuilt here to differentiate it outside the compiled solver."""
+    setup = ctx.setup
+
+    def loss(z, args):
+        mats, tangents, c, U0, sigma, lo, hi, tlo, thi, emax, dt, rho, mu = args
+        s = 0.5 * (1.0 + jnp.sin(z))
+        u = lo + (hi - lo) * s
+        U = U0.at[:, setup.heat_index].set(u)
+        F = setup.information(mats, tangents, U, sigma)
+        value = jnp.mean(jax.vmap(lambda f, cc: setup.criterion(criterion, f, cc))(F, c))
+        y = setup.simulate(jax.tree_util.tree_map(lambda a: a[0], mats), U)
+        comfort = jnp.mean(jax.nn.relu(y - thi) ** 2 + jax.nn.relu(tlo - y) ** 2)
+        return value + rho * comfort + mu * jnp.mean(s * (1.0 - s))
+
+    return loss
+
+
+# ---- sequences ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("k", [3, 5, 7, 9])
+def test_prbs_is_a_maximum_length_sequence(k):
+    n = (1 << k) - 1
+    p = design.prbs(n, 1, seed=3).astype(int)
+    assert p.sum() == 1 << (k - 1)  # 2^(k-1) ones, 2^(k-1) - 1 zeros
+    ring = np.concatenate([p, p[: k - 1]])
+    windows = {tuple(ring[i : i + k]) for i in range(n)}
+    assert len(windows) == n  # every non-zero k-bit state once: period 2^k - 1
+    assert np.array_equal(design.prbs(2 * n, 2, seed=3)[::2][:n], p)  # the clock holds bits
+
+
+def test_rolbs_durations_are_log_spaced_and_balanced():
+    p = design.rolbs(10_000, shortest=1, longest=64, durations=7, seed=2)
+    edges = np.flatnonzero(np.diff(p) != 0)
+    runs = np.diff(edges)
+    assert set(np.unique(runs)) <= {1, 2, 4, 8, 16, 32, 64}
+    assert set(np.unique(runs)) == {1, 2, 4, 8, 16, 32, 64}
+    cycle = 2 * (1 + 2 + 4 + 8 + 16 + 32 + 64)
+    whole = p[: (len(p) // cycle) * cycle].reshape(-1, cycle)
+    np.testing.assert_array_equal(whole.sum(axis=1), cycle // 2)  # on as long as off
+
+
+# ---- the information and its derivatives -------------------------------------------------------
+
+
+def test_information_matches_finite_difference_sensitivities(planned):
+    """F from the AD sensitivity recursion vs F from central differences of simulate_model (the
+    Van Loan discretisation, another code path)."""
+    ctx = planned.context
+    u = planned.power
+    rep = ctx.report(u)
+    mats, tangents, c, U0, sigma = ctx.args()
+    U = np.array(U0)
+    U[:, ctx.setup.heat_index] = u
+    F = np.asarray(ctx.setup.information(mats, tangents, jnp.asarray(U), sigma))[0]
+    data = jaxbox.Dataset.from_arrays(
+        ctx.index, {n: U[:, i] for i, n in enumerate(ctx.setup.model.inputs)}
+    )
+    phi0 = ctx.phis[0]
+
+    def y(phi):
+        th = ctx.setup.theta(jnp.asarray(phi), ctx.fixed)
+        th = {k: float(v) for k, v in th.items()}
+        return jaxbox.simulate_model("ZonWal", th, data).y.ravel()
+
+    cols = []
+    for i in range(len(phi0)):
+        h = 1e-5 if ctx.setup.log[i] else 1e-4
+        e = np.zeros_like(phi0)
+        e[i] = h
+        cols.append((y(phi0 + e) - y(phi0 - e)) / (2 * h))
+    J = np.stack(cols, axis=1)
+    F_fd = J.T @ J / ctx.sigma**2
+    np.testing.assert_allclose(F, F_fd, rtol=2e-5, atol=1e-6 * np.abs(F_fd).max())
+    # the reported stds are the square roots of the diagonal of F⁻¹ (in SI)
+    sd = np.sqrt(np.diag(np.linalg.inv(F_fd)))
+    th = ctx.theta(0)
+    for i, n in enumerate(ctx.setup.free):
+        expected = th[n] * sd[i] if ctx.setup.log[i] else sd[i]
+        assert rep["std"][n] == pytest.approx(expected, rel=1e-4)
+
+
+def test_hlc_and_its_gradient(planned):
+    """ZonWal: HLC = 1/R_wal, so ∂ log HLC/∂ log R_wal = −1 and nothing else."""
+    ctx = planned.context
+    _, _, c, hlc = ctx.linear
+    assert float(hlc[0]) == pytest.approx(1.0 / PRIOR["R_wal"], rel=1e-10)
+    expected = np.zeros(len(ctx.setup.free))
+    expected[ctx.setup.free.index("R_wal")] = -1.0
+    np.testing.assert_allclose(np.asarray(c[0]), expected, atol=1e-10)
+    # and the same as the verdict's steady-state UA for a larger model
+    from jaxbox.validate import heat_loss_coefficients
+
+    model = jaxbox.get_model("ZonWalIntInf")
+    theta = model.defaults()
+    setup = design.make_setup(model, model.param_names)
+    ua = heat_loss_coefficients(model, theta)["Q_hea"][0]
+    assert float(setup.hlc(theta)) == pytest.approx(ua, rel=1e-9)
+    assert ua == pytest.approx(1 / theta["R_wal"] + 1 / theta["R_inf"], rel=1e-9)
+
+
+def test_criterion_gradient_matches_finite_differences(planned):
+    """The gradient of every criterion (with the comfort penalty) vs central differences."""
+    ctx = planned.context
+    losses = [_loss(ctx, c) for c in design.CRITERIA]
+    args = _solver_args(ctx)
+    value = jax.jit(lambda z, a: jnp.stack([f(z, a) for f in losses]))
+    grad = jax.jit(jax.jacrev(lambda z, a: jnp.stack([f(z, a) for f in losses])))
+    z = jnp.asarray(np.random.default_rng(0).normal(0.0, 1.0, ctx.n))
+    g = np.asarray(grad(z, args))  # [criteria, N]
+    h = 1e-3  # smaller steps lose more to round-off than they gain
+    for k in (0, 5, ctx.n // 2, ctx.n - 1):
+        e = np.zeros(ctx.n)
+        e[k] = h
+        fd = (np.asarray(value(z + e, args)) - np.asarray(value(z - e, args))) / (2 * h)
+        np.testing.assert_allclose(g[:, k], fd, rtol=1e-5, atol=1e-9)
+    # without penalties each is the criterion that the report gives for the same powers
+    u = np.asarray(1500.0 * (1.0 + jnp.sin(z)))
+    rep = ctx.report(u)["loss"]
+    free = np.asarray(value(z, _solver_args(ctx, rho=0.0)))
+    np.testing.assert_allclose(free, [rep[c] for c in design.CRITERIA], rtol=1e-10)
+
+
+# ---- the plan ----------------------------------------------------------------------------------
+
+
+def test_designed_beats_baselines_and_respects_constraints(planned):
+    reps = planned.reports
+    u = planned.power
+    assert len(u) == DAYS * 24
+    assert np.all(u >= 0.0) and np.all(u <= 3000.0)
+    rep = reps["designed"]
+    assert 15.0 <= rep["t_min"] and rep["t_max"] <= 35.0
+    for name in ("prbs", "rolbs", "step"):
+        assert rep["loss"]["hlc"] < reps[name]["loss"]["hlc"], name
+        assert rep["hlc_std"] < reps[name]["hlc_std"], name
+        # equal length and (up to the power cap) energy
+        assert len(planned.schedules[name]) == len(u)
+        assert reps[name]["energy_kwh"] <= rep["energy_kwh"] * (1 + 1e-9)
+    for name in ("prbs", "rolbs"):  # the same energy, unless the on level is capped at 3 kW
+        same = reps[name]["energy_kwh"] == pytest.approx(rep["energy_kwh"], rel=1e-9)
+        assert same or planned.schedules[name].max() == 3000.0, name
+    assert reps["step"]["energy_kwh"] == pytest.approx(rep["energy_kwh"], rel=1e-9)
+    frame = planned.schedule(baselines=True)
+    assert list(frame.columns[:2]) == ["Q_hea", "T_zon_predicted"]
+    assert "Q_hea_prbs" in frame.columns
+
+
+def test_binary_robust_design_with_energy_budget():
+    budget = 30 * 3.6e6  # 30 kWh over two days: less than the unconstrained design uses
+    d = design.plan(
+        "ZonWal",
+        PRIOR,
+        days=DAYS,
+        power=(200.0, 2500.0),
+        binary=True,
+        max_energy=budget,
+        comfort=(15.0, 35.0),
+        robust=3,
+        spread=0.3,
+        seed=1,
+        starts=STARTS,
+        max_steps=200,
+    )
+    assert set(np.unique(d.power)) <= {200.0, 2500.0}
+    assert d.rounding_loss is not None and np.isfinite(d.rounding_loss)
+    assert d.relaxed is not None and np.all((d.relaxed >= 200.0) & (d.relaxed <= 2500.0))
+    rep = d.reports["designed"]
+    assert rep["energy_kwh"] * 3.6e6 <= budget * 1.02
+    assert 15.0 <= rep["t_min"] and rep["t_max"] <= 35.0
+    assert rep["loss"]["hlc"] < d.reports["prbs"]["loss"]["hlc"]
+    # robust: three prior samples, the first the nominal one, the others spread log-normally
+    phis = d.context.phis
+    assert phis.shape[0] == 3
+    np.testing.assert_allclose(phis[0][:4], np.log(list(PRIOR.values())), rtol=1e-12)
+    assert np.all(np.abs(phis[1:, :4] - phis[0][:4]) > 1e-3)
+
+
+def test_robust_loss_is_the_average_over_samples(planned):
+    """The criterion of a robust context is the mean of those of one-sample contexts."""
+    from jaxbox.design._context import make_context
+    from jaxbox.design._prior import load_prior, prior_samples
+
+    ctx = planned.context
+    prior = load_prior("ZonWal", PRIOR)
+    names = ("C_zon", "C_wal", "R_wal", "gA")
+    samples = prior_samples(prior, names, 3, 0.3, seed=4)
+    args = (prior, ctx.setup, design._plan.default_weather(3600.0), ctx.n, 3600.0, 0.05, 25.0)
+    robust = make_context(*args, samples, names).report(planned.power)["loss"]
+    single = [
+        make_context(*args, samples[i : i + 1], names).report(planned.power)["loss"]
+        for i in range(3)
+    ]
+    for c in design.CRITERIA:
+        assert robust[c] == pytest.approx(np.mean([s[c] for s in single]), rel=1e-10)
+    assert np.std([s["hlc"] for s in single]) > 1e-3  # the samples differ
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ModelError, match="criterion"):
+        design.plan("ZonWal", PRIOR, criterion="E")
+    with pytest.raises(ModelError, match="power"):
+        design.plan("ZonWal", PRIOR, power=(3000.0, 0.0))
+    with pytest.raises(ModelError, match="no parameter"):
+        design.plan("ZonWal", {"R_foo": 1.0})
+    with pytest.raises(ModelError, match="sigma"):
+        design.plan("ZonWal", PRIOR, sigma=0.0)
+    with pytest.raises(jaxbox.DataError, match="horizon"):
+        design.plan("ZonWal", PRIOR, days=400)
+
+
+# ---- Monte Carlo: predicted vs observed spread of repeated fits --------------------------------
+
+
+def test_predicted_std_matches_monte_carlo_fits(planned):
+    ctx = planned.context
+    theta = ctx.theta(0)
+    model = ctx.setup.model
+    rng = np.random.default_rng(7)
+    R = 30
+    requests, names = [], []
+    for name in ("designed", "prbs"):
+        signals = {n: ctx.inputs[:, i] for i, n in enumerate(model.inputs)}
+        signals["Q_hea"] = planned.schedules[name]
+        base = jaxbox.Dataset.from_arrays(ctx.index, signals)
+        y = jaxbox.simulate_model(model, theta, base).y[:, 0]
+        for _ in range(R):
+            noisy = base.with_columns(T_zon=y + rng.normal(0.0, ctx.sigma, len(y)))
+            requests.append({"model": model, "data": noisy, "starts": 1, "guess": theta})
+            names.append(name)
+    results = jaxbox.fit_batch(requests)
+    names = np.asarray(names)
+    for name in ("designed", "prbs"):
+        rs = [r for r, n in zip(results, names, strict=True) if n == name]
+        P = np.asarray([[r.params[p] for p in ctx.setup.free] for r in rs])
+        rep = planned.reports[name]
+        checked = 0
+        for i, p in enumerate(ctx.setup.free):
+            # the linearised prediction holds where the estimate is precise (a few % of
+            # relative std); over two days the envelope capacity (time constant ~ two weeks)
+            # and, from a PRBS, the HLC are not
+            if rep["rel_std"][p] > 0.02:
+                continue
+            checked += 1
+            ratio = P[:, i].std(ddof=1) / rep["std"][p]
+            # 99.9 % interval of s/σ for 30 normal samples is [0.64, 1.39]
+            assert 0.6 < ratio < 1.45, (name, p, ratio)
+        assert checked >= 3
+        hlc = 1.0 / P[:, ctx.setup.free.index("R_wal")]
+        if name == "designed" or rep["hlc_std"] / rep["hlc"] <= 0.02:
+            assert rep["hlc_std"] / rep["hlc"] <= 0.02  # the design makes the HLC precise
+            assert 0.6 < hlc.std(ddof=1) / rep["hlc_std"] < 1.45
+    # and the designed experiment is observed to pin the HLC down better
+    observed = {
+        name: (
+            1.0
+            / np.asarray(
+                [r.params["R_wal"] for r, n in zip(results, names, strict=True) if n == name]
+            )
+        ).std(ddof=1)
+        for name in ("designed", "prbs")
+    }
+    assert observed["designed"] < observed["prbs"]
+
+
+# ---- command line ------------------------------------------------------------------------------
+
+
+def test_cli_design_writes_schedule(tmp_path, capsys):
+    fit = {
+        "model": "ZonWal",
+        "free": ["C_zon", "C_wal", "R_wal", "gA", "T_zon0", "T_wal0"],
+        "params": {
+            **{n: {"value": v, "std": 0.05 * v} for n, v in PRIOR.items()},
+            "T_zon0": {"value": 25.0, "std": None},
+            "T_wal0": {"value": 20.0, "std": None},
+        },
+        "correlation": {},
+    }
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(fit))
+    out = tmp_path / "schedule.csv"
+    code = main(
+        [
+            "design",
+            "--params",
+            str(path),
+            "--days",
+            str(DAYS),
+            "--sigma",
+            "0.05",
+            "--power",
+            "0:3000",
+            "--comfort",
+            "15:35",
+            "--starts",
+            str(STARTS),
+            "--out",
+            str(out),
+        ]
+    )
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "designed" in text and "prbs" in text and "HLC [W/K]" in text
+    import pandas as pd
+
+    frame = pd.read_csv(out, index_col=0)
+    assert len(frame) == DAYS * 24 and frame["Q_hea"].between(0, 3000).all()
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--model", "ZonWal", "--power", "3000:0"], "--power"),
+        (["--model", "ZonWal", "--step", "soon"], "--step"),
+        (["--params", "/nonexistent/fit.json"], "no such file"),
+        (["--model", "NoSuchModel"], "NoSuchModel"),
+        (["--model", "ZonWal", "--max-energy", "-3kWh"], "--max-energy"),
+    ],
+)
+def test_cli_bad_input_exits_2(tmp_path, capsys, args, words):
+    assert main(["design", *args, "--out", str(tmp_path / "s.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and words in err[0]
+    assert not (tmp_path / "s.csv").exists()

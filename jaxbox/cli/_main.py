@@ -19,9 +19,9 @@ import warnings
 
 from ._commands import add_fit_arguments, fit_command, models_command
 from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
+from ._design import add_design_arguments, design_command
 from ._estimate import add_estimate_arguments, estimate_command
 from ._fleet import add_fleet_arguments, fleet_command
-from ._design import add_design_arguments, design_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]

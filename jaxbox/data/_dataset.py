@@ -16,13 +16,14 @@ from ._checks import (
     check_missing,
     check_order,
     check_regular,
+    fill_missing_rows,
     fmt_seconds,
     irregular_position,
     median_step,
+    segment_slices,
     to_float,
 )
 from ._errors import DataError, list_names
-from ._gaps import fill_missing_rows, segment_slices
 from ._plausible import check_plausibility
 from ._resample import resample_mean
 
@@ -106,6 +107,11 @@ class Dataset:
     they are. Build one with :func:`jaxbox.data.load`, :meth:`from_arrays` or
     ``Dataset(frame)`` for a DataFrame that already has a DatetimeIndex. Every method returns a
     new Dataset; ``frame`` and ``array`` return copies.
+
+    Gaps are kept: NaN values, and rows missing from the grid put back as rows of NaN. A window
+    prepared for a fit (:func:`jaxbox.data.prepare_window`) or separate periods joined
+    (:func:`jaxbox.data.concat_periods`) hold :attr:`segments`: their time stamps jump over the
+    cuts.
     """
 
     __slots__ = ("_frame", "_step")
@@ -154,7 +160,8 @@ class Dataset:
             signals: name -> 1-D array of the same length (units of the canonical names: °C,
                 W, W/m²).
             start: time stamp of ``time == 0`` when ``time`` is in seconds.
-            check: run the checks of :func:`jaxbox.data.load` (regular step, no NaN, ...).
+            check: run the checks of :func:`jaxbox.data.load` (regular step, rows missing from
+                it put back as NaN, no kelvin, ...).
         """
         if isinstance(time, pd.DatetimeIndex):
             index = time

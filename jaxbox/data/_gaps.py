@@ -28,6 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from ._checks import fill_missing_rows, segment_slices
 from ._errors import DataError, DataWarning
 
 __all__ = [
@@ -68,34 +69,11 @@ def duration_seconds(value, what: str = "max_gap") -> float:
     return seconds
 
 
-def fill_missing_rows(index: pd.DatetimeIndex, step: float) -> pd.DatetimeIndex | None:
-    """The regular grid from the first to the last time stamp when every step of ``index`` is
-    a whole multiple of ``step`` [s] (rows missing from a regular grid); ``None`` otherwise."""
-    steps = np.diff(index.asi8) * 1e-9
-    ratio = steps / step
-    if np.any(np.abs(ratio - np.round(ratio)) > _TOL * np.maximum(ratio, 1.0)):
-        return None
-    return pd.date_range(index[0], index[-1], periods=int(round((steps.sum()) / step)) + 1).rename(
-        "time"
-    )
-
-
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """``[(start, stop), …]`` of the runs of True in a 1-D boolean array."""
     m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
     edges = np.flatnonzero(np.diff(m.astype(np.int8)))
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
-
-
-def segment_slices(index: pd.DatetimeIndex, step: float) -> tuple[tuple[int, int], ...]:
-    """``((start, stop), …)``: the runs of samples at the regular ``step`` [s]; a time step
-    longer than ``step`` starts a new segment."""
-    if len(index) < 2:
-        return ((0, len(index)),)
-    steps = np.diff(index.asi8) * 1e-9
-    cuts = np.flatnonzero(steps > step * (1 + _TOL) + _TOL) + 1
-    edges = [0, *cuts.tolist(), len(index)]
-    return tuple((edges[i], edges[i + 1]) for i in range(len(edges) - 1))
 
 
 def _span(index: pd.DatetimeIndex, a: int, b: int, step: float) -> str:

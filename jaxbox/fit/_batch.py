@@ -34,15 +34,17 @@ def fit_data(model, data, max_gap=DEFAULT_MAX_GAP, what: str = "identification d
     (:func:`~jaxbox.data.concat_periods`), gaps prepared
     (:func:`~jaxbox.data.prepare_window`: input gaps interpolated up to ``max_gap``, segments
     beyond, output gaps kept for masking) and the model segmented to the data
-    (:meth:`~jaxbox.models.RCModel.segmented`). Data problems raise :class:`FitError`."""
+    (:meth:`~jaxbox.models.RCModel.segmented`). A missing column raises
+    :class:`~jaxbox.data.DataError`, a window that gaps leave unusable :class:`FitError`."""
+    if isinstance(data, list | tuple):
+        data = concat_periods(data)
+    if not isinstance(data, Dataset):
+        raise FitError(
+            f"data must be a jaxbox Dataset or a list of Datasets (periods), got "
+            f"{type(data).__name__}"
+        )
+    data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     try:
-        if isinstance(data, list | tuple):
-            data = concat_periods(data)
-        if not isinstance(data, Dataset):
-            raise FitError(
-                f"data must be a jaxbox Dataset or a list of Datasets (periods), got "
-                f"{type(data).__name__}"
-            )
         data = prepare_window(data, model.inputs, model.outputs, max_gap=max_gap, what=what)
     except DataError as err:
         raise FitError(str(err)) from None

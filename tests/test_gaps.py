@@ -302,6 +302,10 @@ def test_command_line_on_data_with_gaps(gap_csv, capsys):
     assert "inputs 'T_amb', 'Q_hea', 'I_glo_hor' missing from 2024-01-08 02:00:00" in out.err
     assert doc["rmse_cross"] is None and doc["data"]["validate"] is None
     assert "T_zon0_s2" in doc["params"] and doc["params"]["R_wal"]["ci95"] is not None
+    assert doc["data"]["segments"] == [
+        ["2024-01-01 00:00:00", "2024-01-08 01:00:00"],
+        ["2024-01-10 18:00:00", "2024-01-10 23:00:00"],
+    ]
     assert doc["residuals"]["auto"]["T_zon"]["ljung_box"]["lags"] >= 1
     assert doc["residuals"]["cross"] is None
     assert main([*common, "--max-gap", "2 fortnights"]) == 2

@@ -437,7 +437,14 @@ def fit_json(result, validation, *, timing, data_info, valid=None) -> dict:
         },
         simulator=result.problem.simulator,
         timing=timing,
-        data=data_info,
+        data={
+            **data_info,
+            # the identification samples fitted: gaps longer than --max-gap cut out
+            "segments": [
+                [str(result.data.index[a]), str(result.data.index[b - 1])]
+                for a, b in result.data.segments
+            ],
+        },
     )
     return doc
 

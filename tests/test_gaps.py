@@ -14,7 +14,7 @@ import pytest
 import jaxbox
 from jaxbox.cli._main import main
 from jaxbox.data import DataError, Dataset, DataWarning, concat_periods, prepare_window
-from jaxbox.fit import FitError, make_problem, problem_arrays
+from jaxbox.fit import FitError, fit_sensitivity, make_problem, problem_arrays
 from jaxbox.validate import analyse_residuals, autocorrelation, ljung_box, uncertainty, validate
 
 STEP = 3600.0
@@ -209,6 +209,9 @@ def test_validation_and_intervals_of_a_segment_fit(segment_fit, two_segments):
     assert sum(covered) >= 3
     ra = v.residual_analysis("auto", max_lag=10)
     assert ra["T_zon"].stats["n"] == 179
+    # a missing measurement moves no estimate
+    sens = fit_sensitivity(segment_fit)["C_zon"]
+    assert np.all(sens[60:63] == 0) and np.all(sens[:60] != 0)
 
 
 # -- residual tests on masked series --------------------------------------------------------------

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jaxbox.data import SIGNALS, DataError, Dataset, load, signal_unit
+from jaxbox.data import SIGNALS, DataError, Dataset, DataWarning, load, signal_unit
 
 STEP = 600.0  # s
 
@@ -172,11 +172,19 @@ def test_duplicate_time_stamps() -> None:
 
 def test_irregular_sampling_suggests_resample() -> None:
     df = frame(n=20)
-    df = df.drop(index=9).reset_index(drop=True)
+    df.loc[9, "time"] = "2020-01-01 01:35:00"  # 900 s and 300 s: not whole steps
     with pytest.raises(
-        DataError, match=r"irregular sampling.*01:20:00 to .*01:40:00.*1200 s.*resample="
+        DataError, match=r"irregular sampling.*01:20:00 to .*01:35:00.*900 s.*resample="
     ):
         load(df)
+
+
+def test_missing_rows_are_gaps() -> None:
+    df = frame(n=20).drop(index=[9, 10]).reset_index(drop=True)  # 01:30 and 01:40 missing
+    with pytest.warns(DataWarning, match=r"gaps: missing samples in 'T_zon' \(2\)"):
+        ds = load(df)
+    assert len(ds) == 20 and ds.step == STEP
+    assert np.isnan(ds["T_zon"][9:11]).all() and np.isfinite(ds["T_zon"][[8, 11]]).all()
 
 
 def test_irregular_sampling_accepted_with_resample() -> None:
@@ -208,23 +216,19 @@ def test_decimal_comma_hint(tmp_path) -> None:
         load(path)
 
 
-def test_missing_values(tmp_path) -> None:
+def test_missing_values_are_kept_and_noted(tmp_path) -> None:
     df = frame()
     df.loc[[3, 4, 9], "T_zon"] = np.nan
-    with pytest.raises(
-        DataError,
-        match=r"column 'T_zon' has 3 missing .* between 2020-01-01 00:30:00 and "
-        r"2020-01-01 01:30:00.*slice.*fill",
-    ):
-        load(df)
+    with pytest.warns(DataWarning, match=r"missing samples in 'T_zon' \(3\).*--max-gap"):
+        ds = load(df)
+    assert np.isnan(ds["T_zon"][[3, 4, 9]]).all()
     path = tmp_path / "gap.csv"
     frame().to_csv(path, index=False)
     text = path.read_text().splitlines()
     text[3] = text[3].rsplit(",", 1)[0] + ","  # empty Q_hea in the third data row
     path.write_text("\n".join(text) + "\n")
-    with pytest.raises(DataError, match="column 'Q_hea' has 1 missing"):
-        load(path)
-    assert np.isnan(load(path, check=False)["Q_hea"][2])
+    with pytest.warns(DataWarning, match=r"'Q_hea' \(1\)"):
+        assert np.isnan(load(path)["Q_hea"][2])
 
 
 def test_kelvin_temperature() -> None:
@@ -317,13 +321,12 @@ def test_resample_errors() -> None:
         ds.slice(end="2000-01-01 00:30").resample("1h")
 
 
-def test_resample_empty_interval() -> None:
+def test_resample_empty_interval_is_a_gap() -> None:
     df = frame(n=37)
     df = df.drop(index=range(13, 19)).reset_index(drop=True)  # no data in (02:00, 03:00]
-    with pytest.raises(DataError, match=r"no samples in the interval \(2020-01-01 02:00:00, "):
-        load(df, resample="1h")
-    with pytest.raises(DataError, match=r"\(2020-01-01 02:00:00, 2020-01-01 03:00:00\]"):
-        load(df, check=False).resample("1h")
+    with pytest.warns(DataWarning, match="gaps"):
+        ds = load(df, resample="1h")
+    assert len(ds) == 6 and np.isnan(ds["T_zon"][2]) and np.isfinite(ds["T_zon"][[1, 3]]).all()
 
 
 # -- Dataset --------------------------------------------------------------------------------------
@@ -445,7 +448,9 @@ def test_from_arrays() -> None:
     with pytest.raises(DataError, match="signal 'T_zon' has shape"):
         Dataset.from_arrays(np.arange(5) * 3600.0, {"T_zon": np.ones(4)})
     with pytest.raises(DataError, match="irregular sampling"):
-        Dataset.from_arrays(np.array([0.0, 1.0, 2.0, 4.0]) * 3600.0, {"T_zon": np.ones(4)})
+        Dataset.from_arrays(np.array([0.0, 1.0, 2.0, 3.5]) * 3600.0, {"T_zon": np.ones(4)})
+    gappy = Dataset.from_arrays(np.array([0.0, 1.0, 2.0, 4.0]) * 3600.0, {"T_zon": np.ones(4)})
+    assert len(gappy) == 5 and np.isnan(gappy["T_zon"][3])  # the missing row is a gap
 
 
 def test_dataset_from_frame_needs_datetime_index() -> None:

@@ -221,7 +221,14 @@ CASES = [
     ),
     ("kelvin column", changed(T_zon=frame()["T_zon"] + 273.15), FIT, ["T_zon", "kelvin"]),
     ("text in a number column", changed(T_amb=(5, "oops")), FIT, ["T_amb", "oops"]),
-    ("NaN in a column", changed(Q_hea=(7, np.nan)), FIT, ["Q_hea"]),
+    (
+        "an input missing in the whole identification window",
+        changed(Q_hea=(list(range(24)), np.nan)),
+        FIT,
+        ["Q_hea"],
+    ),
+    ("--max-gap not a duration", good, [*FIT, "--max-gap", "soon"], ["--max-gap", "soon"]),
+    ("--max-gap negative", good, [*FIT, "--max-gap", "-1h"], ["--max-gap"]),
     ("inf in the validation window", changed(T_amb=(40, np.inf)), FIT, ["T_amb"]),
     ("inf in the identification window", changed(T_zon=(3, np.inf)), FIT, ["T_zon"]),
     ("1e300 in the validation window", changed(I_glo_hor=(45, 1e300)), FIT, ["I_glo_hor"]),
@@ -247,7 +254,17 @@ CASES = [
     ("unparseable time stamp", changed(time=(4, "not a date")), FIT, ["not a date"]),
     ("duplicate time stamps", with_rows([0, 1, 1, 2, 3, 4, 5]), FIT, ["duplicate"]),
     ("time stamps out of order", with_rows([0, 2, 1, 3, 4, 5]), FIT, ["sort"]),
-    ("irregular sampling", with_rows([*range(10), *range(11, 30)]), FIT, ["--resample"]),
+    (
+        "irregular sampling",
+        lambda folder: csv(
+            folder / "data.csv",
+            frame().assign(
+                time=lambda f: f["time"].where(f.index != 10, f["time"][10] + pd.Timedelta("20min"))
+            ),
+        ),
+        FIT,
+        ["--resample"],
+    ),
     # -- model and parameters
     ("unknown model", good, ["fit", "{data}", "--model", "Nope"], ["Nope"]),
     ("--model typo", good, ["fit", "{data}", "--model", "ZonWall"], ["ZonWall"]),

@@ -143,8 +143,10 @@ def test_multi_output_analysis_and_json():
 
 
 def test_bad_input_is_refused():
-    with pytest.raises(ValueError, match="NaN"):
-        analyse_residuals(np.array([0.1, np.nan, 0.2, 0.3, 0.1]))
+    with pytest.raises(ValueError, match="inf"):
+        analyse_residuals(np.array([0.1, np.inf, 0.2, 0.3, 0.1]))
+    with pytest.raises(ValueError, match="4 measured samples"):  # NaN: missing samples
+        analyse_residuals(np.array([0.1, np.nan, np.nan, 0.3, 0.1]))
     with pytest.raises(ValueError, match="max_lag"):
         autocorrelation(np.zeros(10) + np.arange(10), 20)
     with pytest.raises(ValueError, match="samples"):

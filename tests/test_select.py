@@ -180,9 +180,12 @@ def test_case_starts_are_reproducible(selection):
     np.testing.assert_array_equal(case.start_values(), case.result.starts.initial)
 
 
-def test_selection_needs_validation_data(data):
-    with pytest.raises(ValueError, match="validation"):
-        forward_selection(GreyBox(data, train=(None, None), valid=False), ["Zon"])
+def test_selection_without_validation_data_ranks_by_identification_error(data):
+    gb = GreyBox(data, train=(None, None), valid=False)
+    sel = forward_selection(gb, ["Zon"], starts=2)
+    case = gb["Zon"]
+    assert case.validation.se_cross is None and case.score == case.se_auto
+    assert sel.accepted in (None, "Zon")
 
 
 def test_select_command_json(data, tmp_path, capsys):

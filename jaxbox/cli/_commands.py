@@ -150,6 +150,7 @@ def fit_command(args) -> int:
         "seed": args.seed,
         "simulator": args.simulator,
         "max_steps": args.max_steps,
+        "max_gap": opts.max_gap,
     }
     with Outputs() as outputs:
         staged = outputs.folder(plots) if plots is not None else None

@@ -437,19 +437,28 @@ def fit_json(result, validation, *, timing, data_info, valid=None) -> dict:
         },
         simulator=result.problem.simulator,
         timing=timing,
-        data=data_info,
+        data={
+            **data_info,
+            # the identification samples fitted: gaps longer than --max-gap cut out
+            "segments": [
+                [str(result.data.index[a]), str(result.data.index[b - 1])]
+                for a, b in result.data.segments
+            ],
+        },
     )
     return doc
 
 
 def data_info(spec, ident, valid) -> dict:
+    """The data part of a document: source, step, windows and their lengths (``validate``
+    ``None`` with ``--validate none``), and the segments of the identification window."""
     return {
         "source": spec,
         "step_s": ident.step,
         "train": [str(ident.start), str(ident.end)],
-        "validate": [str(valid.start), str(valid.end)],
+        "validate": None if valid is None else [str(valid.start), str(valid.end)],
         "n_train": len(ident),
-        "n_validate": len(valid),
+        "n_validate": 0 if valid is None else len(valid),
     }
 
 

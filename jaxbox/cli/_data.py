@@ -92,7 +92,36 @@ def add_data_arguments(p) -> None:
     p.add_argument(
         "--train", metavar="START..END", help="identification period (default: first half)"
     )
-    p.add_argument("--validate", metavar="START..END", help="validation period (default: the rest)")
+    p.add_argument(
+        "--validate",
+        metavar="START..END|none",
+        help="validation period (default: the rest); a time stamp shared with --train belongs "
+        "to the identification period; 'none' fits all of --train (default the whole data) "
+        "and reports residual tests and intervals only",
+    )
+    p.add_argument(
+        "--max-gap",
+        metavar="DURATION",
+        default="1h",
+        help="input gaps up to DURATION (e.g. 30min, 2h) are interpolated, with a warning; "
+        "longer ones split a window into segments with their own initial states; output gaps "
+        "are masked (default 1h)",
+    )
+
+
+def _max_gap(text) -> float:
+    """``--max-gap``: a duration such as ``30min`` or ``2h`` (a bare number is seconds)."""
+    from ..data import DataError
+    from ..data._gaps import duration_seconds
+
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        value = text
+    try:
+        return duration_seconds(value, "--max-gap")
+    except DataError as err:
+        raise UsageError(str(err).replace("--max-gap=", "--max-gap ")) from None
 
 
 class DataOptions:
@@ -115,7 +144,9 @@ class DataOptions:
         self.resample = resample_rule(args.resample)
         self.train_text, self.valid_text = args.train, args.validate
         self.train = period(args.train, "--train")
-        self.valid = period(args.validate, "--validate")
+        none = args.validate is not None and args.validate.strip().lower() == "none"
+        self.valid = False if none else period(args.validate, "--validate")
+        self.max_gap = _max_gap(getattr(args, "max_gap", "1h"))
         self._check_specs()
 
     @property
@@ -192,63 +223,28 @@ def load_data(spec: str, opts: DataOptions | None = None):
 
 def split_periods(data, opts: DataOptions):
     """Identification and validation datasets from the ``--train`` and ``--validate`` periods
-    (default: the halves), each of at least :data:`MIN_SAMPLES`, in this order."""
-    train, valid = opts.train, opts.valid
-    if train is None and valid is None:
-        ident, val = data.split()
-    else:
-        ident, val = _windows(data, opts)
+    (:meth:`jaxbox.data.Dataset.windows`: default the halves, a shared edge belongs to the
+    identification period; ``--validate none``: no validation dataset, ``None``), each of at
+    least :data:`MIN_SAMPLES`."""
+    from ..data import DataError
+
+    try:
+        ident, val = data.windows(opts.train, opts.valid, names=("--train", "--validate"))
+    except DataError as err:
+        raise UsageError(str(err)) from None
     windows = ((ident, "identification", "--train"), (val, "validation", "--validate"))
     for window, what, option in windows:
-        if len(window) < MIN_SAMPLES:
+        if window is not None and len(window) < MIN_SAMPLES:
             fix = f"widen {option}" if _option_given(opts, option) else "give more data"
             raise UsageError(
                 f"the {what} period ({window.start} .. {window.end}) holds {len(window)} "
                 f"sample(s); at least {MIN_SAMPLES} are needed: {fix}"
             )
-    if val.start <= ident.end:
-        raise UsageError(
-            f"the validation period ({val.start} .. {val.end}) must start after the "
-            f"identification period ends ({ident.end}); adjust --train or --validate"
-        )
     return ident, val
 
 
 def _option_given(opts: DataOptions, option: str) -> bool:
     return (opts.train if option == "--train" else opts.valid) is not None
-
-
-def _windows(data, opts: DataOptions):
-    """The ``--train`` and ``--validate`` windows, one of them perhaps from the other."""
-    from ..data import DataError
-
-    def cut(span, option, text):
-        try:
-            return data.slice(*span)
-        except DataError as err:
-            raise UsageError(f"{option} {text}: {err}") from None
-
-    train, valid = opts.train, opts.valid
-    val = cut(valid, "--validate", opts.valid_text) if valid is not None else None
-    if train is not None:
-        ident = cut(train, "--train", opts.train_text)
-    else:
-        before = data.index[data.index < val.start]
-        if len(before) == 0:
-            raise UsageError(
-                f"--validate {opts.valid_text}: no data before the validation period to identify "
-                f"on (the data start at {data.start}); give --train or start --validate later"
-            )
-        ident = data.slice(None, before[-1])
-    if val is None:
-        rest = data.index[data.index > ident.end]
-        if len(rest) == 0:
-            raise UsageError(
-                "no data left after the identification period for validation (the data end at "
-                f"{data.end}); shorten --train or give --validate"
-            )
-        val = data.slice(rest[0], None)
-    return ident, val
 
 
 def check_windows(ident, valid, columns=None, ranges=None) -> None:
@@ -258,6 +254,8 @@ def check_windows(ident, valid, columns=None, ranges=None) -> None:
     from ..data import check_plausibility
 
     for data, what in ((ident, "identification data"), (valid, "validation data")):
+        if data is None:
+            continue
         notes = check_plausibility(
             data, overrides=ranges or None, columns=columns, what=what, warn=False
         )

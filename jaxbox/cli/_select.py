@@ -125,7 +125,7 @@ def _candidates(text: str, data=None):
     return models
 
 
-def _run_selection(sets, args, candidates, ranges=None):
+def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0):
     """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
     lock-step, each step's fits batched over the buildings."""
     from ..data import DataWarning
@@ -137,9 +137,10 @@ def _run_selection(sets, args, candidates, ranges=None):
             GreyBox(
                 data,
                 train=(str(ident.start), str(ident.end)),
-                valid=(str(valid.start), str(valid.end)),
+                valid=False if valid is None else (str(valid.start), str(valid.end)),
                 name=spec,
                 ranges=ranges,
+                max_gap=max_gap,
             )
             for spec, data, ident, valid in sets
         ]
@@ -222,7 +223,7 @@ def select_command(args) -> int:
     opts = DataOptions(args)
     out = check_output_folders(args.out, "--out", opts.specs)
     sets = [
-        (spec, data.slice(ident.start, valid.end), ident, valid)
+        (spec, data.slice(ident.start, (ident if valid is None else valid).end), ident, valid)
         for spec, data, ident, valid in load_all(args, opts)
     ]
     candidates = _candidates(args.models, sets[0][1])
@@ -230,7 +231,7 @@ def select_command(args) -> int:
         _candidates(args.models, data)
     with Outputs() as outputs:
         t0 = time.perf_counter()
-        outcomes = _run_selection(sets, args, candidates, opts.ranges)
+        outcomes = _run_selection(sets, args, candidates, opts.ranges, opts.max_gap)
         elapsed = time.perf_counter() - t0
         docs = []
         for (spec, _, ident, valid), (gb, sel) in zip(sets, outcomes, strict=True):
@@ -243,14 +244,30 @@ def select_command(args) -> int:
         outputs.commit()
     if args.json:
         print_json(docs[0] if len(docs) == 1 else {"buildings": docs, "elapsed_s": elapsed})
+    else:
+        for (gb, sel), doc in zip(outcomes, docs, strict=True):
+            if len(docs) > 1:
+                print(f"\n== {gb.name}")
+            _print_table(gb, sel)
+            if out is not None:
+                print(f"\nreport: {doc['files']['report']}")
+    return _no_valid_model(outcomes)
+
+
+def _no_valid_model(outcomes) -> int:
+    """0 when every building has an accepted model; else 1, with one line on stderr."""
+    import sys
+
+    none = [gb for gb, sel in outcomes if sel.case is None]
+    if not none:
         return 0
-    for (gb, sel), doc in zip(outcomes, docs, strict=True):
-        if len(docs) > 1:
-            print(f"\n== {gb.name}")
-        _print_table(gb, sel)
-        if out is not None:
-            print(f"\nreport: {doc['files']['report']}")
-    return 0
+    which = "" if len(outcomes) == 1 else f" for {', '.join(gb.name for gb in none)}"
+    print(
+        f"no valid model{which}: none of the candidates passed the validity checks",
+        file=sys.stderr,
+        flush=True,
+    )
+    return 1
 
 
 def demo_command(args) -> int:

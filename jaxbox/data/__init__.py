@@ -9,7 +9,10 @@ text in number columns, infinities, absurd magnitudes, a temperature column in k
 :func:`check_plausibility` (or :meth:`Dataset.check_plausible`) judges the periods actually used
 for identification and validation: physical ranges per kind of signal, kelvin/°F/kW mix-ups in
 part of a column, spikes, jumps and stuck sensors. :func:`as_dataset` turns what a user passes
-as data (a Dataset, a DataFrame, a path) into a Dataset.
+as data (a Dataset, a DataFrame, a path) into a Dataset. Gaps (missing rows and values) are
+kept and judged in the windows used: :func:`prepare_window` interpolates short input gaps,
+splits the window into segments at long ones and leaves output gaps to be masked;
+:func:`concat_periods` joins separate periods as segments of one dataset.
 """
 
 from ._args import check_mapping as check_mapping
@@ -17,6 +20,9 @@ from ._checks import check_finite as check_finite
 from ._dataset import Dataset as Dataset
 from ._errors import DataError as DataError
 from ._errors import DataWarning as DataWarning
+from ._gaps import DEFAULT_MAX_GAP as DEFAULT_MAX_GAP
+from ._gaps import concat_periods as concat_periods
+from ._gaps import prepare_window as prepare_window
 from ._load import as_dataset as as_dataset
 from ._load import load as load
 from ._plausible import PLAUSIBLE_RANGES as PLAUSIBLE_RANGES

@@ -24,6 +24,8 @@ __all__ = [
     "check_missing",
     "check_order",
     "check_regular",
+    "fill_missing_rows",
+    "segment_slices",
     "irregular_position",
     "median_step",
     "parse_time",
@@ -37,6 +39,8 @@ _COMMA_NUMBER = re.compile(r"^\s*[-+]?\d*,\d+\s*$")
 
 #: Relative tolerance on the sampling step (float seconds round to the nanosecond).
 _STEP_RTOL = 1e-6
+#: Relative tolerance of a whole number of steps (rows missing from a grid, a segment's cut).
+_GRID_TOL = 1e-6
 #: Absolute tolerance on the sampling step [s].
 _STEP_ATOL = 1e-6
 #: A temperature column with a median above this [°C] is taken to be in kelvin.
@@ -163,6 +167,29 @@ def irregular_position(index: pd.DatetimeIndex) -> int | None:
     return int(off[0]) + 1 if off.size else None
 
 
+def fill_missing_rows(index: pd.DatetimeIndex, step: float) -> pd.DatetimeIndex | None:
+    """The regular grid from the first to the last time stamp when every step of ``index`` is
+    a whole multiple of ``step`` [s] (rows missing from a regular grid); ``None`` otherwise."""
+    steps = np.diff(index.asi8) * 1e-9
+    ratio = steps / step
+    if np.any(np.abs(ratio - np.round(ratio)) > _GRID_TOL * np.maximum(ratio, 1.0)):
+        return None
+    return pd.date_range(index[0], index[-1], periods=int(round((steps.sum()) / step)) + 1).rename(
+        "time"
+    )
+
+
+def segment_slices(index: pd.DatetimeIndex, step: float) -> tuple[tuple[int, int], ...]:
+    """``((start, stop), …)``: the runs of samples at the regular ``step`` [s]; a time step
+    longer than ``step`` starts a new segment."""
+    if len(index) < 2:
+        return ((0, len(index)),)
+    steps = np.diff(index.asi8) * 1e-9
+    cuts = np.flatnonzero(steps > step * (1 + _GRID_TOL) + _GRID_TOL) + 1
+    edges = [0, *cuts.tolist(), len(index)]
+    return tuple((edges[i], edges[i + 1]) for i in range(len(edges) - 1))
+
+
 def check_regular(index: pd.DatetimeIndex, where: Where = _position) -> None:
     """The sampling step must be constant; name the first place where it is not."""
     i = irregular_position(index)
@@ -253,7 +280,9 @@ def check_kelvin(frame: pd.DataFrame) -> None:
     for name in frame.columns:
         if not is_temperature(name):
             continue
-        median = float(np.nanmedian(frame[name].to_numpy())) if len(frame) else np.nan
+        values = frame[name].to_numpy()
+        seen = values[np.isfinite(values)]
+        median = float(np.median(seen)) if seen.size else np.nan
         if median > _KELVIN_MEDIAN:
             raise DataError(
                 f"column {name!r} looks like kelvin (median {median:.1f}); convert to °C "

@@ -16,8 +16,11 @@ from ._checks import (
     check_missing,
     check_order,
     check_regular,
+    fill_missing_rows,
     fmt_seconds,
+    irregular_position,
     median_step,
+    segment_slices,
     to_float,
 )
 from ._errors import DataError, list_names
@@ -52,9 +55,11 @@ def validated_frame(
     """A fresh float64 copy of ``frame`` (DatetimeIndex named ``time``) after the checks.
 
     Always: unique string column names, strictly increasing time stamps, numeric values, at
-    least two samples, no infinite value or absurd magnitude. With ``check``: no NaN, no
-    temperature in kelvin and, with ``regular``, a constant sampling step. ``scale`` (column ->
-    factor) multiplies columns before the value checks.
+    least two samples, no infinite value or absurd magnitude. With ``check``: no temperature in
+    kelvin and, with ``regular``, a constant sampling step; rows missing from that step's grid
+    (every step a whole multiple of the median step) are put back as rows of NaN. NaN values
+    are gaps, kept (see :mod:`jaxbox.data._gaps`). ``scale`` (column -> factor) multiplies
+    columns before the value checks.
     """
     if not isinstance(frame, pd.DataFrame):
         raise DataError(
@@ -78,15 +83,19 @@ def validated_frame(
         )
     index = pd.DatetimeIndex(frame.index, freq=None, name="time").as_unit("ns")
     check_order(index, where)
-    if check and regular:
-        check_regular(index, where)
+    grid = None
+    if check and regular and irregular_position(index) is not None:
+        grid = fill_missing_rows(index, median_step(index))
+        if grid is None:
+            check_regular(index, where)
     values = to_float(frame.set_axis(columns, axis=1).set_axis(index, axis=0), where)
     for name, factor in (scale or {}).items():
         values[name] = values[name] * factor
     check_finite(values)
     if check:
-        check_missing(values)
         check_kelvin(values)
+    if grid is not None:  # rows missing from the regular grid: gaps of NaN
+        values = values.reindex(grid)
     return values
 
 
@@ -98,6 +107,11 @@ class Dataset:
     they are. Build one with :func:`jaxbox.data.load`, :meth:`from_arrays` or
     ``Dataset(frame)`` for a DataFrame that already has a DatetimeIndex. Every method returns a
     new Dataset; ``frame`` and ``array`` return copies.
+
+    Gaps are kept: NaN values, and rows missing from the grid put back as rows of NaN. A window
+    prepared for a fit (:func:`jaxbox.data.prepare_window`) or separate periods joined
+    (:func:`jaxbox.data.concat_periods`) hold :attr:`segments`: their time stamps jump over the
+    cuts.
     """
 
     __slots__ = ("_frame", "_step")
@@ -146,7 +160,8 @@ class Dataset:
             signals: name -> 1-D array of the same length (units of the canonical names: °C,
                 W, W/m²).
             start: time stamp of ``time == 0`` when ``time`` is in seconds.
-            check: run the checks of :func:`jaxbox.data.load` (regular step, no NaN, ...).
+            check: run the checks of :func:`jaxbox.data.load` (regular step, rows missing from
+                it put back as NaN, no kelvin, ...).
         """
         if isinstance(time, pd.DatetimeIndex):
             index = time
@@ -294,7 +309,7 @@ class Dataset:
 
         Mean over right-closed intervals labelled at their right edge (each sample stamps the
         end of its averaging interval); an incomplete interval at the start or end is dropped,
-        an interval without any sample raises :class:`DataError`.
+        an interval without any value of a column is a gap (NaN).
         """
         return Dataset._new(resample_mean(self._frame, rule, self._step))
 
@@ -359,6 +374,86 @@ class Dataset:
             Dataset._new(frame.iloc[first:].copy(), self._step),
         )
 
+    @property
+    def segments(self) -> tuple[tuple[int, int], ...]:
+        """``((start, stop), …)``: runs of samples at the regular step. A dataset holds one
+        segment unless gaps were cut out of it (:func:`jaxbox.data.prepare_window`) or periods
+        joined (:func:`jaxbox.data.concat_periods`): its time stamps then jump between them."""
+        return segment_slices(self._frame.index, self._step)
+
+    def windows(
+        self,
+        train: tuple | None = None,
+        valid: tuple | bool | None = None,
+        *,
+        names: tuple[str, str] = ("train", "valid"),
+    ) -> tuple[Dataset, Dataset | None]:
+        """The identification and validation windows, ``(ident, valid)``.
+
+        Args:
+            train: ``(start, end)`` of the identification window (inclusive; a ``None`` side is
+                open); default the first half of the data, everything before ``valid``, or all
+                of the data with ``valid=False``.
+            valid: ``(start, end)`` of the validation window; default everything after the
+                identification window; ``False`` for none (``valid`` is then ``None``).
+            names: how the two arguments are called in messages (the command line passes
+                ``("--train", "--validate")``).
+
+        A time stamp shared by both windows (``--train A..B --validate B..C``) belongs to the
+        first one: the validation window starts at the next sample.
+
+        Raises:
+            DataError: an empty window, a validation window that does not start after the
+                identification window or leaves nothing after the shared edge.
+        """
+
+        def cut(span, name):
+            try:
+                return self.slice(*span)
+            except DataError as err:
+                raise DataError(f"{name} {_span_text(span)}: {err}") from None
+
+        if train is None and valid is None:
+            return self.split()
+        if train is None and valid is False:
+            return self, None
+        val = cut(valid, names[1]) if valid is not None and valid is not False else None
+        if train is not None:
+            ident = cut(train, names[0])
+        else:
+            before = self.index[self.index < val.start]
+            if len(before) == 0:
+                raise DataError(
+                    f"{names[1]} {_span_text(valid)}: no data before the validation window to "
+                    f"identify on (the data start at {self.start}); give {names[0]} or start "
+                    f"{names[1]} later."
+                )
+            ident = self.slice(None, before[-1])
+        if valid is False:
+            return ident, None
+        if val is None:
+            rest = self.index[self.index > ident.end]
+            if len(rest) == 0:
+                raise DataError(
+                    f"no data left after the identification window for validation (the data "
+                    f"end at {self.end}); shorten {names[0]} or give {names[1]}."
+                )
+            return ident, self.slice(rest[0], None)
+        if val.start == ident.end:  # the shared edge belongs to the first window
+            if len(val) == 1:
+                raise DataError(
+                    f"{names[1]} {_span_text(valid)} holds only the last sample of the "
+                    f"identification window ({ident.end}); a shared edge belongs to the first "
+                    f"window: extend {names[1]}."
+                )
+            val = self.slice(val.index[1], val.end)
+        if val.start < ident.end:
+            raise DataError(
+                f"the validation window ({val.start} .. {val.end}) must start after the "
+                f"identification window ends ({ident.end}); adjust {names[0]} or {names[1]}."
+            )
+        return ident, val
+
     def check_plausible(
         self,
         *,
@@ -399,3 +494,8 @@ class Dataset:
         names = list(self.columns) if columns is None else _names(columns)
         self.require(names)
         return plot_dataset(self._frame, names, ax)
+
+
+def _span_text(span) -> str:
+    start, end = span
+    return f"{'' if start is None else start}..{'' if end is None else end}"

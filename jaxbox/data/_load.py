@@ -10,6 +10,7 @@ import lzma
 import math
 import os
 import re
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -18,7 +19,8 @@ import pandas as pd
 from ._args import check_mapping
 from ._checks import parse_time
 from ._dataset import Dataset, validated_frame
-from ._errors import DataError, list_names
+from ._errors import DataError, DataWarning, list_names
+from ._gaps import gap_note
 from ._signals import signal_base
 
 __all__ = ["as_dataset", "load"]
@@ -268,8 +270,11 @@ def load(
             canonical names (°C, W, W/m²; see :data:`SIGNALS`).
         resample: a pandas frequency such as ``"1h"``: after the checks, average onto that grid
             (see :meth:`Dataset.resample`); irregular sampling is then allowed.
-        check: also require a regular step, no NaN and no temperature in kelvin. Parseable,
-            strictly increasing time stamps and numeric values are always required.
+        check: also require a regular step (rows missing from the grid become rows of NaN)
+            and no temperature in kelvin. Parseable, strictly increasing time stamps and numeric
+            values are always required. Gaps (NaN) are kept and noted with a
+            :class:`DataWarning`; they are judged in the windows used
+            (:func:`jaxbox.data.prepare_window`).
         epoch: time of ``0`` for a numeric time column.
         sep: column separator of a CSV file (default ``","``; e.g. ``";"`` or ``"\\t"``). A
             file separated by semicolons or tabs read without it is refused with this advice.
@@ -326,7 +331,11 @@ def load(
     dataset = Dataset._new(
         validated_frame(frame, check=check, regular=resample is None, where=where, scale=factors)
     )
-    return dataset if resample is None else dataset.resample(resample)
+    dataset = dataset if resample is None else dataset.resample(resample)
+    note = gap_note(dataset) if check else None
+    if note is not None:
+        warnings.warn(note, DataWarning, stacklevel=2)
+    return dataset
 
 
 def as_dataset(obj: object, *, what: str = "data", **load_kwargs: object) -> Dataset:

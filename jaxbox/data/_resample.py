@@ -4,7 +4,7 @@ Each sample at time ``t`` is the mean over the interval ``(t - step, t]`` (the c
 monitoring systems that stamp the end of their averaging interval), so the mean over a coarser
 interval ``(a, b]`` is the plain mean of the samples stamped in ``(a, b]``: right-closed intervals
 labelled at their right edge. Intervals at either end that the data do not cover completely are
-dropped.
+dropped; an interval without samples inside the data is a gap (NaN).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def resample_mean(
     """Mean of ``frame`` over right-closed intervals of length ``rule`` labelled at the right edge.
 
     ``step`` [s] is the sampling step of ``frame`` (its median step). Incomplete intervals at the
-    start or end are dropped; an empty interval inside the data raises :class:`DataError`.
+    start or end are dropped; an interval without any value of a column is a gap (NaN).
     """
     offset, width = rule_seconds(rule)
     if width < step * (1 - _TOL):
@@ -78,20 +78,5 @@ def resample_mean(
             f"the data ({frame.index[0]} to {frame.index[-1]}) do not cover one complete "
             f"{rule!r} interval; use a shorter rule or more data."
         )
-    empty = np.flatnonzero(counts.to_numpy() == 0)
-    if empty.size:
-        end = means.index[int(empty[0])]
-        raise DataError(
-            f"no samples in the interval ({end - span}, {end}]"
-            f"{f' ({empty.size} empty intervals in all)' if empty.size > 1 else ''}; slice the "
-            "data around the gap or use a longer rule."
-        )
-    holes = means.isna()
-    if holes.to_numpy().any():
-        name = means.columns[np.flatnonzero(holes.any().to_numpy())[0]]
-        end = means.index[holes[name].to_numpy()][0]
-        raise DataError(
-            f"column {name!r} has no values in the interval ({end - span}, {end}]; fill the "
-            "gap or slice the data around it."
-        )
+    # an interval without any sample, or without any value of a column, is a gap (NaN)
     return means.set_axis(pd.DatetimeIndex(means.index, freq=None, name="time"), axis=0)

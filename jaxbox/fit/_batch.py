@@ -17,6 +17,8 @@ import optimistix as optx
 from jaxtyping import Float
 
 from .._x64 import require_x64
+from ..data import DataError, Dataset, concat_periods, prepare_window
+from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
 from ..models import get_model
 from ._defaults import DEFAULT_MAX_STEPS, DEFAULT_STARTS
 from ._fit import _problem_key, make_starts, result_from, solve_jobs, solver_key
@@ -24,7 +26,29 @@ from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
 from ._solver import LevenbergMarquardt
 
-__all__ = ["fit_model", "fit_many", "fit_batch"]
+__all__ = ["fit_model", "fit_many", "fit_batch", "fit_data"]
+
+
+def fit_data(model, data, max_gap=DEFAULT_MAX_GAP, what: str = "identification data"):
+    """``(model, data)`` ready for a fit: a list of periods joined
+    (:func:`~jaxbox.data.concat_periods`), gaps prepared
+    (:func:`~jaxbox.data.prepare_window`: input gaps interpolated up to ``max_gap``, segments
+    beyond, output gaps kept for masking) and the model segmented to the data
+    (:meth:`~jaxbox.models.RCModel.segmented`). A missing column raises
+    :class:`~jaxbox.data.DataError`, a window that gaps leave unusable :class:`FitError`."""
+    if isinstance(data, list | tuple):
+        data = concat_periods(data)
+    if not isinstance(data, Dataset):
+        raise FitError(
+            f"data must be a jaxbox Dataset or a list of Datasets (periods), got "
+            f"{type(data).__name__}"
+        )
+    data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+    try:
+        data = prepare_window(data, model.inputs, model.outputs, max_gap=max_gap, what=what)
+    except DataError as err:
+        raise FitError(str(err)) from None
+    return model.segmented(len(data.segments)), data
 
 
 def fit_model(
@@ -45,6 +69,7 @@ def fit_model(
     atol: float = 1e-16,
     concentration: float = 4.0,
     solver: optx.AbstractLeastSquaresSolver | None = None,
+    max_gap: float | str = DEFAULT_MAX_GAP,
     slots: int | None = None,
     method: str = "oe",
     **ml_options,
@@ -59,7 +84,12 @@ def fit_model(
 
     Args:
         model: an :class:`~jaxbox.models.RCModel` or a library model name.
-        data: the identification :class:`~jaxbox.data.Dataset` (inputs and outputs).
+        data: the identification :class:`~jaxbox.data.Dataset` (inputs and outputs), or a
+            list of Datasets (separate periods of one building, fitted together: see
+            :func:`jaxbox.data.concat_periods`). Gaps are handled by
+            :func:`jaxbox.data.prepare_window`: output gaps are masked, input gaps up to
+            ``max_gap`` interpolated, longer ones split the data into segments that share the
+            parameters and have their own initial states (``T_*0_s2``, … for the second, …).
         free: parameters to estimate (default: all that are not ``fixed``; initial states
             included).
         fixed: parameter values held fixed (SI).
@@ -82,11 +112,13 @@ def fit_model(
             ``optimistix.Dogleg``, ``optimistix.GaussNewton``, …) runs one
             ``optimistix.least_squares`` per start under ``vmap``, with its own tolerances and
             a Jacobian by forward-mode autodiff through the simulator.
+        max_gap: the longest input gap [s] (or text such as ``"2h"``) filled by interpolation.
         slots: starts iterated together (default :func:`default_slots`); a start that has
             terminated hands its slot to the next. Results do not depend on it.
 
     Returns:
-        :class:`FitResult` with the best start's parameters, every start's outcome and timings.
+        :class:`FitResult` with the best start's parameters, every start's outcome and timings;
+        its ``data`` are the prepared data and its ``model`` the model segmented to them.
 
     Raises:
         FitError: an ill-posed problem, or every start failed.
@@ -120,6 +152,7 @@ def fit_model(
                 "atol": atol,
                 "concentration": concentration,
                 "solver": solver,
+                "max_gap": max_gap,
             }
         ],
         slots=slots,
@@ -157,6 +190,7 @@ def fit_many(
     atol: float = 1e-16,
     concentration: float = 4.0,
     solver: optx.AbstractLeastSquaresSolver | None = None,
+    max_gap: float | str = DEFAULT_MAX_GAP,
     slots: int | None = None,
 ) -> list[FitResult] | dict[str, FitResult]:
     """Fit ``model`` to each of several datasets of the same length in one batched call.
@@ -211,6 +245,7 @@ def fit_many(
         "rtol": rtol,
         "atol": atol,
         "solver": solver,
+        "max_gap": max_gap,
     }
     outcomes = fit_batch(
         [{"model": model, "data": data, **common} for data in items], slots=slots, errors="return"
@@ -261,8 +296,8 @@ def fit_batch(
         try:
             if "model" not in req or "data" not in req:
                 raise FitError(f"request {i} needs 'model' and 'data'")
-            model, data = get_model(req["model"]), req["data"]
             arg = {k: req.get(k, _DEFAULTS[k]) for k in _DEFAULTS}
+            model, data = fit_data(get_model(req["model"]), req["data"], arg["max_gap"])
             problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
             x0 = make_starts(problem, data, *(arg[k] for k in _STARTS))
             solver = (int(arg["max_steps"]), float(arg["rtol"]), float(arg["atol"]), arg["solver"])
@@ -278,6 +313,7 @@ def fit_batch(
             x0.shape[1],
             len(problem.fixed),
             len(problem.model.states),
+            problem.model.segments,
             tuple(problem.output_states),
             *(np.shape(a) for a in arrays),
         )
@@ -306,6 +342,7 @@ def fit_batch(
                 "atol": atol,
                 "seed": requests[i].get("seed", _DEFAULTS["seed"]),
                 "slots": slots,
+                "max_gap": duration_seconds(requests[i].get("max_gap", _DEFAULTS["max_gap"])),
             }
             try:
                 outcomes[i] = result_from(problem, data, x0, out, sl, settings, dict(timing))

@@ -253,8 +253,10 @@ def _build(groups, slot_counts, max_steps: int, solver):
             cat = lambda parts: tuple(  # noqa: E731
                 jnp.concatenate(x, axis=0) if len(x) > 1 else x[0] for x in zip(*parts, strict=True)
             )
-            _, uu, yy, ww = data
-            return normal_equations(cat(prim), cat(tang), groups[0][0].output_states, uu, yy, ww)
+            tt, uu, yy, ww = data
+            return normal_equations(
+                cat(prim), cat(tang), groups[0][0].output_states, uu, yy, ww, t=tt
+            )
 
         return _multistart(
             solver,

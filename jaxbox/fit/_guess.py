@@ -23,11 +23,15 @@ UNMEASURED_MARGIN = 2.0
 
 
 def _first_values(model: RCModel, data) -> dict[str, float]:
-    """First sample of every measured temperature the model touches (outputs, T_* inputs)."""
+    """First measured sample of every temperature the model touches (outputs, T_* inputs);
+    a measurement missing at the start (a gap) is taken from its first sample."""
     out = {}
     for name in (*model.outputs, *(i for i in model.inputs if i.startswith("T_"))):
         if name in data.columns:
-            out[name] = float(data.array([name])[0, 0])
+            values = data.array([name])[:, 0]
+            ok = np.flatnonzero(np.isfinite(values))
+            if ok.size:
+                out[name] = float(values[ok[0]])
     return out
 
 
@@ -48,8 +52,25 @@ def state_ranges(model: RCModel, data) -> dict[str, tuple[float, float, float]]:
     span of the temperatures around it (measured neighbouring states and boundary inputs such as
     ``T_amb``, ``T_bou``, followed through unmeasured neighbours) at the start of ``data``,
     widened by :data:`UNMEASURED_MARGIN`; its guess is their mean. Clipped to the parameter's
-    default bounds.
+    default bounds. A model for data in segments (:meth:`~jaxbox.models.RCModel.segmented`)
+    gets the ranges of each segment's initial states ``T_*0_s<k>`` from that segment's start.
     """
+    if model.segments > 1:
+        pieces = data.segments
+        out = {}
+        for k in range(1, model.segments + 1):
+            a, b = pieces[min(k, len(pieces)) - 1]
+            part = type(data)._new(data._frame.iloc[a:b], data.step)
+            first = _state_ranges(model, part)
+            names = model.segment_names(k)
+            for node, name in zip(model.network.nodes, names, strict=True):
+                if k == 1 or not node.constant:
+                    out[name] = first[node.T0]
+        return out
+    return _state_ranges(model, data)
+
+
+def _state_ranges(model: RCModel, data) -> dict[str, tuple[float, float, float]]:
     first = _first_values(model, data)
     nodes = {n.name: n for n in model.network.nodes}
     measured = {n.name: first[n.output] for n in nodes.values() if n.output in first}

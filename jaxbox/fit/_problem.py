@@ -1,8 +1,11 @@
 """The estimation problem: free/fixed parameters, bounds, guesses, weights, and its residuals.
 
 Output-error least squares: the residual of output ``j`` at sample ``k`` is
-``sqrt(q_j / N) · (ŷ_jk(θ) − y_jk)``, so the cost ``Σ r²`` is the weighted mean squared
+``sqrt(q_j / N_j) · (ŷ_jk(θ) − y_jk)``, so the cost ``Σ r²`` is the weighted mean squared
 simulation error [K²] and ``sqrt(cost)`` an RMSE when there is one output with weight 1.
+``N_j`` counts the measured samples of output ``j``: a sample of an output gap (NaN) has
+weight 0. Data in segments (gaps cut out, separate periods) are fitted with a model that has
+initial states per segment (:meth:`~jaxbox.models.RCModel.segmented`).
 """
 
 from __future__ import annotations
@@ -116,6 +119,8 @@ class Problem:
         theta = self.theta(p, fixed_values)
         A, B, caps, held = self.model.rc_form(theta)
         Phi, G0, G1 = discretize_foh_rc(A, B, caps, dt, held)
+        if self.model.segments > 1:
+            return Phi, G0, G1, self.model.initial_states(theta)
         return Phi, G0, G1, self.model.initial_state(theta)
 
     @property
@@ -146,7 +151,7 @@ class Problem:
             args = (Z, fixed, lo, hi, sc, dt)
             primal = jax.vmap(self.matrices)(*args)
             tangents = jax.vmap(jax.jacfwd(self.matrices))(*args)
-            return normal_equations(primal, tangents, self.output_states, u, y, w, chunk=chunk)
+            return normal_equations(primal, tangents, self.output_states, u, y, w, chunk=chunk, t=t)
         shared = u.shape[1] == 1 and Z.shape[0] != 1
         d_axis = None if shared else 1
 
@@ -271,6 +276,11 @@ def make_problem(
         raise FitError(f"output weights must be finite, ≥ 0 and not all zero, got {w}")
     if simulator not in ("exact", "diffrax"):
         raise FitError(f"unknown simulator {simulator!r}; choose 'exact' or 'diffrax'")
+    if simulator != "exact" and model.segments > 1:
+        raise FitError(
+            f"the data hold {model.segments} segments (gaps or separate periods), which only the "
+            "exact simulator fits; use simulator='exact'"
+        )
     return Problem(
         model=model,
         free=free,
@@ -284,7 +294,13 @@ def make_problem(
 
 
 def problem_arrays(problem: Problem, data):
-    """(t, u, y, sqrt_w) arrays of a dataset for a problem: the data side of the residuals."""
+    """(t, u, y, sqrt_w) arrays of a dataset for a problem: the data side of the residuals.
+
+    ``sqrt_w`` holds ``sqrt(q_j / N_j)`` with ``N_j`` the number of measured samples of output
+    ``j``: shape [p] when every output sample is measured, [N, p] with 0 at the samples of an
+    output gap (NaN in ``data``, replaced by 0 in ``y``), which the cost then ignores. The
+    inputs must be complete (see :func:`jaxbox.data.prepare_window`).
+    """
     model = problem.model
     what = f"model {model.name}"
     data.require(list(model.inputs) + list(model.outputs), what=what)
@@ -294,5 +310,31 @@ def problem_arrays(problem: Problem, data):
     n = len(t)
     if n < 3:
         raise FitError(f"the identification data has {n} samples; at least 3 are needed")
-    sqrt_w = np.sqrt(np.asarray(problem.weights) / n)
-    return t, u, y, sqrt_w
+    holes = ~np.isfinite(u)
+    if holes.any():
+        j = int(np.flatnonzero(holes.any(axis=0))[0])
+        times = data.index[holes[:, j]]
+        raise FitError(
+            f"input {model.inputs[j]!r} is missing in {int(holes[:, j].sum())} sample(s) between "
+            f"{times[0]} and {times[-1]}; inputs cannot be masked: fill or cut the gaps with "
+            "jaxbox.data.prepare_window (fit_model does it, see max_gap)"
+        )
+    mask = np.isfinite(y)
+    counts = mask.sum(axis=0)
+    if np.any(counts < 3):
+        j = int(np.flatnonzero(counts < 3)[0])
+        raise FitError(
+            f"output {model.outputs[j]!r} is measured in {int(counts[j])} sample(s) of the "
+            "identification data; at least 3 are needed"
+        )
+    if segments := len(data.segments) if model.segments > 1 else 0:
+        if segments > model.segments:
+            raise FitError(
+                f"the data hold {segments} segments but model {model.name} has initial states "
+                f"for {model.segments}; use model.segmented({segments})"
+            )
+    q = np.asarray(problem.weights, dtype=float)
+    if mask.all():
+        return t, u, y, np.sqrt(q / n)
+    sqrt_w = np.where(mask, np.sqrt(q / np.maximum(counts, 1)), 0.0)
+    return t, u, np.where(mask, y, 0.0), sqrt_w

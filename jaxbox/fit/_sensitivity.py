@@ -187,9 +187,9 @@ def _build_functions(problem: Problem) -> dict:
             return Jq, (Jq, sim(qq))
 
         d2, (J, yhat) = jax.jacfwd(first, has_aux=True)(q)  # d2: [N, p_out, n, n]
-        w2 = sqrt_w**2
+        w2 = jnp.broadcast_to(sqrt_w**2, y.shape)  # 0 at the samples of an output gap
         H = 2.0 * (
-            jnp.einsum("kji,kjl,j->il", J, J, w2) + jnp.einsum("kj,kjil->il", (yhat - y) * w2, d2)
+            jnp.einsum("kji,kjl,kj->il", J, J, w2) + jnp.einsum("kj,kjil->il", (yhat - y) * w2, d2)
         )
         return J, H
 
@@ -236,9 +236,10 @@ def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> 
     )
     fns = _functions(problem, len(t))
     J, H = (np.asarray(a) for a in fns["derivatives"](*args))
-    w2 = np.asarray(sqrt_w) ** 2  # q_j / N per output
+    # q_j / N_j per sample and output (0 at the samples of an output gap)
+    w2 = np.broadcast_to(np.asarray(sqrt_w) ** 2, np.shape(y))
     if hessian == "gauss-newton":
-        H = 2.0 * np.einsum("kji,kjl,j->il", J, J, w2)
+        H = 2.0 * np.einsum("kji,kjl,kj->il", J, J, w2)
     H = 0.5 * (H + H.T)
     # parameters on a bound are held there (active constraint)
     pos = problem.transform.relative_position(p_hat)
@@ -249,7 +250,7 @@ def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> 
     positive_definite = bool(eig[0] > 0)
     condition = float(np.abs(eig).max() / np.abs(eig).min()) if np.all(eig != 0) else np.inf
     # d q / d y_jk = H⁻¹ · 2 (q_j/N) ∂ŷ_jk/∂q, then back to physical units
-    rhs = 2.0 * (J * w2[None, :, None])[:, :, act]  # [N, p_out, n_act]
+    rhs = 2.0 * (J * w2[:, :, None])[:, :, act]  # [N, p_out, n_act]
     n_free, n_samples, n_out = len(free), J.shape[0], J.shape[1]
     S = np.zeros((n_free, n_samples, n_out))
     if act.size:

@@ -417,6 +417,7 @@ class RCModel:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     parameters: tuple[Parameter, ...]
+    segments: int = 1
 
     # ---- introspection -----------------------------------------------------------------------
     @property
@@ -444,11 +445,74 @@ class RCModel:
     def structure(self) -> tuple:
         """Everything that shapes the compiled computation, but no default values or bounds."""
         n = self.network
-        return (self.states, self.inputs, self.outputs, n.nodes, n.edges, n.sources)
+        return (self.states, self.inputs, self.outputs, n.nodes, n.edges, n.sources, self.segments)
 
     def with_parameters(self, params: Mapping[str, Parameter | Mapping]) -> RCModel:
         """A copy with some parameter specs (defaults, bounds) changed."""
-        return self.network.build({**{p.name: p for p in self.parameters}, **dict(params)})
+        own = {p.name: p for p in self.parameters}
+        new = {**own, **dict(params)}
+        base = self.network.build({k: v for k, v in new.items() if k in self.base_names})
+        out = base.segmented(self.segments)
+        extra = {k: v for k, v in new.items() if k not in self.base_names}
+        if not extra:
+            return out
+        specs = tuple(
+            (v.replace(name=p.name) if isinstance(v, Parameter) else p.replace(**dict(v)))
+            if (v := extra.get(p.name)) is not None
+            else p
+            for p in out.parameters
+        )
+        return dataclasses.replace(out, parameters=specs)
+
+    # ---- segments ------------------------------------------------------------------------------
+    @property
+    def base_names(self) -> tuple[str, ...]:
+        """The parameters of the network (without the initial states of later segments)."""
+        extra = {
+            f"{m.T0}_s{k}"
+            for k in range(2, self.segments + 1)
+            for m in self.network.nodes
+            if not m.constant
+        }
+        return tuple(n for n in self.param_names if n not in extra)
+
+    def segment_names(self, k: int) -> tuple[str, ...]:
+        """The initial-state parameters of segment ``k`` (1-based), in node order: ``T_*0`` for
+        the first, ``T_*0_s<k>`` for the others. A constant node keeps one value (its
+        ``T_*0``) for every segment."""
+        return tuple(m.T0 if k == 1 or m.constant else f"{m.T0}_s{k}" for m in self.network.nodes)
+
+    def segmented(self, segments: int) -> RCModel:
+        """This model for data in ``segments`` separate segments (gaps cut out, or separate
+        periods): the same network and parameters, plus the initial states ``T_*0_s2``,
+        ``T_*0_s3``… of each later segment (same unit, default and bounds as ``T_*0``). The
+        segments share every other parameter; the simulation restarts each segment from its
+        own initial states. ``segmented(1)`` is the plain model."""
+        segments = int(segments)
+        if segments < 1:
+            raise ModelError(f"segments must be at least 1, got {segments}")
+        if segments == self.segments:
+            return self
+        base = [p for p in self.parameters if p.name in self.base_names]
+        specs = {p.name: p for p in base}
+        extra = []
+        for k in range(2, segments + 1):
+            for m, name in zip(self.network.nodes, self.segment_names(k), strict=True):
+                if not m.constant:
+                    first = specs[m.T0]
+                    extra.append(
+                        first.replace(name=name, description=f"{first.description} (segment {k})")
+                    )
+        return dataclasses.replace(self, parameters=tuple(base + extra), segments=segments)
+
+    def initial_states(self, theta: Mapping):
+        """Initial node temperatures of every segment [°C], shape [segments, n]."""
+        return jnp.stack(
+            [
+                jnp.stack([jnp.asarray(theta[n], dtype=float) for n in self.segment_names(k)])
+                for k in range(1, self.segments + 1)
+            ]
+        )
 
     def renamed(self, name: str, description: str | None = None) -> RCModel:
         return dataclasses.replace(

@@ -65,7 +65,8 @@ class Parameter:
 
     @property
     def is_initial_state(self) -> bool:
-        """True for initial-state parameters ``T_*0``."""
+        """True for initial-state parameters ``T_*0`` (and ``T_*0_s2``, ``T_*0_s3``… of the
+        later segments of the data, see :meth:`RCModel.segmented`)."""
         return _T0.fullmatch(self.name) is not None
 
     def replace(self, **changes) -> Parameter:
@@ -76,7 +77,7 @@ class Parameter:
         return dataclasses.asdict(self)
 
 
-_T0 = re.compile(r"T_\w+0")
+_T0 = re.compile(r"T_\w+0(_s\d+)?")
 
 # Name-specific default guesses (SI), refined within a prefix.
 _DEFAULTS = {

@@ -26,7 +26,7 @@ __all__ = ["Case", "Progress", "SETTINGS", "run_cases"]
 Progress = Callable[[str], None]
 
 #: Solver settings a case passes on to :func:`jaxbox.fit.fit_batch`.
-SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simulator")
+SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simulator", "max_gap")
 
 
 def quiet(msg: str) -> None:
@@ -188,6 +188,12 @@ class Case:
         """Simulation error on the validation data [K] (nan without validation data)."""
         v = self.validation
         return float("nan") if v is None or v.se_cross is None else float(v.se_cross)
+
+    @property
+    def score(self) -> float:
+        """What selection compares [K]: :attr:`se_cross`, or :attr:`se_auto` for a case
+        without validation data (``valid=False``, ``--validate none``)."""
+        return self.se_auto if self.valid is None else self.se_cross
 
     @property
     def is_valid(self) -> bool:

@@ -159,7 +159,7 @@ class _Climb:
         parent = self.best
         if parent is None and self.order:  # nothing valid yet: the lowest validation error
             run = [gb.cases[n] for n in self.order if gb.cases[n].done]
-            parent = min(run, key=lambda c: c.se_cross, default=None)
+            parent = min(run, key=lambda c: c.score, default=None)
         kw = {"starts": self.starts, "seed": self.seed, **self.settings}
         if self.inherit and parent is not None:
             return gb.add_case(model, guess="parent", parent=parent.name, **kw)
@@ -169,7 +169,7 @@ class _Climb:
         self.order.append(case.name)
         if case is self.pending:  # a retry: it replaces its case if valid or better
             original, self.pending, self.retried = self.retried, None, None
-            if not (case.done and (case.is_valid or case.se_cross < original.se_cross)):
+            if not (case.done and (case.is_valid or case.score < original.score)):
                 case = original
         elif case.done and self.retry and not case.is_valid:
             pinned = _pinned_unmeasured_states(case)
@@ -188,8 +188,8 @@ class _Climb:
         improved = (
             case.done
             and case.is_valid
-            and np.isfinite(case.se_cross)
-            and (best is None or case.se_cross < (1.0 - margin) * best.se_cross)
+            and np.isfinite(case.score)
+            and (best is None or case.score < (1.0 - margin) * best.score)
         )
         if improved:
             self.best, self.misses = case, 0
@@ -211,7 +211,7 @@ class _Climb:
         if accepted is not None and accepted.name not in set(order):
             accepted = min(
                 (gb.cases[n] for n in order if gb.cases[n].is_valid),
-                key=lambda c: c.se_cross,
+                key=lambda c: c.score,
                 default=None,
             )
         self.say(
@@ -330,11 +330,6 @@ def forward_selection_many(
     greyboxes = [_as_greybox(gb, "forward_selection_many") for gb in greyboxes]
     if not greyboxes:
         raise ValueError("forward selection needs at least one GreyBox")
-    for gb in greyboxes:
-        if gb.valid_period is None:
-            raise ValueError(
-                f"forward selection needs validation data; give the GreyBox {gb.name!r} valid=…"
-            )
     if not isinstance(margin, int | float) or not 0.0 <= margin < 1.0:
         raise ValueError(f"margin must be in [0, 1), got {margin}")
     if not isinstance(patience, int) or patience < 1:

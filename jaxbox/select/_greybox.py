@@ -15,7 +15,9 @@ import numpy as np
 import pandas as pd
 
 from ..data import DataError, as_dataset, check_mapping, check_plausibility
-from ..fit import DEFAULT_STARTS
+from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
+from ..fit import DEFAULT_STARTS, FitError
+from ..fit._batch import fit_data
 from ..models import RCModel, get_model
 from ._cases import SETTINGS, Case, Progress, fmt_se
 from ._guess import Guess, manual_guess, naming_guess, parent_guess
@@ -36,12 +38,6 @@ def _pair(value, name: str):
     return tuple(value)
 
 
-def _after(data, ident):
-    """The samples of ``data`` after ``ident`` (``None`` when there are none)."""
-    rest = data.index[data.index > ident.end]
-    return data.slice(rest[0], None) if len(rest) else None
-
-
 class GreyBox:
     """Every identification attempt (:class:`Case`) on one building's data.
 
@@ -58,6 +54,13 @@ class GreyBox:
             the defaults of :func:`jaxbox.data.check_plausibility` do not fit the building
             (the identification and validation windows are checked when the data are
             attached).
+        max_gap: the longest input gap [s] (or text such as ``"2h"``) interpolated in the
+            windows; longer gaps split a window into segments that share the parameters, each
+            with its own initial states (see :func:`jaxbox.data.prepare_window`). Output gaps
+            are masked.
+
+    A time stamp shared by ``train`` and ``valid`` belongs to the identification window
+    (:meth:`jaxbox.data.Dataset.windows`).
     """
 
     def __init__(
@@ -68,6 +71,7 @@ class GreyBox:
         valid=None,
         name: str = "building",
         ranges: Mapping[str, tuple[float, float]] | None = None,
+        max_gap: float | str = DEFAULT_MAX_GAP,
     ) -> None:
         data = as_dataset(data, what="the data of a GreyBox")
         self.data = data
@@ -76,26 +80,11 @@ class GreyBox:
             str(k): tuple(map(float, _pair(v, f"ranges[{k!r}]")))
             for k, v in check_mapping(ranges, "ranges").items()
         }
-        if train is None and valid is None:
-            ident, val = data.split()
-        else:
-            if train is not None:
-                ident = data.slice(*_pair(train, "train"))
-            else:
-                first = data.slice(*_pair(valid, "valid"))
-                before = data.index[data.index < first.start]
-                if len(before) == 0:
-                    raise DataError(
-                        f"no data before the validation period (from {first.start}) to identify "
-                        f"on; the data start at {data.start}. Give train=(start, end)."
-                    )
-                ident = data.slice(None, before[-1])
-            if valid is False:
-                val = None
-            elif valid is not None:
-                val = data.slice(*_pair(valid, "valid"))
-            else:
-                val = _after(data, ident)
+        for value, label in ((train, "train"), (valid, "valid")):
+            if value is not None and value is not False:
+                _pair(value, label)
+        ident, val = data.windows(train, valid)
+        self.max_gap = duration_seconds(max_gap)
         check_plausibility(ident, overrides=self.ranges, what="identification data")
         if val is not None:
             check_plausibility(val, overrides=self.ranges, what="validation data")
@@ -191,14 +180,19 @@ class GreyBox:
             raise TypeError(
                 f"unknown setting(s) {', '.join(bad)}; settings are {', '.join(SETTINGS)}"
             )
-        ident = self.data.slice(*_pair(train, "train")) if train is not None else self.ident
-        if valid is not None:
-            val = self.data.slice(*_pair(valid, "valid"))
-        elif train is not None:
-            val = _after(self.data, ident)
+        if train is not None or valid is not None:
+            ident, val = self.data.windows(
+                None if train is None else _pair(train, "train"),
+                None if valid is None else _pair(valid, "valid"),
+            )
         else:
-            val = self.valid
+            ident, val = self.ident, self.valid
         ident.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+        settings.setdefault("max_gap", self.max_gap)
+        try:
+            model, ident = fit_data(model, ident, settings["max_gap"])
+        except FitError as err:
+            raise DataError(str(err)) from None
         if isinstance(guess, Guess):
             g = guess
         elif isinstance(guess, Mapping):

@@ -33,6 +33,7 @@ import io
 import json
 import math
 import re
+import warnings
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
@@ -450,7 +451,10 @@ def read_greybox(path, *, models: dict | None = None) -> Saved:
 
 def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
     """One saved case, its fit rebuilt from the stored values and validated again."""
+    from ..data import DataWarning
+    from ..data._gaps import DEFAULT_MAX_GAP
     from ..fit import FitError, FitResult, StartReport, make_problem
+    from ..fit._batch import fit_data
     from ..validate import check_validity, uncertainty, validate
 
     where = f"cases[{i}]"
@@ -460,6 +464,12 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
         valid = None if cd["valid"] is None else data.slice(*cd["valid"])
     except DataError as err:
         raise PersistError(f"{index}: {where}.train/valid: {err}") from None
+    try:  # the window's gaps prepared as for the fit, the model segmented to it
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            model, ident = fit_data(model, ident, cd["settings"].get("max_gap", DEFAULT_MAX_GAP))
+    except FitError as err:
+        raise PersistError(f"{index}: {where}.train: {err}") from None
     case = Case(
         name=cd["name"],
         model=model,

@@ -42,6 +42,8 @@ __all__ = [
     "phi_functions",
     "simulate_exact",
     "simulate_foh",
+    "simulate_foh_segments",
+    "segment_index",
     "normal_equations",
 ]
 
@@ -188,6 +190,38 @@ def simulate_foh(Phi, G0, G1, C, D, x0, u):
     return xs @ C.T + u @ D.T, xs
 
 
+def segment_index(t, n_segments: int):
+    """Where each segment starts and which segment each sample belongs to, from the sample
+    times ``t`` [N] (or [N, B]): a time step longer than the first one starts a new segment.
+
+    Returns ``(first [N…] bool, index [N…] int)``, the index clipped to ``n_segments − 1``.
+    Traceable: the segments of the data are arguments, not part of a compiled function.
+    """
+    t = jnp.asarray(t)
+    dt = t[1] - t[0]
+    jump = jnp.diff(t, axis=0) > dt * (1 + 1e-6) + 1e-6
+    first = jnp.concatenate([jnp.ones_like(jump[:1]), jump], axis=0)
+    index = jnp.clip(jnp.cumsum(first, axis=0) - 1, 0, n_segments - 1)
+    return first, index
+
+
+def simulate_foh_segments(Phi, G0, G1, C, D, X0, u, t):
+    """:func:`simulate_foh` over data in segments: the state restarts from ``X0[s]`` [S, n] at
+    the first sample of segment ``s`` (see :func:`segment_index`); the step across a cut is
+    computed and discarded. Returns (y [N, p], x [N, n])."""
+    first, index = segment_index(t, X0.shape[0])
+    drive = u[:-1] @ G0.T + (u[1:] - u[:-1]) @ G1.T
+    drive = jnp.concatenate([drive, jnp.zeros_like(drive[:1])], axis=0)
+
+    def step(x, a):
+        d, f, i = a
+        x = jnp.where(f, X0[i], x)
+        return Phi @ x + d, x
+
+    _, xs = lax.scan(step, X0[0], (drive, first, index))
+    return xs @ C.T + u @ D.T, xs
+
+
 def chunk_length(n_samples: int, n_batch: int, n_states: int, n_tangents: int) -> int:
     """Samples per chunk of :func:`normal_equations`: about 16 MB of tangents per chunk."""
     per_sample = max(1, n_batch * n_states * (n_tangents + 1))
@@ -222,7 +256,7 @@ def _drive(u, du, G0, G1):
     return jnp.einsum("lbm,bim...->lbi...", ud, G)
 
 
-def normal_equations(mats, tangents, outputs, u, y, w, *, chunk: int | None = None):
+def normal_equations(mats, tangents, outputs, u, y, w, *, chunk: int | None = None, t=None):
     """Cost, gradient and Gram matrix of weighted output residuals for a batch of models.
 
     For each batch member the outputs are states (``y_k = x_k[outputs]``, the node temperatures
@@ -239,6 +273,9 @@ def normal_equations(mats, tangents, outputs, u, y, w, *, chunk: int | None = No
         y: measured outputs [N, By, p], ``By`` 1 or B.
         w: residual weights [N, Bw, p] (0 masks a sample), ``Bw`` 1 or B.
         chunk: samples per chunk (default from :func:`chunk_length`); memory is O(chunk).
+        t: sample times [N, Bt] (``Bt`` 1 or B), needed when ``x0`` holds the initial states of
+            several segments, ``[B, S, n]``: the state and its sensitivities restart from those
+            of segment ``s`` at its first sample (see :func:`segment_index`).
 
     Returns:
         ``(cost [B], g [B, q], H [B, q, q])``: ``Σ r²``, ``Jᵀr`` and ``JᵀJ``.
@@ -247,32 +284,54 @@ def normal_equations(mats, tangents, outputs, u, y, w, *, chunk: int | None = No
     dPhi, dG0, dG1, dx0 = tangents
     outputs = jnp.asarray(tuple(outputs))
     n_samples = u.shape[0]
+    segmented = x0.ndim == 3
+    if segmented:
+        X0s, dX0s = x0, dx0  # [B, S, n], [B, S, n, q]
+        x0, dx0 = x0[:, 0], dx0[:, 0]
+        first, index = segment_index(t, X0s.shape[1])  # [N, Bt]
+    else:
+        first = jnp.zeros((n_samples, 1), bool)
+        index = jnp.zeros((n_samples, 1), jnp.int32)
     batch, n = x0.shape
     q = dx0.shape[-1]
     du = jnp.concatenate([u[1:] - u[:-1], jnp.zeros_like(u[:1])], axis=0)
     L = chunk or chunk_length(n_samples, batch, n, q)
     n_chunks = -(-n_samples // L)
     total = n_chunks * L
-    u, du, y, w = (_pad_time(a, total) for a in (u, du, y, w))
+    u, du, y, w, first, index = (_pad_time(a, total) for a in (u, du, y, w, first, index))
     split = lambda a: a.reshape((n_chunks, L) + a.shape[1:])  # noqa: E731
+    rows = jnp.arange(batch)
+
+    def restart(state, f, i, initial):
+        """The state (or its tangents) restarted at the first sample of a segment."""
+        if not segmented:
+            return state
+        f = jnp.broadcast_to(f, (batch,))
+        i = jnp.broadcast_to(i, (batch,))
+        mask = f.reshape((batch,) + (1,) * (state.ndim - 1))
+        return jnp.where(mask, initial[rows, i], state)
 
     def one_chunk(carry, data):
         x, X, cost, g, H = carry
-        uc, duc, yc, wc = data
+        uc, duc, yc, wc, fc, ic = data
 
-        def primal(x, d):
+        def primal(x, a):
+            d, f, i = a
+            x = restart(x, f, i, X0s if segmented else None)
             return _matvec(Phi, x) + d, x
 
-        x_next, xs = lax.scan(primal, x, _drive(uc, duc, G0, G1))  # xs[k]: state at sample k
+        # xs[k]: state at sample k
+        x_next, xs = lax.scan(primal, x, (_drive(uc, duc, G0, G1), fc, ic))
 
         def tangent(X, a):
             # X_{k+1} = Φ X_k + ∂Φ x_k + ∂Γ0 u_k + ∂Γ1 Δu_k; only the measured rows leave
-            xk, e = a
+            xk, e, f, i = a
+            X = restart(X, f, i, dX0s if segmented else None)
             for j in range(n):
                 e = e + dPhi[:, :, j, :] * xk[:, None, j, None]
             return _matvec(Phi, X) + e, X[:, outputs, :]
 
-        X_next, Js = lax.scan(tangent, X, (xs, _drive(uc, duc, dG0, dG1)))
+        X_next, Js = lax.scan(tangent, X, (xs, _drive(uc, duc, dG0, dG1), fc, ic))
         r = wc * (xs[:, :, outputs] - yc)  # [L, B, p]
         Jw = wc[..., None] * Js  # [L, B, p, q]
         Jb = jnp.transpose(Jw, (1, 0, 2, 3)).reshape(batch, -1, q)  # member-major for the products
@@ -290,7 +349,9 @@ def normal_equations(mats, tangents, outputs, u, y, w, *, chunk: int | None = No
         jnp.zeros((batch, q), dtype),
         jnp.zeros((batch, q, q), dtype),
     )
-    (_, _, cost, g, H), _ = lax.scan(one_chunk, init, tuple(split(a) for a in (u, du, y, w)))
+    (_, _, cost, g, H), _ = lax.scan(
+        one_chunk, init, tuple(split(a) for a in (u, du, y, w, first, index))
+    )
     return cost, g, H
 
 

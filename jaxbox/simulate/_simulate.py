@@ -13,7 +13,7 @@ import numpy as np
 from .._x64 import require_x64
 from ..models import ModelError, RCModel
 from ._diffrax import simulate_diffrax
-from ._exact import simulate_exact
+from ._exact import discretize_foh, simulate_exact, simulate_foh_segments
 from ._parallel import simulate_parallel
 
 __all__ = ["Simulation", "simulate_model", "simulate_arrays", "check_theta", "METHODS"]
@@ -77,8 +77,40 @@ def simulate_arrays(
             accelerators) or ``"diffrax"``.
         x0: initial state [°C]; default from the ``T_*0`` parameters.
         options: passed to :func:`~jaxbox.simulate._diffrax.simulate_diffrax`.
+
+    A model for data in segments (:meth:`RCModel.segmented`) restarts each segment from its own
+    initial states; the segments are read from ``t`` (a time step longer than the first starts
+    a new one). ``method="exact"`` handles them in one scan; ``"diffrax"`` needs concrete
+    ``t`` (not traced) and simulates the segments one by one.
     """
     A, B, C, D = model.state_space(theta)
+    if model.segments > 1 and x0 is None:
+        X0 = model.initial_states(theta)
+        u = jnp.asarray(u, dtype=float)
+        if method == "exact":
+            Phi, G0, G1 = discretize_foh(A, B, t[1] - t[0])
+            return simulate_foh_segments(Phi, G0, G1, C, D, X0, u, jnp.asarray(t, dtype=float))
+        try:
+            times = np.asarray(t, dtype=float)
+        except jax.errors.TracerArrayConversionError:
+            raise ValueError(
+                f"method {method!r} simulates data in segments one by one and needs concrete "
+                "times; use method='exact', or call it outside jit"
+            ) from None
+        parts = _segments(times)
+        if len(parts) > model.segments:
+            raise ModelError(
+                f"the data hold {len(parts)} segments but model {model.name} has initial states "
+                f"for {model.segments}"
+            )
+        ys, xs = [], []
+        for k, (a, b) in enumerate(parts):
+            y, x = simulate_arrays(
+                model, theta, times[a:b] - times[a], u[a:b], method=method, x0=X0[k], **options
+            )
+            ys.append(y)
+            xs.append(x)
+        return jnp.concatenate(ys), jnp.concatenate(xs)
     x0 = model.initial_state(theta) if x0 is None else jnp.asarray(x0, dtype=float)
     t = jnp.asarray(t, dtype=float)
     u = jnp.asarray(u, dtype=float)
@@ -89,6 +121,14 @@ def simulate_arrays(
     if method == "diffrax":
         return simulate_diffrax(A, B, C, D, x0, t, u, **options)
     raise ValueError(f"unknown simulation method {method!r}; choose one of {METHODS}")
+
+
+def _segments(t: np.ndarray) -> list[tuple[int, int]]:
+    """``[(start, stop), …]`` of the segments of sample times ``t`` (see ``segment_index``)."""
+    dt = t[1] - t[0]
+    cuts = np.flatnonzero(np.diff(t) > dt * (1 + 1e-6) + 1e-6) + 1
+    edges = [0, *cuts.tolist(), len(t)]
+    return [(edges[i], edges[i + 1]) for i in range(len(edges) - 1)]
 
 
 @functools.partial(jax.jit, static_argnames=("model", "method", "options"))

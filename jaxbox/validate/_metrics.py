@@ -1,4 +1,5 @@
-"""Error metrics: RMSE per output and the weighted simulation error SE = Σ q_j RMSE_j."""
+"""Error metrics: RMSE per output and the weighted simulation error SE = Σ q_j RMSE_j (output
+gaps, NaN in the measurements, are left out)."""
 
 from __future__ import annotations
 
@@ -10,11 +11,19 @@ __all__ = ["rmse", "simulation_error"]
 
 
 def rmse(y_sim, y_meas) -> np.ndarray:
-    """Root-mean-square error per output column [same unit as y, K for temperatures]."""
+    """Root-mean-square error per output column [same unit as y, K for temperatures].
+
+    A missing measurement (NaN, an output gap) is left out: the mean runs over the measured
+    samples of each column (``nan`` for a column without any).
+    """
     e = np.asarray(y_sim, dtype=float) - np.asarray(y_meas, dtype=float)
     if e.ndim == 1:
         e = e[:, None]
-    return np.sqrt(np.mean(e * e, axis=0))
+    seen = np.isfinite(e)
+    count = seen.sum(axis=0)
+    total = np.where(seen, e * e, 0.0).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.sqrt(np.where(count > 0, total / np.maximum(count, 1), np.nan))
 
 
 def simulation_error(rmse_per_output: Sequence[float], weights: Sequence[float]) -> float:

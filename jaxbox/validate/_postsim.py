@@ -4,7 +4,8 @@ Validation never reuses the estimation's simulator: the optimised parameters are
 with diffrax (Kvaerno5, PID step control, steps clipped to the samples) so that any
 discretisation error of the estimation shows up in the validation error. The run covers the
 identification data (auto-validation) and continues over the validation data (cross-validation),
-which therefore starts from the model state at the end of the identification period.
+which therefore starts from the model state at the end of the identification period. Data in
+segments are simulated segment by segment, and output gaps are left out of the metrics.
 """
 
 from __future__ import annotations
@@ -41,6 +42,9 @@ class Validation:
         se_auto, se_cross: weighted simulation error Σ q_j RMSE_j [K].
         inputs: input names (columns of the u arrays).
         u_auto, u_cross: measured inputs, shape [N, m] (°C, W, W/m²).
+        step: sampling step [s] (the time stamps jump over gaps cut out of the data).
+
+    A missing measurement (an output gap) is NaN in ``y_*`` and in the residuals.
     """
 
     model: str
@@ -62,6 +66,7 @@ class Validation:
     inputs: tuple[str, ...] = ()
     u_auto: np.ndarray | None = None
     u_cross: np.ndarray | None = None
+    step: float | None = None
 
     @property
     def residuals_auto(self) -> np.ndarray:
@@ -87,6 +92,8 @@ class Validation:
         if e is None:
             raise ValueError("no validation data: call validate(result, valid) for 'cross'")
         u = self.u_auto if which == "auto" else self.u_cross
+        index = self.index_auto if which == "auto" else self.index_cross
+        e, u = _separated(e, u, index, self.step, options.get("max_lag"))
         return analyse_residuals(
             e,
             u,
@@ -110,25 +117,64 @@ class Validation:
         }
 
 
+def _separated(e, u, index, step, max_lag):
+    """Residuals (and inputs) of data in segments with ``L`` rows of NaN between segments
+    (``L`` the largest lag of the residual tests), so that no lagged pair spans a cut."""
+    from ..data._gaps import segment_slices
+    from ._residuals import default_max_lag
+
+    if step is None or index is None:
+        return e, u
+    pieces = segment_slices(index, step)
+    if len(pieces) == 1:
+        return e, u
+    lag = default_max_lag(len(e)) if max_lag is None else int(max_lag)
+    parts_e, parts_u = [], []
+    for k, (a, b) in enumerate(pieces):
+        if k:
+            parts_e.append(np.full((lag,) + e.shape[1:], np.nan))
+            if u is not None:
+                parts_u.append(np.full((lag,) + u.shape[1:], np.nan))
+        parts_e.append(e[a:b])
+        if u is not None:
+            parts_u.append(u[a:b])
+    return np.concatenate(parts_e), (None if u is None else np.concatenate(parts_u))
+
+
 def _contiguous(ident, valid) -> None:
     if abs(valid.step - ident.step) > 1e-6 * ident.step:
         raise ValidationError(
             f"the validation data has a step of {valid.step:g} s but the identification data "
             f"{ident.step:g} s; resample both to the same step"
         )
-    gap = (valid.start - ident.end).total_seconds()
-    if abs(gap - ident.step) > 1e-6 * ident.step:
+    if valid.start <= ident.end:
         raise ValidationError(
-            f"the validation data must start one step after the identification data ends "
-            f"({ident.end}), so that the simulation runs on from the identified state; it starts "
-            f"at {valid.start}. Pass the two halves of Dataset.split(), or slice the validation "
-            "period to follow the identification period"
+            f"the validation data must start after the identification data ends ({ident.end}), "
+            f"so that the simulation runs on from the identified state; it starts at "
+            f"{valid.start}. Pass the two halves of Dataset.split(), or Dataset.windows()"
         )
+
+
+def _prepared(result, valid, max_gap):
+    """The validation window with its gaps prepared as the fit's were."""
+    from ..data import DataError, prepare_window
+    from ..data._gaps import DEFAULT_MAX_GAP
+
+    model = result.model
+    valid.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+    gap = result.settings.get("max_gap", DEFAULT_MAX_GAP) if max_gap is None else max_gap
+    try:
+        return prepare_window(
+            valid, model.inputs, model.outputs, max_gap=gap, what="validation data"
+        )
+    except DataError as err:
+        raise ValidationError(str(err)) from None
 
 
 def joined_arrays(result, valid=None):
     """Inputs u [N, m] and outputs y [N, p] of the identification data followed by the
-    validation data (checked to follow directly), and the number of identification samples."""
+    validation data (checked to follow it, already prepared for its gaps), and the number of
+    identification samples."""
     model = result.model
     ident = result.data
     names_in, names_out = list(model.inputs), list(model.outputs)
@@ -143,6 +189,23 @@ def joined_arrays(result, valid=None):
     return u, y, n_id
 
 
+def segment_starts(result, valid=None) -> list[tuple[int, int, np.ndarray | None]]:
+    """``[(start, stop, x0), …]`` over the identification data followed by ``valid``: each
+    segment with its initial state [°C], or ``None`` for a segment of the validation data that
+    does not follow the identification data directly (it starts from the data rule of
+    :func:`jaxbox.fit.state_guess`)."""
+    from ..data._gaps import segment_slices
+
+    ident = result.data
+    index = ident.index if valid is None else ident.index.append(valid.index)
+    pieces = segment_slices(index, ident.step)
+    model = result.model
+    theta = {k: np.asarray(v) for k, v in result.params.items()}
+    X0 = np.asarray(model.initial_states(theta)).reshape(-1, model.n_states)
+    n_id = len(ident)
+    return [(a, b, X0[k] if a < n_id else None) for k, (a, b) in enumerate(pieces)]
+
+
 def validate(
     result,
     valid=None,
@@ -150,27 +213,60 @@ def validate(
     method: str = "diffrax",
     rtol: float = 1e-8,
     atol: float = 1e-8,
+    max_gap: float | str | None = None,
 ) -> Validation:
     """Post-simulate a fit on its identification data and, optionally, on validation data.
 
     Args:
         result: a :class:`~jaxbox.fit.FitResult`.
-        valid: validation :class:`~jaxbox.data.Dataset` directly following the identification
-            data (same step); ``None`` for auto-validation only.
+        valid: validation :class:`~jaxbox.data.Dataset` after the identification data (same
+            step); ``None`` for auto-validation only.
         method: ``"diffrax"`` (adaptive Kvaerno5, default) or ``"exact"``.
         rtol, atol: tolerances of the adaptive solver.
+        max_gap: the longest input gap of the validation data filled by interpolation [s]
+            (default: the fit's, see :func:`jaxbox.data.prepare_window`).
+
+    Data in segments are simulated segment by segment: each segment of the identification data
+    from its estimated initial states; the validation data from the model state at the end of
+    the identification data when they follow it directly, and any later segment of theirs (after
+    a long gap) from the data rule of :func:`jaxbox.fit.state_guess` (measured states at their
+    measurement, unmeasured ones between their neighbours). Output gaps are left out of the
+    RMSE and SE.
 
     Returns:
         :class:`Validation` with RMSE per output and SE on both periods.
     """
+    from ..fit import state_guess
+
     require_x64()
     model = result.model
     ident = result.data
     names_in, names_out = list(model.inputs), list(model.outputs)
+    if valid is not None:
+        _contiguous(ident, valid)
+        valid = _prepared(result, valid, max_gap)
     u, y, n_id = joined_arrays(result, valid)
-    t = np.arange(len(u)) * ident.step
     opts = {"rtol": rtol, "atol": atol} if method == "diffrax" else {}
-    ysim, xs = _simulate(model, result.params, t, u, method, tuple(sorted(opts.items())))
+    base = model.segmented(1)
+    theta = {k: result.params[k] for k in base.param_names}
+    pieces, starts = [], []
+    for a, b, x0 in segment_starts(result, valid):
+        if x0 is None:
+            part = valid._new(valid._frame.iloc[a - n_id : b - n_id], valid.step)
+            guess = state_guess(base, part)
+            x0 = np.asarray([guess[m.T0] for m in base.network.nodes])
+            for i, m in enumerate(base.network.nodes):
+                if m.constant:  # a constant node keeps its estimated value
+                    x0[i] = result.params[m.T0]
+        pieces.append((a, b))
+        starts.append(x0)
+    # every segment in one call: padded to the longest (inputs held), simulated under vmap
+    length = max(b - a for a, b in pieces)
+    U = np.stack([np.pad(u[a:b], ((0, length - (b - a)), (0, 0)), mode="edge") for a, b in pieces])
+    t = np.arange(length) * ident.step
+    Y, X = _simulate(base, theta, t, U, np.stack(starts), method, tuple(sorted(opts.items())))
+    ysim = np.concatenate([Y[k, : b - a] for k, (a, b) in enumerate(pieces)])
+    xs = np.concatenate([X[k, : b - a] for k, (a, b) in enumerate(pieces)])
     if not (np.all(np.isfinite(ysim)) and np.all(np.isfinite(xs))):
         raise FloatingPointError(
             f"post-simulation of {model.name} produced non-finite values with the fitted "
@@ -191,6 +287,7 @@ def validate(
         se_auto=simulation_error(r_auto, q),
         inputs=tuple(names_in),
         u_auto=u[:n_id],
+        step=float(ident.step),
     )
     if valid is not None:
         r_cross = rmse(ysim[n_id:], y[n_id:])
@@ -206,19 +303,20 @@ def validate(
     return Validation(**out)
 
 
-def _simulate(model, params, t, u, method, options):
+def _simulate(model, params, t, u, x0, method, options):
+    """Outputs [S, N, p] and states [S, N, n] of S runs: inputs u [S, N, m] from x0 [S, n]."""
     import jax
     import jax.numpy as jnp
 
     fn = _JIT.get((model, method, options))
     if fn is None:
 
-        def run(theta, t, u):
-            return simulate_arrays(model, theta, t, u, method=method, **dict(options))
+        def run(theta, t, u, x0):
+            return simulate_arrays(model, theta, t, u, method=method, x0=x0, **dict(options))
 
-        fn = _JIT[(model, method, options)] = jax.jit(run)
+        fn = _JIT[(model, method, options)] = jax.jit(jax.vmap(run, in_axes=(None, None, 0, 0)))
     theta = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
-    y, x = fn(theta, jnp.asarray(t), jnp.asarray(u))
+    y, x = fn(theta, jnp.asarray(t), jnp.asarray(u), jnp.asarray(x0, dtype=float))
     return np.asarray(y), np.asarray(x)
 
 

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .._x64 import require_x64
-from ._metrics import simulation_error
+from ._metrics import rmse, simulation_error
 
 __all__ = ["PredictionPerformance", "prediction_performance"]
 
@@ -142,6 +142,20 @@ def prediction_performance(
     model = result.model
     ident = result.data
     names_out = list(model.outputs)
+    if result.model.segments > 1 or len(ident.segments) > 1:
+        raise ValueError(
+            f"the identification data hold {len(ident.segments)} segments (gaps cut out or "
+            "separate periods); k-step prediction needs one: pass a window without long gaps"
+        )
+    if valid is not None:
+        from ._postsim import _prepared
+
+        valid = _prepared(result, valid, None)
+        if len(valid.segments) > 1 or (valid.start - ident.end).total_seconds() > ident.step * 1.5:
+            raise ValueError(
+                "the validation data hold gaps longer than max_gap or do not follow the "
+                "identification data directly; k-step prediction needs one segment"
+            )
     u, y, n_id = joined_arrays(result, valid)
     n_all = len(u)
     ks = np.asarray(sorted(set(DEFAULT_HORIZONS if horizons is None else horizons)), dtype=int)
@@ -181,12 +195,10 @@ def prediction_performance(
         for k in ks:
             pk = preds[k - 1]  # origin i ↦ row i, target i + k
             origins = np.arange(lo, hi - k)
-            e = pk[origins] - y[origins + k]
-            rm.append(np.sqrt(np.mean(e * e, axis=0)))
+            rm.append(rmse(pk[origins], y[origins + k]))  # output gaps left out
         rm = np.asarray(rm)
         se = np.asarray([simulation_error(r, q) for r in rm])
-        es = ysim[lo:hi] - y[lo:hi]
-        srm = np.sqrt(np.mean(es * es, axis=0))
+        srm = rmse(ysim[lo:hi], y[lo:hi])
         return rm, se, srm, simulation_error(srm, q)
 
     auto = period(0, n_id)

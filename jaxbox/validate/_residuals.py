@@ -17,6 +17,12 @@ state, a missing input). Per output this module computes
   (``corr(e_{t+k}, u_t)``: positive lags are residuals after the input), with the band
   ``± z_{1−α/2} / √N`` that holds when the residuals are white and independent of the input.
 
+Missing samples (NaN: output gaps, and the rows :meth:`Validation.residual_analysis` puts
+between the segments of the data so that no lagged pair spans a cut) are left out: the
+correlations follow Parzen's (1963) estimator for amplitude-modulated series (see
+:func:`autocorrelation`), ``N`` counts the measured samples, and the periodogram takes the
+centred series with 0 at the missing samples.
+
 Everything is returned as data (numpy arrays and JSON-ready summaries); the plots live in
 :mod:`jaxbox.validate._plots`.
 """
@@ -45,14 +51,24 @@ __all__ = [
 
 
 def _vector(e, what="residuals") -> np.ndarray:
+    """A 1-D float series; NaN marks a missing sample (a gap), infinities are refused."""
     e = np.asarray(e, dtype=float)
     if e.ndim != 1:
         raise ValueError(f"{what} must be one series (1-D), got shape {e.shape}")
-    if e.size < 4:
-        raise ValueError(f"{what} need at least 4 samples, got {e.size}")
-    if not np.all(np.isfinite(e)):
-        raise ValueError(f"{what} contain NaN or inf; drop or fill those samples first")
+    if np.isinf(e).any():
+        raise ValueError(f"{what} contain inf; drop or fill those samples first")
+    seen = int(np.isfinite(e).sum())
+    if seen < 4:
+        raise ValueError(f"{what} need at least 4 measured samples, got {seen}")
     return e
+
+
+def _centred(e) -> tuple[np.ndarray, np.ndarray]:
+    """``(d, seen)``: the series minus the mean of its measured samples, 0 where it is missing
+    (the amplitude-modulated series of Parzen 1963), and the mask of measured samples."""
+    seen = np.isfinite(e)
+    d = np.where(seen, e - (e[seen].mean() if seen.any() else 0.0), 0.0)
+    return d, seen
 
 
 def default_max_lag(n: int) -> int:
@@ -68,20 +84,35 @@ def default_lb_lags(n: int) -> int:
 def autocorrelation(e, max_lag: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sample autocorrelation ``r_k``, k = 0 … max_lag (biased estimator, ``r_0 = 1``).
 
+    Missing samples (NaN, output gaps) are left out as in Parzen's (1963) estimator for
+    amplitude-modulated series: with ``d`` the series minus the mean of its measured samples,
+    ``n`` of them, and ``P_k`` the number of pairs ``(t, t + k)`` measured at both ends,
+    ``r_k = [(Σ_pairs d_t d_{t+k}) / P_k] / [(Σ d_t²) / n] · (n − k) / n``; the last factor
+    makes it the ordinary biased estimator when nothing is missing.
+
     Returns:
-        (lags, r). ``r`` is ``nan`` for a constant series.
+        (lags, r). ``r`` is ``nan`` for a constant series (and at a lag without any pair).
     """
     e = _vector(e)
     n = e.size
     L = default_max_lag(n) if max_lag is None else int(max_lag)
     if not 0 <= L < n:
         raise ValueError(f"max_lag must be in [0, {n - 1}] for {n} samples, got {max_lag}")
-    d = e - e.mean()
+    d, seen = _centred(e)
     den = float(d @ d)
     lags = np.arange(L + 1)
     if den == 0:
         return lags, np.full(L + 1, np.nan)
-    r = np.asarray([float(d[: n - k] @ d[k:]) for k in lags]) / den
+    if seen.all():
+        r = np.asarray([float(d[: n - k] @ d[k:]) for k in lags]) / den
+        return lags, r
+    m = int(seen.sum())
+    w = seen.astype(float)
+    pairs = np.asarray([float(w[: n - k] @ w[k:]) for k in lags])
+    sums = np.asarray([float(d[: n - k] @ d[k:]) for k in lags])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = (sums / pairs) / (den / m) * np.maximum(m - lags, 0) / m
+    r[0] = 1.0
     return lags, r
 
 
@@ -99,7 +130,8 @@ def cross_correlation(e, u, max_lag: int | None = None) -> tuple[np.ndarray, np.
     L = default_max_lag(n) if max_lag is None else int(max_lag)
     if not 0 <= L < n:
         raise ValueError(f"max_lag must be in [0, {n - 1}] for {n} samples, got {max_lag}")
-    de, du = e - e.mean(), u - u.mean()
+    de, _ = _centred(e)  # missing samples (NaN) count as 0 after centring: no pair
+    du, _ = _centred(u)
     den = np.sqrt(float(de @ de) * float(du @ du))
     lags = np.arange(-L, L + 1)
     if den == 0:
@@ -144,9 +176,13 @@ class LjungBox:
 
 
 def ljung_box(e, lags: int | None = None, alpha: float = 0.05) -> LjungBox:
-    """Ljung–Box test on ``lags`` autocorrelations (default :func:`default_lb_lags`)."""
+    """Ljung–Box test on ``lags`` autocorrelations (default :func:`default_lb_lags`).
+
+    With missing samples the autocorrelations are those of :func:`autocorrelation` and ``N``
+    is the number of measured samples.
+    """
     e = _vector(e)
-    n = e.size
+    n = int(np.isfinite(e).sum())
     h = default_lb_lags(n) if lags is None else int(lags)
     if not 1 <= h < n:
         raise ValueError(f"lags must be in [1, {n - 1}] for {n} samples, got {lags}")
@@ -202,10 +238,14 @@ def _ks_critical(alpha: float, m: int) -> float:
 
 
 def cumulated_periodogram(e, alpha: float = 0.05) -> CumulatedPeriodogram:
-    """Cumulated periodogram test (exact Kolmogorov–Smirnov band for Gaussian white noise)."""
+    """Cumulated periodogram test (exact Kolmogorov–Smirnov band for Gaussian white noise).
+
+    Missing samples (NaN) are set to the mean of the measured ones (0 after centring), the
+    periodogram of the amplitude-modulated series; a few percent of gaps barely change it.
+    """
     e = _vector(e)
     n = e.size
-    d = e - e.mean()
+    d, _ = _centred(e)
     q = (n - 1) // 2  # Fourier frequencies strictly between 0 and Nyquist
     power = np.abs(np.fft.rfft(d)[1 : q + 1]) ** 2
     freq = np.arange(1, q + 1) / n
@@ -232,9 +272,11 @@ def residual_stats(e) -> dict[str, float]:
     """Summary statistics of a residual series [unit of the output, K for temperatures].
 
     Keys: ``n``, ``mean``, ``std`` (N − 1), ``rmse``, ``mae``, ``min``, ``max``, ``max_abs``,
-    ``skewness``, ``kurtosis`` (excess), ``normality_p`` (Jarque–Bera).
+    ``skewness``, ``kurtosis`` (excess), ``normality_p`` (Jarque–Bera); over the measured
+    samples (NaN, an output gap, is left out; ``n`` counts the measured ones).
     """
     e = _vector(e)
+    e = e[np.isfinite(e)]
     const = bool(np.ptp(e) == 0)
     return {
         "n": int(e.size),
@@ -406,7 +448,8 @@ def analyse_residuals(
     if len(in_names) != u.shape[1]:
         raise ValueError(f"{len(in_names)} input names for {u.shape[1]} input columns")
     L = default_max_lag(n) if max_lag is None else int(max_lag)
-    band = float(stats.norm.ppf(1 - alpha / 2) / np.sqrt(n))
+    measured = int(np.isfinite(e).all(axis=1).sum()) if e.size else n
+    band = float(stats.norm.ppf(1 - alpha / 2) / np.sqrt(max(measured, 1)))
     outs = []
     for j, name in enumerate(out_names):
         ej = e[:, j]

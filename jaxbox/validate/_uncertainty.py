@@ -6,8 +6,9 @@ errors at the optimum θ̂, the linearised covariance is::
 
     cov(θ̂) = σ̂² (JᵀJ)⁻¹,        σ̂² = SSE / (N − p),
 
-with N the number of measured output samples and p the number of free parameters (initial states
-included: they are estimated too). With several outputs both J and e are weighted row-wise by
+with N the number of measured output samples (the samples of an output gap are left out) and p
+the number of free parameters (initial states included, those of every segment of the data: they
+are estimated too). With several outputs both J and e are weighted row-wise by
 ``√q_j`` (the fit's output weights, without the 1/N of the fit's residuals), which is weighted
 least squares under the assumption that the noise variance of output j is ``σ²/q_j``; with one
 output of weight 1 it is ordinary least squares. Because J is taken with respect to the physical
@@ -369,7 +370,9 @@ def uncertainty(
     specs = {s.name: s for s in problem.model.parameters}
     units = tuple(specs[n].unit for n in free)
     theta = np.asarray([result.params[n] for n in free], dtype=float)
-    _, _, y, _ = problem_arrays(problem, result.data)
+    _, _, y, sqrt_w = problem_arrays(problem, result.data)
+    # samples of an output gap (weight 0) are no observations
+    seen = np.broadcast_to(np.asarray(sqrt_w) > 0, y.shape) if np.ndim(sqrt_w) == 2 else None
     if not np.all(np.isfinite(theta)):
         raise ValueError("the fit has no finite optimum; there is nothing to attach intervals to")
     ysim, J = sensitivities(result)
@@ -383,7 +386,11 @@ def uncertainty(
     rows = q > 0
     sq = np.sqrt(q[rows])
     e = (y[:, rows] - ysim[:, rows]) * sq
-    Jw = (J[:, rows, :] * sq[None, :, None]).reshape(-1, len(free))
+    Jw = J[:, rows, :] * sq[None, :, None]
+    if seen is None:
+        e, Jw = e.ravel(), Jw.reshape(-1, len(free))
+    else:
+        e, Jw = e[seen[:, rows]], Jw[seen[:, rows]]
     n_obs = e.size
     p = len(free)
     dof = n_obs - p

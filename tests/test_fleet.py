@@ -21,14 +21,15 @@ CFG = {"models": "ZonWal", "starts": 4, "partition_size": 3}
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
-    """Six good buildings, and four broken ones: a NaN, a missing column, no heating (HLC not
+    """Six good buildings, and four broken ones: an infinite reading, a missing column, no heating (HLC not
     identifiable) and a zone temperature that is a random walk (no model reproduces it)."""
     folder = tmp_path_factory.mktemp("fleet") / "in"
     _, truth = make_fleet(N, folder, days=7, seed=5)
     rng = np.random.default_rng(0)
     f = pd.read_csv(folder / "b0.csv")
-    f.loc[10, "T_zon"] = np.nan
-    f.to_csv(folder / "x_nan.csv", index=False)
+    f["T_zon"] = f["T_zon"].astype(float)
+    f.loc[10, "T_zon"] = np.inf  # (a missing reading is masked, not bad data)
+    f.to_csv(folder / "x_inf.csv", index=False)
     f = pd.read_csv(folder / "b1.csv")
     f.drop(columns=["Q_hea"]).to_csv(folder / "x_nocol.csv", index=False)
     f = pd.read_csv(folder / "b2.csv").assign(Q_hea=0.0)
@@ -65,12 +66,12 @@ def test_every_building_is_a_row_with_its_status(inline, fleet):
     _, truth = fleet
     assert summary.processed == N + 4 and summary.workers == 0
     status = dict(zip(rows["building"], rows["status"], strict=True))
-    assert status["x_nan"] == "bad_data" and status["x_nocol"] == "bad_data"
+    assert status["x_inf"] == "bad_data" and status["x_nocol"] == "bad_data"
     assert status["x_noheat"] == "no_valid_model"
     assert status["x_walk"] == "no_valid_model"
     assert all(status[f"b{k}"] == "ok" for k in range(N))
     msg = dict(zip(rows["building"], rows["message"], strict=True))
-    assert "T_zon" in msg["x_nan"] and "Q_hea" in msg["x_nocol"]
+    assert "T_zon" in msg["x_inf"] and "Q_hea" in msg["x_nocol"]
     assert "not identifiable" in msg["x_noheat"]
     assert summary.counts == {"ok": N, "no_valid_model": 2, "bad_data": 2, "failed": 0}
 
@@ -96,7 +97,7 @@ def test_rows_hold_params_intervals_kpis_and_timings(inline, fleet):
     doc = json.loads((out / "fits" / f"{first.name}.json").read_text())
     assert doc["status"] == "ok" and doc["model"] == "ZonWal"
     assert doc["kpis"]["hlc"]["value"] == pytest.approx(first["hlc"])
-    assert json.loads((out / "fits" / "x_nan.json").read_text())["status"] == "bad_data"
+    assert json.loads((out / "fits" / "x_inf.json").read_text())["status"] == "bad_data"
     meta = json.loads((out / "fleet.json").read_text())
     assert meta["status"] == "done" and meta["processed"] == N + 4
 

@@ -21,8 +21,8 @@ CFG = {"models": "ZonWal", "starts": 4, "partition_size": 3}
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
-    """Six good buildings, and four broken ones: an infinite reading, a missing column, no heating (HLC not
-    identifiable) and a zone temperature that is a random walk (no model reproduces it)."""
+    """Six good buildings, and four broken ones: an infinite reading, a missing column, no heating
+    (HLC not identifiable) and a zone temperature that is a random walk (no model reproduces it)."""
     folder = tmp_path_factory.mktemp("fleet") / "in"
     _, truth = make_fleet(N, folder, days=7, seed=5)
     rng = np.random.default_rng(0)

@@ -1,6 +1,13 @@
 """Model declaration: linear RC networks, parameters by naming convention, components, library."""
 
 from . import _components as components  # noqa: F401  (the namespace jaxbox.models.components)
+from . import _grammar as grammar  # noqa: F401  (the namespace jaxbox.models.grammar)
+from ._grammar import Grammar as Grammar
+from ._grammar import Structure as Structure
+from ._grammar import extensions as extensions
+from ._grammar import parse_structure as parse_structure
+from ._grammar import random_structure as random_structure
+from ._grammar import roots as roots
 from ._library import describe_models as describe_models
 from ._library import families as families
 from ._library import get_model as get_model

@@ -75,6 +75,7 @@ import re
 from collections.abc import Callable, Sequence
 
 from . import _components as c
+from ._grammar import is_structure_name, parse_structure
 from ._network import RCModel, RCNetwork
 from ._parameters import ModelError
 
@@ -154,9 +155,13 @@ def register(
 
 
 def get_model(name: str | RCModel) -> RCModel:
-    """The library model ``name`` (an :class:`RCModel` is passed through)."""
+    """The library model ``name`` (an :class:`RCModel` is passed through); a structure name of
+    the component grammar (``"Zon+Wal+Int"``, :mod:`~jaxbox.models.grammar`) builds that
+    structure."""
     if isinstance(name, RCModel):
         return name
+    if name not in _REGISTRY and is_structure_name(name):
+        return parse_structure(name).build()
     try:
         return _REGISTRY[name].make()
     except (KeyError, TypeError):

@@ -177,6 +177,10 @@ def test_gaps_where_the_truth_says_and_csv_round_trip(tmp_path):
         assert len(pd.read_csv(path)) == len(f) - int(expect.sum())  # outage rows left out
         loaded = jaxbox.load(path)
         assert loaded.equals(b.data)
+    # a building with an outage and output gaps fits (segments, masked outputs)
+    b = zoo[0]
+    fit = jaxbox.fit_model(b.structure, jaxbox.load(tmp_path / f"{b.name}.csv"), starts=2)
+    assert all(np.isfinite(v) for v in fit.params.values())
 
 
 def test_recovers_the_hlc_of_a_noisy_building():

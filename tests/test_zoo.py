@@ -148,6 +148,7 @@ def test_held_zone_nearly_constant():
 
 
 @pytest.mark.filterwarnings("ignore:the data have gaps")
+@pytest.mark.filterwarnings("ignore:identification data")
 def test_gaps_where_the_truth_says_and_csv_round_trip(tmp_path):
     zoo = make_zoo(5, tmp_path, seed=7, days=5, gaps=1.0, offset=1.0)
     truth = json.loads((tmp_path / ZOO_TRUTH_JSON).read_text())

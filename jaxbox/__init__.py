@@ -54,6 +54,7 @@ _NAMES = {
     "GreyBox": "select",
     "forward_selection": "select",
     "forward_selection_many": "select",
+    "structure_search": "select",
     "Simulation": "simulate",
     "simulate_model": "simulate",
     "MLResult": "stochastic",

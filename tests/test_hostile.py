@@ -370,7 +370,12 @@ CASES = [
     ),
     ("--map without a canonical name", good, [*FIT, "--map", "=T_zon"], ["--map"]),
     ("empty --model", good, ["fit", "{data}", "--model", ""], ["no library model"]),
-    ("--models all, none fed", dropped("Q_hea", "I_glo_hor"), ["select", "{data}"], ["--models"]),
+    (
+        "--models all, none fed",
+        dropped("Q_hea", "I_glo_hor"),
+        ["select", "{data}", "--models", "all"],
+        ["--models"],
+    ),
     ("--starts above the limit", good, [*FIT, "--starts", "100001"], ["--starts"]),
     ("--seed 1e30", good, [*FIT, "--seed", "1e30"], ["--seed"]),
     ("--max-steps 1e7", good, [*FIT, "--max-steps", "1e7"], ["--max-steps"]),

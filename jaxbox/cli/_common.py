@@ -378,8 +378,8 @@ MAX_STEPS = 1_000_000
 
 
 def check_run_options(args) -> None:
-    """``--starts``, ``--seed``, ``--max-steps`` (and ``--margin``, ``--patience`` where the
-    command has them) in range."""
+    """``--starts``, ``--seed``, ``--max-steps`` (and ``--margin``, ``--patience``, ``--beam``
+    where the command has them) in range."""
     integer(args.starts, "--starts", 1, MAX_STARTS)
     integer(args.seed, "--seed", 0, 2**63 - 1)
     if args.max_steps is None:
@@ -387,6 +387,8 @@ def check_run_options(args) -> None:
     integer(args.max_steps, "--max-steps", 1, MAX_STEPS)
     if getattr(args, "patience", None) is not None:
         integer(args.patience, "--patience", 1)
+    if getattr(args, "beam", None) is not None:
+        integer(args.beam, "--beam", 1, 64)
     margin = getattr(args, "margin", None)
     if margin is not None and not 0.0 <= margin < 1.0:  # nan fails too
         raise UsageError(

@@ -1,4 +1,5 @@
-"""The ``jaxbox select`` command (forward selection) and ``jaxbox demo`` (selection + report).
+"""The ``jaxbox select`` command (structure search or forward selection) and ``jaxbox demo``
+(selection + report).
 
 ``select_command(args)`` and ``demo_command(args)`` take the parsed arguments;
 ``add_select_arguments(parser)`` and ``add_demo_arguments(parser)`` declare them.
@@ -46,10 +47,24 @@ def add_select_arguments(p) -> None:
     add_data_arguments(p)
     p.add_argument(
         "--models",
-        default="all",
-        metavar="A,B,…|FAMILY|all",
-        help="candidate models: comma-separated names, a library family (exp1, …) or 'all' "
-        "(every library model the data can feed; default)",
+        default="search",
+        metavar="search|A,B,…|FAMILY|all",
+        help="'search' (default): a structure search of the component grammar; or a forward "
+        "selection over comma-separated names, a library family (exp1, bacher-madsen, …) or "
+        "'all' (every library model the data can feed)",
+    )
+    p.add_argument(
+        "--criterion",
+        choices=("cv", "aic", "bic", "lr"),
+        default="cv",
+        help="search: rank candidates by validation SE (cv, default), AIC, BIC or a "
+        "likelihood-ratio test on the identification data",
+    )
+    p.add_argument(
+        "--beam",
+        type=int_option,
+        default=1,
+        help="search: how many of the best structures each step grows (default 1)",
     )
     _common(p)
     p.add_argument("--out", metavar="DIR", help="save the GreyBox, the table and a report in DIR")
@@ -73,8 +88,9 @@ def _common(p, patience: int = 1) -> None:
     p.add_argument(
         "--margin",
         type=float_option,
-        default=0.0,
-        help="relative improvement of the validation SE a model must bring (default 0)",
+        default=None,
+        help="relative improvement of the validation SE a model must bring (default 0 for a "
+        "forward selection, 0.02 for the search)",
     )
     p.add_argument(
         "--patience",
@@ -107,6 +123,15 @@ def _candidates(text: str, data=None):
     from ..select import candidate_models
 
     text = (text or "all").strip()
+    if text == "search":
+        from ..models import Grammar
+
+        if data is not None:
+            try:
+                Grammar.from_columns(data.columns)
+            except ModelError as err:
+                raise UsageError(f"--models search: {err}") from None
+        return "search"
     if text != "all" and text not in families():
         names = [n.strip() for n in text.split(",") if n.strip()]
         if not names:
@@ -129,7 +154,7 @@ def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0):
     """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
     lock-step, each step's fits batched over the buildings."""
     from ..data import DataWarning
-    from ..select import GreyBox, forward_selection_many
+    from ..select import GreyBox, forward_selection_many, structure_search
 
     with warnings.catch_warnings():  # the windows' warnings were given once already
         warnings.simplefilter("ignore", DataWarning)
@@ -144,12 +169,32 @@ def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0):
             )
             for spec, data, ident, valid in sets
         ]
+    if candidates == "search":
+        say = progress(args)
+        selections = []
+        for gb in boxes:
+            if len(boxes) > 1:
+                say(f"== {gb.name}")
+            selections.append(
+                structure_search(
+                    gb,
+                    criterion=getattr(args, "criterion", "cv"),
+                    beam=getattr(args, "beam", 1),
+                    starts=args.starts,
+                    seed=args.seed,
+                    margin=0.02 if args.margin is None else args.margin,
+                    max_steps=args.max_steps,
+                    progress=say,
+                )
+            )
+            check_interrupted()
+        return list(zip(boxes, selections, strict=True))
     selections = forward_selection_many(
         boxes,
         candidates,
         starts=args.starts,
         seed=args.seed,
-        margin=args.margin,
+        margin=0.0 if args.margin is None else args.margin,
         patience=args.patience,
         max_steps=args.max_steps,
         progress=progress(args),
@@ -208,6 +253,11 @@ def _print_table(gb, sel) -> None:
     print()
     print(gb.table_text())
     print()
+    tree = getattr(sel, "tree_text", None)
+    if tree is not None:
+        print(f"search tree ({sel.criterion}; * accepted):")
+        print(tree())
+        print()
     print(sel.stopped)
     if sel.case is None:
         print("no valid model: none accepted")
@@ -217,8 +267,9 @@ def _print_table(gb, sel) -> None:
 
 
 def select_command(args) -> int:
-    """``jaxbox select DATA…``: forward selection; ``--json`` prints the table and the
-    accepted model's fit document (with several DATA: ``{"buildings": [document, …]}``)."""
+    """``jaxbox select DATA…``: structure search (default) or forward selection; ``--json``
+    prints the table and the accepted model's fit document (with several DATA:
+    ``{"buildings": [document, …]}``)."""
     check_run_options(args)
     opts = DataOptions(args)
     out = check_output_folders(args.out, "--out", opts.specs)

@@ -91,12 +91,55 @@ def _table_section(gb, accepted) -> list[str]:
             f"<tr class='{cls}'><td class=l>{_e(c.name)}</td><td class=l>{_e(c.model.name)}</td>"
             f"<td>{c.n_params}</td><td class=l>{_e(c.row()['guess'])}</td><td>{ra}</td>"
             f"<td>{rc}</td><td>{_num(c.se_auto)}</td><td>{_num(c.se_cross)}</td>"
-            f"<td class={'ok' if c.is_valid else 'bad'}>{'yes' if c.is_valid else 'no'}</td>"
+            f"<td class={'ok' if c.is_valid else 'bad'}>{_valid_text(c)}</td>"
             f"<td class=l>{why}</td></tr>"
         )
     rows.append("</table>")
     rows.append(_png(gb.plot(accepted=accepted)))
     return rows
+
+
+def _valid_text(case) -> str:
+    if case.verdict is None:
+        return "not judged"
+    return "yes" if case.is_valid else "no"
+
+
+def _tree_section(search) -> list[str]:
+    """The search tree as nested lists: structure, criterion value, status and why."""
+    tree = getattr(search, "tree", ())
+    if not tree:
+        return []
+    children: dict = {}
+    for n in tree:
+        children.setdefault(n.parent, []).append(n)
+
+    def walk(parent) -> list[str]:
+        out = ["<ul>"]
+        for n in children.get(parent, []):
+            value = _num(n.criterion, ".4g")
+            cls = {"accepted": "ok", "grown": "ok", "not valid": "bad", "failed": "bad"}.get(
+                n.status, ""
+            )
+            added = "" if n.parent is None else f" <span class=small>+ {_e(n.added)}</span>"
+            why = f" <span class=small>({_e(n.why)})</span>" if n.why else ""
+            out.append(
+                f"<li><b>{_e(n.structure)}</b>{added}: {search.criterion} {value}, "
+                f"<span class={cls}>{_e(n.status)}</span>{why}"
+            )
+            if n.case in children:
+                out += walk(n.case)
+            out.append("</li>")
+        out.append("</ul>")
+        return out
+
+    head = (
+        f"<h2>Structure search</h2><p class=small>Criterion {_e(search.criterion)}; "
+        f"{len(tree)} candidates; {_e(search.stopped)}. Each line: a structure, what it adds "
+        "to its parent, its criterion value and its fate (grown: extended in the next step; "
+        "not valid: its branch pruned).</p>"
+    )
+    return [head, *walk(None)]
 
 
 def _accepted_section(case, selection) -> list[str]:
@@ -219,6 +262,7 @@ def greybox_report(gb, selection=None, *, title: str | None = None) -> str:
     ]
     parts += _data_section(gb)
     parts += _table_section(gb, accepted)
+    parts += _tree_section(selection)
     if accepted is not None:
         parts += _accepted_section(gb.cases[accepted], selection)
     else:

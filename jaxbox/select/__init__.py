@@ -1,4 +1,5 @@
-"""Identification workflow: GreyBox and Case, initial guesses, forward selection, persistence."""
+"""Identification workflow: GreyBox and Case, initial guesses, forward selection, structure
+search, persistence."""
 
 from ._cases import Case as Case
 from ._cases import run_cases as run_cases
@@ -17,3 +18,7 @@ from ._guess import state_guess as state_guess
 from ._guess import state_ranges as state_ranges
 from ._persist import PersistError as PersistError
 from ._persist import save_greybox as save_greybox
+from ._search import CRITERIA as CRITERIA
+from ._search import Search as Search
+from ._search import SearchNode as SearchNode
+from ._search import structure_search as structure_search

@@ -26,7 +26,10 @@ __all__ = ["Case", "Progress", "SETTINGS", "run_cases"]
 Progress = Callable[[str], None]
 
 #: Solver settings a case passes on to :func:`jaxbox.fit.fit_batch`.
-SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simulator", "max_gap")
+FIT_SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simulator", "max_gap")
+#: Settings of a case: the solver's, and ``postsim``, the post-simulation method of its
+#: validation (``"diffrax"``, adaptive, by default; ``"exact"``, the matrix exponential).
+SETTINGS = (*FIT_SETTINGS, "postsim")
 
 
 def quiet(msg: str) -> None:
@@ -107,7 +110,7 @@ class Case:
 
     def _request(self) -> dict:
         """The :func:`jaxbox.fit.fit_batch` request of this case."""
-        opts = {k: v for k, v in self.settings.items() if k in SETTINGS}
+        opts = {k: v for k, v in self.settings.items() if k in FIT_SETTINGS}
         return {
             "model": self.model,
             "data": self.ident,
@@ -120,13 +123,40 @@ class Case:
             **opts,
         }
 
-    def _complete(self, result, fit_s: float, say: Progress) -> Case:
-        """Post-simulate a fitted case and judge it."""
-        from ..validate import check_validity, uncertainty, validate
+    def _complete(self, result, fit_s: float, say: Progress, judge: bool = True) -> Case:
+        """Post-simulate a fitted case and (with ``judge``) judge it."""
+        from ..validate import validate
 
         self.result = result
         t1 = time.perf_counter()
-        self.validation = validate(self.result, self.valid)
+        self.validation = validate(
+            self.result, self.valid, method=self.settings.get("postsim", "diffrax")
+        )
+        t2 = time.perf_counter()
+        self.timing = {
+            "fit_s": fit_s,
+            "compile_s": float(self.result.timing.get("compile_s", 0.0)),
+            "validate_s": t2 - t1,
+        }
+        if self.result.timing.get("batch", 1) > 1:
+            self.timing["batch"] = int(self.result.timing["batch"])
+        if judge:
+            self.assess()
+        verdict = (
+            "not judged" if self.verdict is None else ("valid" if self.is_valid else "not valid")
+        )
+        say(
+            f"  {self.name}: {self.result.starts.status_summary()}; RMSE auto "
+            f"{self.se_auto:.3f} K, cross {fmt_se(self.se_cross)} K, {verdict} "
+            f"({fit_s + time.perf_counter() - t1:.1f} s)"
+        )
+        return self
+
+    def assess(self) -> Case:
+        """Intervals (σ²(JᵀJ)⁻¹) and the validity verdict of a fitted, post-simulated case."""
+        from ..validate import check_validity, uncertainty
+
+        self._require_run()
         t2 = time.perf_counter()
         try:
             unc = uncertainty(self.result)
@@ -135,20 +165,7 @@ class Case:
         self.verdict = check_validity(
             self.result, unc, check_intervals=unc is not None, validation=self.validation
         )
-        t3 = time.perf_counter()
-        self.timing = {
-            "fit_s": fit_s,
-            "compile_s": float(self.result.timing.get("compile_s", 0.0)),
-            "validate_s": t2 - t1,
-            "verdict_s": t3 - t2,
-        }
-        if self.result.timing.get("batch", 1) > 1:
-            self.timing["batch"] = int(self.result.timing["batch"])
-        say(
-            f"  {self.name}: {self.result.starts.status_summary()}; RMSE auto "
-            f"{self.se_auto:.3f} K, cross {fmt_se(self.se_cross)} K, "
-            f"{'valid' if self.is_valid else 'not valid'} ({fit_s + t3 - t1:.1f} s)"
-        )
+        self.timing["verdict_s"] = time.perf_counter() - t2
         return self
 
     def judge(self, **options) -> Case:
@@ -240,6 +257,7 @@ def run_cases(
     *,
     catch: bool = False,
     labels: Sequence[str] | None = None,
+    judge: bool = True,
 ) -> list[Case]:
     """Run several cases together: every start of every case in as few compiled calls as the
     shapes allow (one, for cases of the same shape — e.g. one model on several buildings).
@@ -250,6 +268,8 @@ def run_cases(
         catch: record a case that fails (every start failed, non-finite post-simulation) in its
             ``notes`` and go on, instead of raising.
         labels: a prefix per case for the progress lines (e.g. the building).
+        judge: compute each case's intervals and verdict (``False``: post-simulate only;
+            :meth:`Case.assess` judges later).
 
     Returns:
         The cases, run (a failed one, with ``catch``, has no result).
@@ -274,7 +294,7 @@ def run_cases(
         try:
             if isinstance(outcome, FitError):
                 raise outcome
-            case._complete(outcome, fit_s, told)
+            case._complete(outcome, fit_s, told, judge)
         except (ValueError, FloatingPointError) as err:  # FitError, non-finite post-simulation
             if not catch:
                 raise

@@ -1,0 +1,386 @@
+"""Structure search: grow a model from the component grammar while the data ask for it.
+
+From the simplest structures the data can drive (:func:`jaxbox.models.grammar.roots`), each step
+identifies every one-component extension (:func:`jaxbox.models.grammar.extensions`) of the
+current best structure, or of a beam of the ``beam`` best, all in one batched call
+(:func:`~jaxbox.select.run_cases`), each child starting from its parent's optimum. Children are
+ranked by the criterion:
+
+- ``"cv"`` (default): the simulation error on the validation data (on the identification data
+  when there is none), among valid candidates;
+- ``"aic"``, ``"bic"``: Akaike's or Schwarz's criterion of the output-error fit on the
+  identification data (Gaussian likelihood, one variance per output);
+- ``"lr"``: a likelihood-ratio test of each child against its parent (nested: one component
+  more), significant at ``alpha``.
+
+A child *improves* when it is valid and beats its parent significantly: a validation SE lower by
+at least ``margin`` (relative), a lower AIC/BIC, or a significant likelihood ratio. The beam of
+the next step holds the best improving children. An invalid child prunes its branch, not the
+search; a child that does not improve is not grown further. The search stops when no child of
+the beam improves. The accepted model is the best valid candidate by the criterion.
+
+With two measured zones the roots are both zones as states (coupled) and each zone alone with
+the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
+one). Candidates predicting more zones rank first; among those predicting different zones the
+validation SE is taken relative to each output's spread.
+
+Validity is judged lazily: a candidate's intervals and verdict are computed only when its
+criterion value could make it improve, which keeps the cost of a step close to the cost of its
+batched fits.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from scipy import stats
+
+from ..fit import DEFAULT_STARTS
+from ..models._grammar import Grammar, Structure, extensions, roots
+from ._cases import Case, Progress, quiet, run_cases
+from ._forward import Selection, _as_greybox
+
+__all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
+
+#: criteria of :func:`structure_search`
+CRITERIA = ("cv", "aic", "bic", "lr")
+
+
+@dataclasses.dataclass(frozen=True)
+class SearchNode:
+    """One candidate of a structure search.
+
+    Attributes:
+        case: case name in the GreyBox.
+        structure: canonical structure name.
+        parent: the case it extends (``None`` for a root).
+        added: the component it adds to its parent, in words.
+        depth: 0 for a root.
+        criterion: its criterion value (SE [K] for ``cv``; AIC/BIC; the likelihood-ratio
+            p-value for ``lr``).
+        status: ``"accepted"``, ``"grown"`` (in a beam), ``"improves"`` (not in the beam),
+            ``"no improvement"``, ``"not valid"``, ``"failed"`` or ``"not judged"``.
+        why: the reason in words (the verdict's first reason, the comparison with the parent).
+    """
+
+    case: str
+    structure: str
+    parent: str | None
+    added: str
+    depth: int
+    criterion: float
+    status: str
+    why: str = ""
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["criterion"] = None if not math.isfinite(self.criterion) else self.criterion
+        return d
+
+
+@dataclasses.dataclass(frozen=True)
+class Search(Selection):
+    """Outcome of a :func:`structure_search`: a :class:`~jaxbox.select.Selection` with the tree.
+
+    Attributes:
+        criterion: the criterion used.
+        tree: every candidate, in the order identified.
+    """
+
+    criterion: str = "cv"
+    tree: tuple[SearchNode, ...] = ()
+
+    def to_dict(self) -> dict:
+        d = super().to_dict()
+        d.update(criterion=self.criterion, tree=[n.to_dict() for n in self.tree])
+        return d
+
+    def tree_text(self) -> str:
+        """The search tree as indented text (one line per candidate)."""
+        children: dict[str | None, list[SearchNode]] = {}
+        for n in self.tree:
+            children.setdefault(n.parent, []).append(n)
+        lines: list[str] = []
+
+        def walk(parent, indent):
+            for n in children.get(parent, []):
+                value = "n/a" if not math.isfinite(n.criterion) else f"{n.criterion:.4g}"
+                mark = "*" if n.case == self.accepted else " "
+                why = f" ({n.why})" if n.why else ""
+                lines.append(
+                    f"{mark} {'  ' * indent}{n.structure}  [{self.criterion} {value}] "
+                    f"{n.status}{why}"
+                )
+                walk(n.case, indent + 1)
+
+        walk(None, 0)
+        return "\n".join(lines)
+
+
+# ---- criteria -----------------------------------------------------------------------------------
+
+
+def _loglik(case: Case) -> tuple[float, int]:
+    """Gaussian log-likelihood of the output-error fit on the identification data (one variance
+    per output, at its maximum-likelihood value) and the number of samples."""
+    e = np.asarray(case.validation.residuals_auto, dtype=float)
+    ll, n = 0.0, 0
+    for j in range(e.shape[1]):
+        ej = e[:, j][np.isfinite(e[:, j])]
+        nj = ej.size
+        s2 = max(float(np.mean(ej**2)), 1e-300)
+        ll += -0.5 * nj * (math.log(2.0 * math.pi * s2) + 1.0)
+        n += nj
+    return ll, n
+
+
+def _relative_se(case: Case) -> float:
+    """Validation SE with each output's RMSE divided by its measured spread."""
+    v = case.validation
+    rmse, y = (v.rmse_cross, v.y_cross) if case.valid is not None else (v.rmse_auto, v.y_auto)
+    out = 0.0
+    for j, (o, w) in enumerate(zip(v.outputs, v.weights, strict=True)):
+        spread = float(np.nanstd(np.asarray(y)[:, j]))
+        out += float(w) * float(rmse[o]) / max(spread, 1e-9)
+    return out
+
+
+class _Judge:
+    """The criterion of a search: values, and whether a child improves on its parent."""
+
+    def __init__(self, criterion: str, margin: float, alpha: float) -> None:
+        self.criterion, self.margin, self.alpha = criterion, margin, alpha
+
+    def value(self, case: Case) -> float:
+        if not case.done or not np.isfinite(case.score):
+            return math.inf
+        if self.criterion == "cv":
+            return float(case.score)
+        ll, n = _loglik(case)
+        k = case.n_params
+        if self.criterion == "aic":
+            return -2.0 * ll + 2.0 * k
+        if self.criterion == "bic":
+            return -2.0 * ll + k * math.log(max(n, 1))
+        return -ll  # lr: ranks by likelihood; the test is in improves()
+
+    def improves(self, child: Case, parent: Case | None) -> tuple[bool, str]:
+        """Whether ``child`` beats ``parent`` significantly (before validity), and why."""
+        if not child.done or not np.isfinite(child.score):
+            return False, "failed"
+        if parent is None:
+            return True, "root"
+        c, p = self.value(child), self.value(parent)
+        if self.criterion == "cv":
+            ok = c < (1.0 - self.margin) * p
+            return ok, f"SE {c:.4g} K against {p:.4g} K of its parent"
+        if self.criterion in ("aic", "bic"):
+            return c < p, f"{self.criterion.upper()} {c:.1f} against {p:.1f}"
+        dk = max(child.n_params - parent.n_params, 1)
+        stat = max(2.0 * (p - c), 0.0)
+        pval = float(stats.chi2.sf(stat, dk))
+        return pval < self.alpha, f"LR {stat:.1f} on {dk} df, p = {pval:.2g}"
+
+
+def _rank(case: Case, judge: _Judge, several_outputs: bool) -> tuple:
+    """Sort key: more predicted zones first, then the criterion (relative SE across zones)."""
+    n_out = len(case.model.outputs)
+    if several_outputs and judge.criterion == "cv" and case.done and np.isfinite(case.score):
+        return (-n_out, _relative_se(case))
+    return (-n_out, judge.value(case))
+
+
+# ---- the search ---------------------------------------------------------------------------------
+
+
+def _assess(case: Case) -> None:
+    """Intervals and verdict of a run case (lazily, only when it could improve)."""
+    if case.done and case.verdict is None:
+        case.assess()
+
+
+def structure_search(
+    greybox,
+    *,
+    criterion: str = "cv",
+    beam: int = 1,
+    starts: int = DEFAULT_STARTS,
+    seed: int | None = 0,
+    margin: float = 0.02,
+    alpha: float = 0.05,
+    max_depth: int = 10,
+    grammar: Grammar | None = None,
+    progress: Progress | None = None,
+    **settings,
+) -> Search:
+    """Search the component grammar for the structure the data support (see the module).
+
+    Args:
+        greybox: a :class:`~jaxbox.select.GreyBox`, or data (a Dataset, a DataFrame with a time
+            index, a CSV path) for a new one with the default periods.
+        criterion: ``"cv"``, ``"aic"``, ``"bic"`` or ``"lr"``.
+        beam: how many of the best improving structures each step grows.
+        starts: starts per candidate (the parent's optimum plus Latin-hypercube samples).
+        seed: seed of the Latin hypercubes.
+        margin: relative decrease of the validation SE that counts as an improvement (``cv``).
+        alpha: significance level of the likelihood-ratio test (``lr``).
+        max_depth: most components added to a root.
+        grammar: what the data can drive (default: from the data's columns).
+        progress: called with one line of text per step and per candidate.
+        settings: solver settings for the fits (``max_steps``…).
+
+    Returns:
+        :class:`Search` (the cases are in ``search.greybox.cases``).
+
+    Raises:
+        ValueError: a bad option, or data the grammar cannot model (no ``T_zon``/``T_amb``,
+            more than two zones).
+    """
+    from ..models import ModelError
+
+    say = progress or quiet
+    if criterion not in CRITERIA:
+        raise ValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
+    for label, value, lo in (("beam", beam, 1), ("max_depth", max_depth, 0)):
+        if not isinstance(value, int) or isinstance(value, bool) or value < lo:
+            raise ValueError(f"{label} must be a whole number ≥ {lo}, got {value!r}")
+    if not isinstance(margin, int | float) or not 0.0 <= margin < 1.0:
+        raise ValueError(f"margin must be in [0, 1), got {margin!r}")
+    if not isinstance(alpha, int | float) or not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    gb = _as_greybox(greybox, "structure_search")
+    try:
+        grammar = grammar or Grammar.from_columns(gb.data.columns)
+    except ModelError as err:
+        raise ValueError(str(err)) from None
+    judge = _Judge(criterion, float(margin), float(alpha))
+    several = len(grammar.zones) > 1
+    kw = {"starts": starts, "seed": seed, **settings}
+    t0 = time.perf_counter()
+    nodes: dict[str, dict] = {}  # case name -> node fields
+    seen: set[str] = set()
+
+    def declare(structure: Structure, parent: Case | None, added: str, depth: int) -> Case:
+        model = structure.build(grammar)
+        if parent is None:
+            case = gb.add_case(model, **kw)
+        else:
+            case = gb.add_case(model, guess="parent", parent=parent.name, **kw)
+        case.settings.setdefault("postsim", "exact")
+        seen.add(structure.name)
+        nodes[case.name] = dict(
+            case=case.name,
+            structure=structure.name,
+            parent=None if parent is None else parent.name,
+            added=added,
+            depth=depth,
+        )
+        return case
+
+    def run(cases: list[Case], step: int) -> None:
+        say(f"step {step}: {len(cases)} candidate(s) in one batched call")
+        run_cases(cases, say, catch=True, judge=False)
+
+    def settle(children: list[tuple[Case, Case | None]]) -> list[Case]:
+        """Judge a step's children; the improving valid ones, best first."""
+        order = sorted(children, key=lambda cp: _rank(cp[0], judge, several))
+        winners = []
+        for child, parent in order:
+            node = nodes[child.name]
+            node["criterion"] = judge.value(child)
+            better, why = judge.improves(child, parent)
+            if not child.done:
+                node.update(status="failed", why="; ".join(child.notes)[-200:])
+                continue
+            if not better:
+                node.update(status="no improvement", why=why)
+                continue
+            if len(winners) >= beam:  # the beam is full: not judged, not grown
+                node.update(status="improves", why=why)
+                continue
+            _assess(child)
+            if not child.is_valid:
+                first = child.reasons[0] if child.reasons else "not valid"
+                node.update(status="not valid", why=first)
+                say(f"  {child.name}: pruned, not valid ({first})")
+                continue
+            node.update(status="grown", why=why)
+            winners.append(child)
+        return winners
+
+    beam_cases: list[Case] = []
+    first = [declare(s, None, "root", 0) for s in roots(grammar)]
+    say(
+        f"structure search ({criterion}, beam {beam}) from "
+        + ", ".join(s.name for s in roots(grammar))
+    )
+    run(first, 0)
+    beam_cases = settle([(c, None) for c in first])
+    if not beam_cases:  # nothing valid among the roots: grow the best one all the same
+        best = min(first, key=lambda c: _rank(c, judge, several))
+        if best.done:
+            beam_cases = [best]
+            nodes[best.name]["status"] = "grown"
+            nodes[best.name]["why"] = "no valid root: the best one is grown all the same"
+    stopped = "no root could be fitted" if not beam_cases else ""
+    depth = 0
+    while beam_cases and not stopped:
+        depth += 1
+        if depth > max_depth:
+            stopped = f"reached max_depth={max_depth}"
+            break
+        children: list[tuple[Case, Case]] = []
+        for parent in beam_cases:
+            structure = _structure_of(nodes[parent.name]["structure"])
+            for added, child in extensions(structure, grammar):
+                if child.name not in seen:
+                    children.append((declare(child, parent, added, depth), parent))
+        if not children:
+            stopped = "the grammar has no further extension the data can drive"
+            break
+        run([c for c, _ in children], depth)
+        winners = settle(children)
+        if not winners:
+            stopped = f"step {depth}: no extension improves significantly"
+            break
+        beam_cases = winners
+    elapsed = time.perf_counter() - t0
+
+    valid = [gb.cases[n] for n in nodes if gb.cases[n].done and gb.cases[n].verdict is not None]
+    valid = [c for c in valid if c.is_valid]
+    accepted = min(valid, key=lambda c: _rank(c, judge, several), default=None)
+    for name, node in nodes.items():
+        node.setdefault("criterion", math.inf)
+        node.setdefault("status", "not judged")
+        if accepted is not None and name == accepted.name:
+            node["status"] = "accepted"
+    tree = tuple(SearchNode(**nodes[n]) for n in nodes)
+    say(
+        f"accepted: {accepted.name if accepted else 'none (no valid model)'}; {stopped} "
+        f"({elapsed:.0f} s, {len(nodes)} candidates)"
+    )
+    return Search(
+        greybox=gb,
+        accepted=None if accepted is None else accepted.name,
+        order=tuple(nodes),
+        stopped=stopped,
+        skipped=(),
+        elapsed_s=elapsed,
+        criterion=criterion,
+        tree=tree,
+    )
+
+
+def _structure_of(name: str) -> Structure:
+    from ..models._grammar import parse_structure
+
+    return parse_structure(name)
+
+
+def search_many(greyboxes: Sequence, **options) -> list[Search]:
+    """:func:`structure_search` on each building in turn (same options)."""
+    return [structure_search(gb, **options) for gb in greyboxes]

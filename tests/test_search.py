@@ -1,0 +1,201 @@
+"""The component grammar and the structure search (small grammar, synthetic buildings)."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from _reference import synthetic_building
+
+import jaxbox
+from jaxbox.models import (
+    Grammar,
+    ModelError,
+    extensions,
+    get_model,
+    parse_structure,
+    random_structure,
+    roots,
+)
+from jaxbox.select import GreyBox, structure_search
+
+jaxbox.enable_x64()
+
+N2_COLUMNS = ["T_zon", "T_amb", "T_bou", "T_cel", "Q_hea", "I_glo_hor", "I_s", "I_e", "I_w"]
+
+
+# ---- grammar ------------------------------------------------------------------------------------
+
+
+def test_grammar_reads_what_the_data_drive():
+    g = Grammar.from_columns(N2_COLUMNS)
+    assert g.zones == (0,)
+    assert g.boundaries == ("T_bou", "T_cel")
+    assert g.facades == ("I_s", "I_e", "I_w")
+    grown = [s.name for _, s in extensions(roots(g)[0], g)]
+    assert grown == ["Zon+Wal", "Zon+Int", "Zon+Bou", "Zon+Cel", "Zon+Hea", "Zon+WinSEW"]
+    # infiltration needs the envelope capacity; a boundary grows a capacity once present
+    wal = parse_structure("Zon+Wal+Bou")
+    names = [s.name for _, s in extensions(wal, g)]
+    assert "Zon+Wal+Inf+Bou" in names and "Zon+Wal+BouC" in names
+    assert "Zon+Wal+Bou+Bou" not in names
+
+
+def test_grammar_without_columns_grows_nothing_they_lack():
+    g = Grammar.from_columns(["T_zon", "T_amb", "Q_hea"])
+    names = {s.name for _, s in extensions(parse_structure("Zon+Wal+Int"), g)}
+    assert names == {"Zon+Wal+Int+Inf", "Zon+Wal+Int+Hea", "Zon+Wal+Int+Rad"}
+    m = parse_structure("Zon+Wal").build(g)
+    assert set(m.inputs) == {"T_amb", "Q_hea"}  # no solar input without irradiance
+
+
+def test_structure_names_round_trip_and_build():
+    g = Grammar.from_columns(N2_COLUMNS + ["P_ele"])
+    rng = np.random.default_rng(1)
+    for _ in range(100):
+        s = random_structure(g, rng)
+        assert parse_structure(s.name) == s
+        m = s.build(g)
+        assert set(m.inputs) <= set(N2_COLUMNS + ["P_ele"])
+        assert m.outputs == ("T_zon",)
+
+
+def test_a_structure_name_equals_its_library_twin():
+    """Zon+Wal+Int+Inf is the library's ZonWalIntInf: same parameters, same state space."""
+    a, b = get_model("Zon+Wal+Int+Inf"), get_model("ZonWalIntInf")
+    assert a.param_names == b.param_names
+    theta = b.defaults()
+    for x, y in zip(a.state_space(theta), b.state_space(theta), strict=True):
+        np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-14)
+
+
+def test_two_zones_as_states_or_as_a_boundary():
+    g = Grammar.from_columns(["T_zon1", "T_zon2", "T_amb", "Q_hea1", "Q_hea2", "I_glo_hor"])
+    names = [r.name for r in roots(g)]
+    assert names == ["Zon1+Zon2+Cpl", "Zon1+Bz2", "Zon2+Bz1"]
+    both, held = (parse_structure(n).build(g) for n in names[:2])
+    assert both.outputs == ("T_zon1", "T_zon2")
+    assert held.outputs == ("T_zon1",) and "T_zon2" in held.inputs and "Q_hea2" not in held.inputs
+    grown = [s.name for _, s in extensions(parse_structure("Zon1+Zon2+Cpl"), g)]
+    assert "Zon1+Zon2+Wal1+Cpl" in grown and "Zon1+Zon2+CplC" in grown
+
+
+@pytest.mark.parametrize(
+    "name, words",
+    [
+        ("Zon+Int+Wal", "canonical order"),
+        ("Zon+Foo1", "not a grammar token"),
+        ("Zon+Wal2", "not a state"),
+        ("Zon1+Zon1", "once"),
+    ],
+)
+def test_bad_structure_names_are_refused(name, words):
+    with pytest.raises(ModelError, match=words):
+        parse_structure(name)
+
+
+def test_more_than_two_zones_is_refused_with_advice():
+    with pytest.raises(ModelError, match="--models"):
+        Grammar.from_columns(["T_zon1", "T_zon2", "T_zon3", "T_amb"])
+
+
+# ---- search -------------------------------------------------------------------------------------
+
+TRUTH = {
+    "C_zon": 2.0e6,
+    "C_wal": 3.0e7,
+    "R_wal": 0.01,
+    "gA": 2.0,
+    "T_zon0": 19.0,
+    "T_wal0": 16.0,
+}
+
+
+@pytest.fixture(scope="module")
+def building():
+    """Five days of a two-state building (zone air and envelope) with 0.05 K noise."""
+    data = synthetic_building(get_model("ZonWal"), TRUTH, n=240, seed=3, noise=0.05)
+    return GreyBox(data, name="two states")
+
+
+@pytest.fixture(scope="module")
+def search(building):
+    lines = []
+    s = structure_search(building, starts=4, max_depth=2, progress=lines.append)
+    return s, lines
+
+
+def test_search_finds_the_true_structure(search):
+    s, _ = search
+    assert s.accepted == "Zon+Wal"
+    case = s.case
+    np.testing.assert_allclose(case.result.params["R_wal"], TRUTH["R_wal"], rtol=0.05)
+    assert case.se_cross < 0.1  # twice the noise
+
+
+def test_search_tree_is_a_tree_with_reasons(search):
+    s, lines = search
+    names = [n.case for n in s.tree]
+    assert names[0] == "Zon"
+    by_name = {n.case: n for n in s.tree}
+    for n in s.tree:
+        if n.parent is not None:
+            parent = by_name[n.parent]
+            assert parent.status in ("grown", "accepted")
+            assert n.depth == parent.depth + 1
+    # the extensions of the accepted structure were tried, and none of them improved enough
+    kids = [n for n in s.tree if n.parent == "Zon+Wal"]
+    assert kids and all(n.status in ("no improvement", "not valid", "failed") for n in kids)
+    assert "no extension improves" in s.stopped
+    text = s.tree_text()
+    assert text.splitlines()[0].startswith("  Zon ")
+    assert "* " in text  # the accepted line is marked
+    doc = json.loads(json.dumps(s.to_dict()))
+    assert doc["criterion"] == "cv" and len(doc["tree"]) == len(s.tree)
+    assert any("step 1" in line for line in lines)
+
+
+def test_invalid_candidates_prune_their_branch_only(search):
+    s, _ = search
+    for n in s.tree:
+        if n.status == "not valid":
+            assert not any(m.parent == n.case for m in s.tree)
+            assert n.why  # the verdict's first reason
+
+
+def test_lazy_verdicts_judge_only_what_could_improve(search):
+    s, _ = search
+    gb = s.greybox
+    for n in s.tree:
+        case = gb.cases[n.case]
+        if n.status in ("grown", "accepted", "not valid"):
+            assert case.verdict is not None
+        if n.status in ("no improvement", "improves"):  # beaten, or the beam was full
+            assert case.verdict is None
+
+
+@pytest.mark.parametrize("criterion", ["bic", "lr"])
+def test_likelihood_criteria(building, criterion):
+    gb = GreyBox(building.data, name=criterion)
+    s = structure_search(gb, criterion=criterion, starts=4, max_depth=1)
+    root = next(n for n in s.tree if n.case == "Zon")
+    wal = next(n for n in s.tree if n.case == "Zon+Wal")
+    assert math.isfinite(root.criterion) and math.isfinite(wal.criterion)
+    # a second state explains these data far better: BIC falls, the LR test is significant
+    assert wal.status in ("grown", "accepted")
+    if criterion == "lr":
+        assert "p = " in wal.why
+
+
+@pytest.mark.parametrize(
+    "option, words",
+    [
+        ({"criterion": "rmse"}, "criterion"),
+        ({"beam": 0}, "beam"),
+        ({"margin": 1.5}, "margin"),
+        ({"alpha": 0.0}, "alpha"),
+    ],
+)
+def test_bad_search_options(building, option, words):
+    with pytest.raises(ValueError, match=words):
+        structure_search(building, **option)

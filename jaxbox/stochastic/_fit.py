@@ -36,7 +36,7 @@ from ._result import MLResult
 __all__ = ["fit_ml", "fit_ml_many", "DEFAULT_ML_STARTS", "DEFAULT_ML_MAX_STEPS"]
 
 DEFAULT_ML_STARTS = 16
-DEFAULT_ML_MAX_STEPS = 400
+DEFAULT_ML_MAX_STEPS = 300
 _CONVERGED, _MAX_STEPS, _NONFINITE = 0, 1, 2
 
 

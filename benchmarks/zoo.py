@@ -1,0 +1,179 @@
+"""Structure search on the zoo of synthetic test buildings: recovery, coverage, validation error.
+
+For each building of :func:`jaxbox.datasets.make_zoo` (known structure, parameters and noise),
+the default ``select`` (the structure search, criterion ``cv``, halves for identification and
+validation) is run, and the benchmark records:
+
+* structure recovery: the accepted structure is the true one, or an equivalent one (the same
+  number of states, the same inputs and the same number of resistances);
+* coverage of the 95 % intervals of the true parameters, when the true structure is accepted;
+* the accepted model's validation RMSE relative to the noise level;
+* the search time, per data length and step.
+
+Usage::
+
+    python benchmarks/zoo.py [--n 100] [--seed 0] [--steps 10min,60min] [--days 14]
+                             [--out benchmarks/ZOO.md] [--json benchmarks/zoo.json]
+
+Targets (issue: any real building): recovery ≥ 80 %, validation RMSE ≤ 1.5× the noise on ≥ 90 %.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+
+
+def _signature(model) -> tuple:
+    """What makes two structures equivalent: states, inputs, number of resistances."""
+    return (model.n_states, tuple(sorted(model.inputs)), len(model.network.edges))
+
+
+def run_one(b, starts: int) -> dict:
+    import jaxbox
+    from jaxbox.data import DataWarning
+    from jaxbox.models import get_model
+    from jaxbox.validate import uncertainty
+
+    t0 = time.perf_counter()
+    row = {
+        "building": b.name,
+        "truth": b.structure,
+        "step": b.step,
+        "heating": b.heating,
+        "noise": b.noise,
+        "offset": b.offset,
+        "samples": len(b.data),
+        "gaps": len(b.gaps) + len(b.outages),
+    }
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            gb = jaxbox.GreyBox(b.data, name=b.name)
+            s = jaxbox.structure_search(gb, starts=starts)
+    except Exception as err:  # noqa: BLE001 - a benchmark row records any failure
+        row.update(status="failed", error=f"{type(err).__name__}: {err}"[:300])
+        row["search_s"] = time.perf_counter() - t0
+        return row
+    row["search_s"] = time.perf_counter() - t0
+    row["candidates"] = len(s.tree)
+    if s.case is None:
+        row.update(status="no_valid_model")
+        return row
+    case = s.case
+    row["status"] = "ok"
+    row["accepted"] = case.model.name
+    row["exact"] = case.model.name == b.structure
+    truth = get_model(b.structure)
+    row["equivalent"] = row["exact"] or _signature(case.model) == _signature(truth)
+    rmse = case.validation.rmse_cross or case.validation.rmse_auto
+    row["rmse_valid"] = float(np.mean(list(rmse.values())))
+    row["rmse_over_noise"] = row["rmse_valid"] / max(b.noise, 1e-9)
+    if row["exact"]:
+        try:
+            unc = uncertainty(case.result)
+            hits = []
+            for name, (lo, hi) in zip(unc.names, np.asarray(unc.ci95), strict=True):
+                if name in b.params and not name.startswith("T_"):
+                    hits.append(bool(lo <= b.params[name] <= hi))
+            row["covered"], row["intervals"] = int(sum(hits)), len(hits)
+        except (ValueError, KeyError, AttributeError) as err:
+            row["coverage_error"] = str(err)[:200]
+    return row
+
+
+def markdown(doc: dict) -> str:
+    rows = doc["rows"]
+    ok = [r for r in rows if r.get("status") == "ok"]
+    n = len(rows)
+    lines = [
+        "## Structure search on the zoo (benchmarks/zoo.py)",
+        "",
+        f"Written by `python benchmarks/zoo.py` on {doc['date']}; {doc['machine']}; raw numbers "
+        "in `benchmarks/zoo.json`. Default `select` (structure search, criterion cv, "
+        f"{doc['starts']} starts per candidate, data split in halves).",
+        "",
+        "| buildings | accepted a valid model | exact structure | equivalent | "
+        "RMSE ≤ 1.5× noise | median search [s] |",
+        "|---:|---:|---:|---:|---:|---:|",
+    ]
+
+    def pct(k):
+        return f"{100 * k / max(n, 1):.0f} %"
+
+    lines.append(
+        f"| {n} | {pct(len(ok))} | {pct(sum(r['exact'] for r in ok))} | "
+        f"{pct(sum(r['equivalent'] for r in ok))} | "
+        f"{pct(sum(r['rmse_over_noise'] <= 1.5 for r in ok))} | "
+        f"{np.median([r['search_s'] for r in rows]):.0f} |"
+    )
+    lines += ["", "By step:", "", "| step | buildings | equivalent | RMSE ≤ 1.5× noise |"]
+    lines.append("|---|---:|---:|---:|")
+    for step in sorted({r["step"] for r in rows}):
+        rs = [r for r in rows if r["step"] == step]
+        oks = [r for r in rs if r.get("status") == "ok"]
+        lines.append(
+            f"| {step} | {len(rs)} | {sum(r['equivalent'] for r in oks)}/{len(rs)} | "
+            f"{sum(r['rmse_over_noise'] <= 1.5 for r in oks)}/{len(rs)} |"
+        )
+    cov = [r for r in ok if r.get("intervals")]
+    if cov:
+        hit = sum(r["covered"] for r in cov)
+        tot = sum(r["intervals"] for r in cov)
+        lines += ["", f"Coverage of the 95 % intervals (true structure accepted): {hit}/{tot}."]
+    lines += ["", "| building | truth | accepted | step | heating | RMSE/noise | search [s] |"]
+    lines.append("|---|---|---|---|---|---:|---:|")
+    for r in rows:
+        ratio = f"{r['rmse_over_noise']:.2f}" if "rmse_over_noise" in r else r.get("status")
+        lines.append(
+            f"| {r['building']} | {r['truth']} | {r.get('accepted', '–')} | {r['step']} | "
+            f"{r['heating']} | {ratio} | {r['search_s']:.0f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--steps", default="10min,60min")
+    ap.add_argument("--days", type=float, default=14.0)
+    ap.add_argument("--starts", type=int, default=8)
+    ap.add_argument("--out", default=str(HERE / "ZOO.md"))
+    ap.add_argument("--json", default=str(HERE / "zoo.json"))
+    args = ap.parse_args(argv)
+
+    import jaxbox
+
+    jaxbox.enable_x64()
+    jaxbox.enable_compilation_cache()
+    zoo = jaxbox.datasets.make_zoo(
+        args.n, seed=args.seed, step=args.steps.split(","), days=args.days
+    )
+    doc = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, load average "
+        f"{os.getloadavg()[0]:.1f} at the start",
+        "starts": args.starts,
+        "rows": [],
+    }
+    for b in zoo:
+        row = run_one(b, args.starts)
+        doc["rows"].append(row)
+        print(json.dumps(row), flush=True)
+        Path(args.json).write_text(json.dumps(doc, indent=1))  # partial results survive
+    Path(args.out).write_text(markdown(doc))
+    print(markdown(doc))
+
+
+if __name__ == "__main__":
+    main()

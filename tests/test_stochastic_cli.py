@@ -90,3 +90,20 @@ def test_bad_input_is_one_line(csv_file, tmp_path, capsys):
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "sigma_y_zon" in err[0]
+
+
+def test_select_method_ml_by_likelihood_ratio(csv_file, capsys):
+    """Data of a one-state SDE: the two-state model is no significant improvement."""
+    argv = ["select", str(csv_file), "--models", "BM_Ti,BM_TiTe", "--method", "ml"]
+    code = main([*argv, "--starts", "4", "--json"])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["method"] == "ml" and [r["model"] for r in doc["table"]] == ["BM_Ti", "BM_TiTe"]
+    two = doc["table"][1]
+    assert two["df"] == two["n_free"] - doc["table"][0]["n_free"] and 0 <= two["pvalue"] <= 1
+    assert doc["accepted"] == "BM_Ti"
+    code = main([*argv, "--starts", "4"])
+    assert code == 0
+    assert "accepted: BM_Ti" in capsys.readouterr().out
+    code = main([*argv, "--out", "somewhere"])
+    assert code == 2 and "--out" in capsys.readouterr().err

@@ -61,6 +61,14 @@ def add_select_arguments(p) -> None:
         "likelihood-ratio test on the identification data",
     )
     p.add_argument(
+        "--method",
+        choices=("oe", "ml"),
+        default="oe",
+        help="oe: output error (default); ml: maximum likelihood of the stochastic form, with "
+        "a forward selection by likelihood-ratio tests over --models (nested, simplest first; "
+        "default the bacher-madsen ladder)",
+    )
+    p.add_argument(
         "--beam",
         type=int_option,
         default=1,
@@ -270,6 +278,8 @@ def select_command(args) -> int:
     """``jaxbox select DATA…``: structure search (default) or forward selection; ``--json``
     prints the table and the accepted model's fit document (with several DATA:
     ``{"buildings": [document, …]}``)."""
+    if getattr(args, "method", "oe") == "ml":
+        return _ml_select(args)
     check_run_options(args)
     opts = DataOptions(args)
     out = check_output_folders(args.out, "--out", opts.specs)
@@ -303,6 +313,57 @@ def select_command(args) -> int:
             if out is not None:
                 print(f"\nreport: {doc['files']['report']}")
     return _no_valid_model(outcomes)
+
+
+def _ml_select(args) -> int:
+    """``jaxbox select DATA… --method ml``: forward selection by likelihood-ratio tests
+    (Bacher & Madsen 2011) of maximum-likelihood fits, on the identification window."""
+    from ..fit import FitError
+    from ..stochastic import DEFAULT_ML_MAX_STEPS, forward_selection_lr
+
+    if args.models in ("search", "all"):
+        args.models = "bacher-madsen"
+    if args.out:
+        raise UsageError("--out is not available with --method ml; use --json")
+    if args.max_steps is None:
+        args.max_steps = DEFAULT_ML_MAX_STEPS
+    check_run_options(args)
+    opts = DataOptions(args)
+    sets = load_all(args, opts)
+    models = _candidates(args.models, sets[0][1])
+    docs = []
+    for spec, _, ident, _ in sets:
+        t0 = time.perf_counter()
+        try:
+            out = forward_selection_lr(
+                models, ident, starts=args.starts, seed=args.seed, max_steps=args.max_steps
+            )
+        except FitError as err:
+            raise UsageError(f"{spec}: {err}") from None
+        check_interrupted()
+        docs.append(
+            {
+                "dataset": spec,
+                "method": "ml",
+                "accepted": out["accepted"],
+                "table": out["table"],
+                "elapsed_s": time.perf_counter() - t0,
+            }
+        )
+    if args.json:
+        print_json(docs[0] if len(docs) == 1 else {"buildings": docs})
+        return 0
+    for doc in docs:
+        print(f"\n== {doc['dataset']}: forward selection by likelihood ratio (ML)")
+        print(f"{'model':<24} {'n_free':>6} {'loglik':>10} {'AIC':>10} {'LR p':>9}  accepted")
+        for r in doc["table"]:
+            p = "–" if r["pvalue"] is None else f"{r['pvalue']:.3g}"
+            print(
+                f"{r['model']:<24} {r['n_free']:>6} {r['loglik']:>10.2f} {r['aic']:>10.2f} "
+                f"{p:>9}  {'yes' if r['accepted'] else ''}"
+            )
+        print(f"accepted: {doc['accepted']}")
+    return 0
 
 
 def _no_valid_model(outcomes) -> int:

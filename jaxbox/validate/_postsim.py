@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import numpy as np
 
 from .._x64 import require_x64
@@ -304,10 +305,18 @@ def validate(
 
 
 def _simulate(model, params, t, u, x0, method, options):
-    """Outputs [S, N, p] and states [S, N, n] of S runs: inputs u [S, N, m] from x0 [S, n]."""
+    """Outputs [S, N, p] and states [S, N, n] of S runs: inputs u [S, N, m] from x0 [S, n].
+
+    The exact route evaluates (A, B, C, D) outside the compiled function, which then depends
+    on the array shapes only: one compilation serves every structure of the same size."""
     import jax
     import jax.numpy as jnp
 
+    if method == "exact":
+        theta = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
+        A, B, C, D = (jnp.asarray(m, dtype=float) for m in model.state_space(theta))
+        y, x = _exact_runs(A, B, C, D, jnp.asarray(t), jnp.asarray(u), jnp.asarray(x0, float))
+        return np.asarray(y), np.asarray(x)
     fn = _JIT.get((model, method, options))
     if fn is None:
 
@@ -321,3 +330,13 @@ def _simulate(model, params, t, u, x0, method, options):
 
 
 _JIT: dict = {}
+
+
+def _exact_runs_impl(A, B, C, D, t, u, x0):
+    from ..simulate._exact import simulate_exact
+
+    run = lambda uu, xx: simulate_exact(A, B, C, D, xx, uu, t[1] - t[0])  # noqa: E731
+    return jax.vmap(run)(u, x0)
+
+
+_exact_runs = jax.jit(_exact_runs_impl)

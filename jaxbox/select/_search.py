@@ -16,8 +16,10 @@ ranked by the criterion:
 A child *improves* when it is valid and beats its parent significantly: a validation SE lower by
 at least ``margin`` (relative), a lower AIC/BIC, or a significant likelihood ratio. The beam of
 the next step holds the best improving children. An invalid child prunes its branch, not the
-search; a child that does not improve is not grown further. The search stops when no child of
-the beam improves. The accepted model is the best valid candidate by the criterion.
+search; a child that does not improve is not grown further. A child made invalid only by facade
+apertures at zero (a facade that lets no sun in) is tried again without those windows in the
+same step. The search stops when no child of the beam improves. The accepted model is the best
+valid candidate by the criterion.
 
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
 the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
@@ -302,11 +304,13 @@ def structure_search(
             if len(winners) >= beam:  # the beam is full: not judged, not grown
                 node.update(status="improves", why=why)
                 continue
+            fresh = child.verdict is None
             _assess(child)
             if not child.is_valid:
                 first = child.reasons[0] if child.reasons else "not valid"
                 node.update(status="not valid", why=first)
-                say(f"  {child.name}: pruned, not valid ({first})")
+                if fresh:
+                    say(f"  {child.name}: pruned, not valid ({first})")
                 continue
             node.update(status="grown", why=why)
             winners.append(child)
@@ -344,6 +348,15 @@ def structure_search(
             break
         run([c for c, _ in children], depth)
         winners = settle(children)
+        repairs = []
+        for child, parent in children:
+            fix = _without_dead_facades(_structure_of(nodes[child.name]["structure"]), child)
+            if fix is not None and fix[1].name not in seen:
+                what = f"{nodes[child.name]['added']}, {fix[0]}"
+                repairs.append((declare(fix[1], parent, what, depth), parent))
+        if repairs:  # facades whose aperture went to zero have no window: try without them
+            run([c for c, _ in repairs], depth)
+            winners = settle(children + repairs)
         if not winners:
             stopped = f"step {depth}: no extension improves significantly"
             break
@@ -373,6 +386,37 @@ def structure_search(
         criterion=criterion,
         tree=tree,
     )
+
+
+def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Structure] | None:
+    """The structure without the facade windows whose apertures alone made ``case`` invalid
+    (at or near zero: that facade lets no sun in), as ``(what was dropped, structure)``;
+    ``None`` when that is not why it is invalid, or no window would be left."""
+    verdict = case.verdict
+    if verdict is None or verdict.valid:
+        return None
+    severe = [f for f in verdict.flags if f.severe]
+    if not severe or any(not f.parameters for f in severe):
+        return None
+    flagged = set(verdict.flagged())
+    tokens, dropped, covered = set(structure.tokens), [], set()
+    for z in structure.states:
+        win = structure.window(z)
+        if win is None:
+            continue
+        suffix = "" if z == 0 else str(z)
+        dead = [x for x in win[3:] if f"gA_{x.lower()}{suffix}" in flagged]
+        covered |= {f"gA_{x.lower()}{suffix}" for x in dead}
+        keep = "".join(x for x in win[3:] if x not in dead)
+        if dead:
+            if not keep:
+                return None
+            tokens = (tokens - {(z, win)}) | {(z, "Win" + keep)}
+            dropped += dead
+    if not dropped or flagged - covered:
+        return None
+    what = f"without the window(s) {', '.join(dropped)} (aperture at zero)"
+    return what, dataclasses.replace(structure, tokens=frozenset(tokens))
 
 
 def _structure_of(name: str) -> Structure:

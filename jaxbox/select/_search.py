@@ -18,7 +18,9 @@ at least ``margin`` (relative), a lower AIC/BIC, or a significant likelihood rat
 the next step holds the best improving children. An invalid child prunes its branch, not the
 search; a child that does not improve is not grown further. A child made invalid only by facade
 apertures at zero (a facade that lets no sun in) is tried again without those windows in the
-same step. The search stops when no child of the beam improves. The accepted model is the best
+same step; so is a child whose unmeasured initial temperature ended on its bound, with that
+bound narrowed to the temperatures around the state (as the forward selection does). The
+search stops when no child of the beam improves. The accepted model is the best
 valid candidate by the criterion.
 
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
@@ -44,7 +46,7 @@ from scipy import stats
 from ..fit import DEFAULT_STARTS
 from ..models._grammar import Grammar, Structure, extensions, roots
 from ._cases import Case, Progress, quiet, run_cases
-from ._forward import Selection, _as_greybox
+from ._forward import Selection, _as_greybox, _narrowed_retry, _pinned_unmeasured_states
 
 __all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
 
@@ -350,11 +352,27 @@ def structure_search(
         winners = settle(children)
         repairs = []
         for child, parent in children:
-            fix = _without_dead_facades(_structure_of(nodes[child.name]["structure"]), child)
+            node = nodes[child.name]
+            fix = _without_dead_facades(_structure_of(node["structure"]), child)
+            pinned = _pinned_unmeasured_states(child) if child.verdict is not None else []
             if fix is not None and fix[1].name not in seen:
-                what = f"{nodes[child.name]['added']}, {fix[0]}"
+                what = f"{node['added']}, {fix[0]}"
                 repairs.append((declare(fix[1], parent, what, depth), parent))
-        if repairs:  # facades whose aperture went to zero have no window: try without them
+            elif not child.is_valid and pinned:
+                try:
+                    retry = _narrowed_retry(gb, child, pinned, say)
+                except ValueError as err:
+                    say(f"  retry failed ({err})")
+                    continue
+                nodes[retry.name] = dict(
+                    node,
+                    case=retry.name,
+                    added=f"{node['added']}; retried with {', '.join(pinned)} narrowed",
+                )
+                for key in ("criterion", "status", "why"):
+                    nodes[retry.name].pop(key, None)
+                repairs.append((retry, parent))
+        if repairs:  # dead facades dropped, pinned initial temperatures narrowed: once more
             run([c for c, _ in repairs], depth)
             winners = settle(children + repairs)
         if not winners:

@@ -95,12 +95,17 @@ def markdown(doc: dict) -> str:
     rows = doc["rows"]
     ok = [r for r in rows if r.get("status") == "ok"]
     n = len(rows)
+    partial = (
+        f" The run was stopped after {n} of {doc['n']} buildings; these are its rows."
+        if n < doc.get("n", n)
+        else ""
+    )
     lines = [
         "## Structure search on the zoo (benchmarks/zoo.py)",
         "",
         f"Written by `python benchmarks/zoo.py` on {doc['date']}; {doc['machine']}; raw numbers "
         "in `benchmarks/zoo.json`. Default `select` (structure search, criterion cv, "
-        f"{doc['starts']} starts per candidate, data split in halves).",
+        f"{doc['starts']} starts per candidate, data split in halves).{partial}",
         "",
         "| buildings | accepted a valid model | exact structure | equivalent | "
         "RMSE ≤ 1.5× noise | median search [s] |",
@@ -150,7 +155,13 @@ def main(argv=None) -> None:
     ap.add_argument("--starts", type=int, default=8)
     ap.add_argument("--out", default=str(HERE / "ZOO.md"))
     ap.add_argument("--json", default=str(HERE / "zoo.json"))
+    ap.add_argument("--report-only", action="store_true", help="rewrite --out from --json")
     args = ap.parse_args(argv)
+    if args.report_only:  # also after an interrupted run: the rows measured so far
+        doc = json.loads(Path(args.json).read_text())
+        Path(args.out).write_text(markdown(doc))
+        print(markdown(doc))
+        return
 
     import jaxbox
 
@@ -164,6 +175,7 @@ def main(argv=None) -> None:
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, load average "
         f"{os.getloadavg()[0]:.1f} at the start",
         "starts": args.starts,
+        "n": args.n,
         "rows": [],
     }
     for b in zoo:

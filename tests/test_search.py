@@ -199,3 +199,37 @@ def test_likelihood_criteria(building, criterion):
 def test_bad_search_options(building, option, words):
     with pytest.raises(ValueError, match=words):
         structure_search(building, **option)
+
+
+# ---- repairs --------------------------------------------------------------------------------------
+
+
+def _invalid(*flags):
+    from types import SimpleNamespace
+
+    from jaxbox.validate import Flag
+
+    def flagged(kind=None):
+        return tuple(n for f in flags if f.severe for n in f.parameters)
+
+    verdict = SimpleNamespace(valid=False, flags=list(flags), flagged=flagged)
+    return SimpleNamespace(verdict=verdict)
+
+
+def test_a_facade_at_zero_is_dropped():
+    from jaxbox.select._search import _without_dead_facades
+    from jaxbox.validate import Flag
+
+    s = parse_structure("Zon+Wal+WinSEW")
+    at_zero = Flag("at_bound", ("gA_s",), "gA_s at its lower bound 0")
+    what, fixed = _without_dead_facades(s, _invalid(at_zero))
+    assert fixed.name == "Zon+Wal+WinEW" and "S" in what
+    # another reason as well: no repair; nothing left: no repair; no window flagged: no repair
+    other = Flag("at_bound", ("C_wal",), "C_wal at a bound")
+    assert _without_dead_facades(s, _invalid(at_zero, other)) is None
+    assert _without_dead_facades(s, _invalid(Flag("prediction", (), "bad"))) is None
+    one = parse_structure("Zon+WinS")
+    assert _without_dead_facades(one, _invalid(at_zero)) is None
+    two = parse_structure("Zon1+Zon2+WinSE2+Cpl")
+    what, fixed = _without_dead_facades(two, _invalid(Flag("at_bound", ("gA_s2",), "zero")))
+    assert fixed.name == "Zon1+Zon2+WinE2+Cpl"

@@ -35,7 +35,9 @@ write(
         md(
             "Fit the two-state model `ZonWal` (zone air + envelope) from four starts: the naming-convention guess and three Latin-hypercube samples around it, all in one batched call. Initial temperatures start from the data."
         ),
-        code('result = jaxbox.fit_model("ZonWal", ident, starts=4, seed=0)\nprint(result.summary())'),
+        code(
+            'result = jaxbox.fit_model("ZonWal", ident, starts=4, seed=0)\nprint(result.summary())'
+        ),
         md(
             "Post-simulate on the identification data (auto-validation) and on the unseen second half (cross-validation), then judge validity: parameters off their bounds, physical, with reasonable confidence intervals."
         ),

@@ -75,7 +75,7 @@ write(
             'print(f"RMSE identification {v.se_auto:.3f} K, validation {v.se_cross:.3f} K")\n'
             'lb = v.residual_analysis("auto").outputs[0].ljung_box\n'
             'print(f"Ljung–Box, masked residuals: Q = {lb.statistic:.0f}, "\n'
-            "      f\"p = {lb.p_value:.2g}\")\n"
+            '      f"p = {lb.p_value:.2g}")\n'
             "print(uncertainty(result).summary())\n"
             "assert v.se_cross < 2.0"
         ),

@@ -230,9 +230,11 @@ def validate(
     Data in segments are simulated segment by segment: each segment of the identification data
     from its estimated initial states; the validation data from the model state at the end of
     the identification data when they follow it directly, and any later segment of theirs (after
-    a long gap) from the data rule of :func:`jaxbox.fit.state_guess` (measured states at their
-    measurement, unmeasured ones between their neighbours). Output gaps are left out of the
-    RMSE and SE.
+    a long gap) from the model state carried across the gap (one exact step with the inputs
+    interpolated linearly over it), measured states restarting at their measurement; where an
+    input is missing at the gap's edges, from the data rule of :func:`jaxbox.fit.state_guess`
+    (measured states at their measurement, unmeasured ones between their neighbours). Output
+    gaps are left out of the RMSE and SE.
 
     Returns:
         :class:`Validation` with RMSE per output and SE on both periods.
@@ -250,7 +252,7 @@ def validate(
     opts = {"rtol": rtol, "atol": atol} if method == "diffrax" else {}
     base = model.segmented(1)
     theta = {k: result.params[k] for k in base.param_names}
-    pieces, starts = [], []
+    pieces, starts, carried = [], [], []
     for a, b, x0 in segment_starts(result, valid):
         if x0 is None:
             part = valid._new(valid._frame.iloc[a - n_id : b - n_id], valid.step)
@@ -259,13 +261,31 @@ def validate(
             for i, m in enumerate(base.network.nodes):
                 if m.constant:  # a constant node keeps its estimated value
                     x0[i] = result.params[m.T0]
+        carried.append(a >= n_id and bool(pieces))
         pieces.append((a, b))
-        starts.append(x0)
+        starts.append(np.asarray(x0, dtype=float))
     # every segment in one call: padded to the longest (inputs held), simulated under vmap
     length = max(b - a for a, b in pieces)
     U = np.stack([np.pad(u[a:b], ((0, length - (b - a)), (0, 0)), mode="edge") for a, b in pieces])
     t = np.arange(length) * ident.step
-    Y, X = _simulate(base, theta, t, U, np.stack(starts), method, tuple(sorted(opts.items())))
+    X0 = np.stack(starts)
+    key = tuple(sorted(opts.items()))
+    Y, X = _simulate(base, theta, t, U, X0, method, key)
+    if any(carried):  # validation segments after a long gap: the state carried across it
+        index = ident.index if valid is None else ident.index.append(valid.index)
+        measured = result.problem.output_states
+        for k, (a, _) in enumerate(pieces):
+            if not carried[k]:
+                continue
+            pa, pb = pieces[k - 1]
+            gap = float((index[a] - index[a - 1]).total_seconds())
+            x = _across_gap(base, theta, X[k - 1, pb - pa - 1], u[a - 1], u[a], gap)
+            if x is None:
+                continue  # inputs missing at the edges: the data rule stays
+            for j, i in enumerate(measured):  # a measured state restarts at its measurement
+                x[i] = y[a, j] if np.isfinite(y[a, j]) else x[i]
+            X0[k] = x
+            Y, X = _simulate(base, theta, t, U, X0, method, key)
     ysim = np.concatenate([Y[k, : b - a] for k, (a, b) in enumerate(pieces)])
     xs = np.concatenate([X[k, : b - a] for k, (a, b) in enumerate(pieces)])
     if not (np.all(np.isfinite(ysim)) and np.all(np.isfinite(xs))):
@@ -302,6 +322,22 @@ def validate(
             u_cross=u[n_id:],
         )
     return Validation(**out)
+
+
+def _across_gap(model, params, x, u0, u1, gap):
+    """The state ``x`` [°C] carried across a gap of ``gap`` seconds: one exact first-order-hold
+    step, the inputs interpolated linearly from ``u0`` (before) to ``u1`` (after); ``None`` when
+    an input is missing at either edge."""
+    import jax.numpy as jnp
+
+    from ..simulate._exact import discretize_foh
+
+    if not (np.all(np.isfinite(u0)) and np.all(np.isfinite(u1)) and np.all(np.isfinite(x))):
+        return None
+    theta = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
+    A, B, _, _ = model.state_space(theta)
+    Phi, G0, G1 = (np.asarray(m) for m in discretize_foh(A, B, gap))
+    return Phi @ np.asarray(x) + G0 @ u0 + G1 @ (u1 - u0)
 
 
 def _simulate(model, params, t, u, x0, method, options):

@@ -1,26 +1,8 @@
 """Write the quick-start and selection notebooks (run from anywhere: paths are repo-relative)."""
 
-from pathlib import Path
-
-import nbformat as nbf
+from _notebook import write
 from nbformat.v4 import new_code_cell as code
 from nbformat.v4 import new_markdown_cell as md
-from nbformat.v4 import new_notebook
-
-NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
-
-
-def write(path, cells):
-    path = NOTEBOOKS / Path(path).name
-    nb = new_notebook(
-        cells=cells,
-        metadata={
-            "kernelspec": {"name": "python3", "display_name": "Python 3", "language": "python"},
-            "language_info": {"name": "python"},
-        },
-    )
-    nbf.write(nb, path)
-
 
 write(
     "notebooks/quickstart.ipynb",

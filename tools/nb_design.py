@@ -1,26 +1,9 @@
 """Write notebooks/design.ipynb: plan an identification experiment, compare it with a PRBS, and
 check the predicted parameter spread against repeated fits."""
 
-import ast
-from pathlib import Path
-
+from _notebook import write
 from nbformat.v4 import new_code_cell as code
 from nbformat.v4 import new_markdown_cell as md
-
-
-def _load_write():
-    """``write(path, cells)`` of tools/make_notebooks.py, without running that script (which
-    writes the other notebooks at import): its imports, constants and functions only."""
-    source = (Path(__file__).resolve().parent / "make_notebooks.py").read_text(encoding="utf-8")
-    tree = ast.parse(source)
-    keep = (ast.Import, ast.ImportFrom, ast.FunctionDef, ast.Assign)
-    module = ast.Module(body=[n for n in tree.body if isinstance(n, keep)], type_ignores=[])
-    namespace = {"__file__": str(Path(__file__).resolve().parent / "make_notebooks.py")}
-    exec(compile(module, "make_notebooks.py", "exec"), namespace)
-    return namespace["write"]
-
-
-write = _load_write()
 
 write(
     "notebooks/design.ipynb",

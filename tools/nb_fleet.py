@@ -1,29 +1,8 @@
 """Write notebooks/fleet.ipynb: rank a small synthetic fleet by its heat-loss coefficient."""
 
-import ast
-from pathlib import Path
-
+from _notebook import write
 from nbformat.v4 import new_code_cell as code
 from nbformat.v4 import new_markdown_cell as md
-
-
-def _write_function():
-    """``write(path, cells)`` of tools/make_notebooks.py, without running that script (which
-    rewrites the other notebooks): its imports, constants and ``write`` only."""
-    source = Path(__file__).resolve().with_name("make_notebooks.py").read_text(encoding="utf-8")
-    tree = ast.parse(source)
-    keep = [
-        node
-        for node in tree.body
-        if isinstance(node, ast.Import | ast.ImportFrom | ast.Assign)
-        or (isinstance(node, ast.FunctionDef) and node.name == "write")
-    ]
-    space = {"__file__": str(Path(__file__).resolve().with_name("make_notebooks.py"))}
-    exec(compile(ast.Module(body=keep, type_ignores=[]), "make_notebooks.py", "exec"), space)
-    return space["write"]
-
-
-write = _write_function()
 
 write(
     "notebooks/fleet.ipynb",

@@ -1,28 +1,8 @@
 """Write notebooks/search.ipynb: a structure search on a zoo building with gaps."""
 
-import ast
-from pathlib import Path
-
+from _notebook import write
 from nbformat.v4 import new_code_cell as code
 from nbformat.v4 import new_markdown_cell as md
-
-
-def _load_write():
-    """``write(path, cells)`` of tools/make_notebooks.py, without running the rest of it."""
-    source = Path(__file__).resolve().parent / "make_notebooks.py"
-    tree = ast.parse(source.read_text())
-    keep = [
-        node
-        for node in tree.body
-        if isinstance(node, ast.Import | ast.ImportFrom | ast.Assign)
-        or (isinstance(node, ast.FunctionDef) and node.name == "write")
-    ]
-    scope = {"__file__": str(source)}
-    exec(compile(ast.Module(body=keep, type_ignores=[]), str(source), "exec"), scope)
-    return scope["write"]
-
-
-write = _load_write()
 
 write(
     "notebooks/search.ipynb",

@@ -1,26 +1,8 @@
 """Write notebooks/stochastic.ipynb: output error against maximum likelihood on one building."""
 
-import ast
-from pathlib import Path
-
+from _notebook import write
 from nbformat.v4 import new_code_cell as code
 from nbformat.v4 import new_markdown_cell as md
-
-
-def _load_write():
-    """``write(path, cells)`` of tools/make_notebooks.py, without running that script's own
-    notebook writes (only its imports, constants and functions are executed)."""
-    src = (Path(__file__).resolve().parent / "make_notebooks.py").read_text()
-    tree = ast.parse(src)
-    keep = [n for n in tree.body if isinstance(n, ast.Import | ast.ImportFrom | ast.FunctionDef)]
-    keep += [n for n in tree.body if isinstance(n, ast.Assign)]
-    tree.body = sorted(keep, key=lambda n: n.lineno)
-    scope = {"__file__": str(Path(__file__).resolve().parent / "make_notebooks.py")}
-    exec(compile(tree, "make_notebooks.py", "exec"), scope)
-    return scope["write"]
-
-
-write = _load_write()
 
 write(
     "notebooks/stochastic.ipynb",

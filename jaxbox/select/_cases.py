@@ -32,6 +32,18 @@ FIT_SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simula
 SETTINGS = (*FIT_SETTINGS, "postsim")
 
 
+def verdict_of(result, validation):
+    """The validity verdict of a fit with its intervals (σ²(JᵀJ)⁻¹; the interval checks are
+    left out where they cannot be computed) and its post-simulation."""
+    from ..validate import check_validity, uncertainty
+
+    try:
+        unc = uncertainty(result)
+    except ValueError:
+        unc = None
+    return check_validity(result, unc, check_intervals=unc is not None, validation=validation)
+
+
 def quiet(msg: str) -> None:
     """A progress callback that says nothing."""
 
@@ -154,17 +166,9 @@ class Case:
 
     def assess(self) -> Case:
         """Intervals (σ²(JᵀJ)⁻¹) and the validity verdict of a fitted, post-simulated case."""
-        from ..validate import check_validity, uncertainty
-
         self._require_run()
         t2 = time.perf_counter()
-        try:
-            unc = uncertainty(self.result)
-        except ValueError:
-            unc = None
-        self.verdict = check_validity(
-            self.result, unc, check_intervals=unc is not None, validation=self.validation
-        )
+        self.verdict = verdict_of(self.result, self.validation)
         self.timing["verdict_s"] = time.perf_counter() - t2
         return self
 

@@ -44,7 +44,7 @@ import pandas as pd
 from .._io import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
 from ..data import DataError, Dataset
 from ..models import ModelError, RCModel, get_model
-from ._cases import Case
+from ._cases import Case, verdict_of
 from ._guess import Guess
 
 __all__ = ["FORMAT", "PersistError", "Saved", "read_greybox", "save_greybox"]
@@ -455,7 +455,7 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
     from ..data._gaps import DEFAULT_MAX_GAP
     from ..fit import FitError, FitResult, StartReport, make_problem
     from ..fit._batch import fit_data
-    from ..validate import check_validity, uncertainty, validate
+    from ..validate import validate
 
     where = f"cases[{i}]"
     model = _model(cd["model"], models, f"{where}.model:", index)
@@ -526,13 +526,7 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
     )
     case.validation = validate(case.result, valid, method=case.settings.get("postsim", "diffrax"))
     if rd.get("verdict") is not None:
-        try:
-            unc = uncertainty(case.result)
-        except ValueError:
-            unc = None
-        case.verdict = check_validity(
-            case.result, unc, check_intervals=unc is not None, validation=case.validation
-        )
+        case.verdict = verdict_of(case.result, case.validation)
     return case
 
 

@@ -156,6 +156,7 @@ def main(argv=None) -> None:
     ap.add_argument("--out", default=str(HERE / "ZOO.md"))
     ap.add_argument("--json", default=str(HERE / "zoo.json"))
     ap.add_argument("--report-only", action="store_true", help="rewrite --out from --json")
+    ap.add_argument("--skip", type=int, default=0, help="resume: keep the first rows of --json")
     args = ap.parse_args(argv)
     if args.report_only:  # also after an interrupted run: the rows measured so far
         doc = json.loads(Path(args.json).read_text())
@@ -178,8 +179,17 @@ def main(argv=None) -> None:
         "n": args.n,
         "rows": [],
     }
+    if args.skip:
+        doc["rows"] = json.loads(Path(args.json).read_text())["rows"][: args.skip]
+        zoo = zoo[len(doc["rows"]) :]
+    import jax
+
     for b in zoo:
         row = run_one(b, args.starts)
+        # every building compiles new structures: free the executables held in memory (the
+        # persistent cache keeps them on disk), or a long run exhausts the process's mappings
+        jax.clear_caches()
+        jaxbox._compiled.clear()
         doc["rows"].append(row)
         print(json.dumps(row), flush=True)
         Path(args.json).write_text(json.dumps(doc, indent=1))  # partial results survive

@@ -201,13 +201,12 @@ def test_bad_search_options(building, option, words):
         structure_search(building, **option)
 
 
-# ---- repairs --------------------------------------------------------------------------------------
+# ---- repairs ------------------------------------------------------------------------------------
 
 
 def _invalid(*flags):
     from types import SimpleNamespace
 
-    from jaxbox.validate import Flag
 
     def flagged(kind=None):
         return tuple(n for f in flags if f.severe for n in f.parameters)
@@ -233,3 +232,14 @@ def test_a_facade_at_zero_is_dropped():
     two = parse_structure("Zon1+Zon2+WinSE2+Cpl")
     what, fixed = _without_dead_facades(two, _invalid(Flag("at_bound", ("gA_s2",), "zero")))
     assert fixed.name == "Zon1+Zon2+WinE2+Cpl"
+
+
+def test_a_searched_greybox_saves_and_loads(search, tmp_path):
+    """Grammar structures are found again by name on load; cases never judged stay so."""
+    s, _ = search
+    s.greybox.save(tmp_path / "gb")
+    back = jaxbox.select.load_greybox(tmp_path / "gb")
+    assert set(back.cases) == set(s.greybox.cases)
+    assert back.cases[s.accepted].is_valid
+    unjudged = [n.case for n in s.tree if s.greybox.cases[n.case].verdict is None]
+    assert all(back.cases[n].verdict is None for n in unjudged)

@@ -513,8 +513,9 @@ def _building(k, name, rng, opts) -> ZooBuilding:
         two = 2 in opts["zones"] and (1 not in opts["zones"] or rng.random() < opts["p_two"])
         columns = _columns(2 if two else 1, rng, opts["p_bou"], opts["p_facades"])
         grammar = Grammar.from_columns(columns)
-        for _ in range(100):
-            structure = random_structure(grammar, rng, int(rng.integers(0, 4)))
+        for _ in range(100):  # one to three components on a single zone, up to two on two
+            size = int(rng.integers(0, 3)) if two else int(rng.integers(1, 4))
+            structure = random_structure(grammar, rng, size)
             if len(structure.build(grammar).states) <= opts["max_states"]:
                 break
     model = structure.build(grammar)
@@ -675,7 +676,8 @@ def make_zoo(
     gaps; its columns (always ``T_amb``, ``I_glo_hor`` and the heating; ``T_bou`` and the
     facade irradiances ``I_s``, ``I_e``, ``I_w`` at times; one zone ``T_zon`` or two
     ``T_zon1``, ``T_zon2``); a structure the columns can drive
-    (:func:`~jaxbox.models._grammar.random_structure`, at most ``max_states`` states); a
+    (:func:`~jaxbox.models._grammar.random_structure`: one to three components on a single
+    zone, up to two on a two-zone root; at most ``max_states`` states); a
     heat-loss coefficient of 40–400 W/K (log-uniform) and every other parameter in plausible
     proportion to it (air 10–30 kJ/K, envelope 150–400 kJ/K, internal mass 100–500 kJ/K per
     W/K of loss; infiltration and boundaries 10–30 % of the loss; heater 0.1–1 MJ/K with a

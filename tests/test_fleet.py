@@ -154,7 +154,7 @@ def test_config_from_toml(tmp_path):
     cfg = load_config(path, starts=3)
     assert cfg.fixed_model == "ZonWal" and cfg.starts == 3 and cfg.fraction == 0.6
     assert cfg.load_options() == {"columns": {"T_zon": "indoor"}, "resample": "1h"}
-    assert load_config().fixed_model is None and load_config().models == "all"
+    assert load_config().fixed_model is None and load_config().models == "search"
     path.write_text("[identify]\nstart = 3\n", encoding="utf-8")
     with pytest.raises(FleetError, match="unknown key 'start' in \\[identify\\]"):
         load_config(path)
@@ -182,3 +182,20 @@ def test_cli_make_run_and_bad_input(tmp_path, capsys):
     assert "tcp://HOST:PORT" in capsys.readouterr().err
     assert main(["fleet", str(tmp_path / "none"), "--out", str(tmp_path / "o2")]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_the_default_is_the_structure_search(fleet, tmp_path):
+    """Without models the fleet searches the grammar, as ``jaxbox select`` does: on a ZonWal
+    building it accepts the envelope state; without its heating data no structure predicts
+    the same building (the search runs on what is there, and finds no valid model)."""
+    folder, truth = fleet
+    sub = tmp_path / "in"
+    sub.mkdir()
+    for name in ("b4", "x_nocol"):
+        (sub / f"{name}.csv").write_text((folder / f"{name}.csv").read_text())
+    summary = run_fleet(sub, tmp_path / "out", load_config(starts=4, max_steps=60), workers=0)
+    assert summary.counts.get("ok", 0) == 1
+    rows = read_results(tmp_path / "out").set_index("building")
+    assert rows.loc["x_nocol", "status"] == "no_valid_model"
+    assert rows.loc["b4", "model"] == "Zon+Wal"
+    assert rows.loc["b4", "hlc"] == pytest.approx(truth.loc["b4", "hlc"], rel=0.05)

@@ -30,9 +30,9 @@ def add_fleet_arguments(p) -> None:
         "--models",
         "--model",
         dest="models",
-        metavar="A,B,…|FAMILY|all",
-        help="one model (fitted as given) or several, a family or 'all' (forward selection); "
-        "default: the config, else all",
+        metavar="search|A,B,…|FAMILY|all",
+        help="'search' (the structure search), one model (fitted as given) or several, a "
+        "family or 'all' (forward selection); default: the config, else search",
     )
     p.add_argument("--starts", type=int_option, help="starts per fit (default: the config)")
     p.add_argument("--seed", type=int_option, help="seed of the starts (default 0)")
@@ -59,7 +59,7 @@ def _models(text: str | None):
         return None
     names = [n.strip() for n in text.split(",") if n.strip()]
     if not names:
-        raise UsageError("--models must name models (A,B,…), a family or 'all'")
+        raise UsageError("--models must be 'search' or name models (A,B,…), a family or 'all'")
     return names[0] if len(names) == 1 and "," not in text else tuple(names)
 
 

@@ -17,20 +17,22 @@ A TOML file has up to four tables; every key is optional::
     # valid = ["2024-01-16", "2024-01-31 23:00"]
 
     [identify]
-    models = "all"              # one name: that model; several, a family or "all": selection
+    models = "search"           # the structure search (default); one name: that model;
+                                # several, a family or "all": forward selection among them
     starts = 16
     seed = 0
     max_steps = 200
     criterion = "se_cross"      # selection criterion (the validation simulation error)
-    margin = 0.0
+    margin = 0.02               # improvement a selection step needs (default 0.02 for the
+                                # search, 0 for a forward selection)
     patience = 1
 
     [run]
     partition_size = 16         # buildings per Dask task
     reports = false             # an HTML report per building (selection only)
 
-Without a file the defaults of ``jaxbox select`` apply: forward selection over every library
-model the data can feed, the data split in halves.
+Without a file the defaults of ``jaxbox select`` apply: the structure search of the component
+grammar (:func:`jaxbox.structure_search`), the data split in halves.
 """
 
 from __future__ import annotations
@@ -70,11 +72,13 @@ class FleetConfig:
         sep, decimal: CSV separator and decimal mark.
         fraction: identification share of each building's data (without ``train``).
         train, valid: absolute (start, end) periods, the same for every building.
-        models: one model name (fitted as given), several names, a family or ``"all"``
-            (forward selection among them).
+        models: ``"search"`` (the structure search, default), one model name (fitted as
+            given), several names, a family or ``"all"`` (forward selection among them).
         starts, seed, max_steps: multistart settings per fit.
         criterion: selection criterion (``"se_cross"``).
-        margin, patience: forward-selection settings.
+        margin: the relative improvement of the validation SE a selection step needs
+            (``None``: 0.02 for the search, 0 for a forward selection).
+        patience: forward-selection setting.
         partition_size: buildings per task.
         reports: write an HTML report per building (selection only).
     """
@@ -88,12 +92,12 @@ class FleetConfig:
     fraction: float = 0.5
     train: tuple[str, str] | None = None
     valid: tuple[str, str] | None = None
-    models: str | tuple[str, ...] = "all"
+    models: str | tuple[str, ...] = "search"
     starts: int = dataclasses.field(default_factory=lambda: _selection_default("starts"))
     seed: int = 0
     max_steps: int | None = None
     criterion: str = "se_cross"
-    margin: float = 0.0
+    margin: float | None = None
     patience: int = 1
     partition_size: int = 16
     reports: bool = False
@@ -115,7 +119,9 @@ class FleetConfig:
                 raise FleetError(f"identify.models must name models, got {models!r}")
             object.__setattr__(self, "models", tuple(models))
         elif not isinstance(models, str) or not models.strip():
-            raise FleetError(f"identify.models must be a name, a list or 'all', got {models!r}")
+            raise FleetError(
+                f"identify.models must be 'search', a name, a list or 'all', got {models!r}"
+            )
         for name in ("starts", "partition_size", "patience"):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
@@ -130,7 +136,7 @@ class FleetConfig:
                 f"identify.criterion {self.criterion!r} is not known; use one of "
                 f"{', '.join(CRITERIA)} (the validation simulation error)"
             )
-        if not 0.0 <= float(self.margin) < 1.0:
+        if self.margin is not None and not 0.0 <= float(self.margin) < 1.0:
             raise FleetError(f"identify.margin must be in [0, 1), got {self.margin}")
         object.__setattr__(self, "columns", dict(self.columns))
         object.__setattr__(self, "scale", {k: float(v) for k, v in dict(self.scale).items()})
@@ -143,7 +149,12 @@ class FleetConfig:
         m = self.models
         if isinstance(m, tuple) and len(m) == 1:
             return m[0]
-        if isinstance(m, str) and m != "all" and m not in families() and m in list_models():
+        if (
+            isinstance(m, str)
+            and m not in ("all", "search")
+            and m not in families()
+            and (m in list_models())
+        ):
             return m
         return None
 

@@ -243,9 +243,32 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
         out[name] = (row, report, timing)
 
 
+def _selections(models, boxes, cfg: FleetConfig) -> list:
+    """The structure search on each building (``models == "search"``), or the forward selection
+    over ``models`` on all of them in lock-step (batched per step)."""
+    from ..select import forward_selection_many, structure_search
+
+    settings = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
+    if models == "search":
+        margin = 0.02 if cfg.margin is None else cfg.margin
+        return [
+            structure_search(gb, starts=cfg.starts, seed=cfg.seed, margin=margin, **settings)
+            for gb in boxes
+        ]
+    return forward_selection_many(
+        boxes,
+        [m.name for m in models],
+        starts=cfg.starts,
+        seed=cfg.seed,
+        margin=0.0 if cfg.margin is None else cfg.margin,
+        patience=cfg.patience,
+        **settings,
+    )
+
+
 def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dict) -> None:
-    """Forward selection on every checked building, in lock-step (batched per step)."""
-    from ..select import GreyBox, forward_selection_many
+    """The selection (:func:`_selections`) on every checked building."""
+    from ..select import GreyBox
 
     names = list(checked)
     boxes = []
@@ -259,18 +282,9 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
                 name=n,
             )
         )
-    settings = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
     t0 = time.perf_counter()
     try:
-        selections = forward_selection_many(
-            boxes,
-            [m.name for m in models],
-            starts=cfg.starts,
-            seed=cfg.seed,
-            margin=cfg.margin,
-            patience=cfg.patience,
-            **settings,
-        )
+        selections = _selections(models, boxes, cfg)
     except Exception:
         if len(names) == 1:
             raise
@@ -324,6 +338,18 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
         out[n] = (row, report, timing)
 
 
+def _free_executables() -> None:
+    """Let go of the compiled functions held in memory after a building's search: every search
+    compiles structures of its own, and a worker that keeps them all runs out of memory maps
+    (the persistent compilation cache keeps them on disk)."""
+    import jax
+
+    from .._compiled import clear
+
+    clear()
+    jax.clear_caches()
+
+
 def process_partition(
     index: int, buildings: list[Building], config: dict, fit_json: bool = True
 ) -> dict:
@@ -341,7 +367,7 @@ def process_partition(
         {building: report}}``, in the order of ``buildings``.
     """
     from ..data import DataError
-    from ..models import ModelError, get_model
+    from ..models import Grammar, ModelError, get_model, roots
     from ..select import candidate_models
 
     worker = _setup()
@@ -360,7 +386,13 @@ def process_partition(
                 out[b.name] = (_empty_row(b.name, "bad_data", str(data)), None, {"load_s": load_s})
                 continue
             try:
-                models = [get_model(fixed)] if fixed else candidate_models(cfg.models, data)
+                if fixed:
+                    models = [get_model(fixed)]
+                elif cfg.models == "search":  # the simplest structure's columns are needed
+                    grammar = Grammar.from_columns(data.columns)
+                    models = [roots(grammar)[0].build(grammar)]
+                else:
+                    models = candidate_models(cfg.models, data)
                 ident, valid = _check(data, cfg, models)
                 checked[b.name] = (ident, valid, load_s, data.slice(ident.start, valid.end))
             except (DataError, ModelError, ValueError) as err:
@@ -368,6 +400,10 @@ def process_partition(
         if checked:
             if fixed:
                 _fixed_model(get_model(fixed), checked, cfg, fit_json, out)
+            elif cfg.models == "search":  # each building its own search
+                for n, item in checked.items():
+                    _selection("search", {n: item}, cfg, fit_json, out)
+                    _free_executables()
             else:
                 groups: dict[tuple, dict] = {}
                 for n, item in checked.items():  # the same candidates climb together

@@ -25,7 +25,9 @@ valid candidate by the criterion.
 
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
 the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
-one). Candidates predicting more zones rank first; among those predicting different zones the
+one). The two-state root is grown even when it is not valid (a coupled model too simple to be
+valid may become so with a component more), as is the best root when none is valid.
+Candidates predicting more zones rank first; among those predicting different zones the
 validation SE is taken relative to each output's spread.
 
 Validity is judged lazily: a candidate's intervals and verdict are computed only when its
@@ -332,6 +334,16 @@ def structure_search(
             beam_cases = [best]
             nodes[best.name]["status"] = "grown"
             nodes[best.name]["why"] = "no valid root: the best one is grown all the same"
+    else:  # a root that models more zones as states than any valid one is grown all the same
+        most = max(len(c.model.outputs) for c in beam_cases)
+        for c in first:
+            if c.done and c not in beam_cases and len(c.model.outputs) > most:
+                beam_cases.append(c)
+                nodes[c.name]["status"] = "grown"
+                nodes[c.name]["why"] = (
+                    "not valid, but it models more zones as states than any valid root: "
+                    "grown all the same"
+                )
     stopped = "no root could be fitted" if not beam_cases else ""
     depth = 0
     while beam_cases and not stopped:

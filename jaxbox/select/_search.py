@@ -17,11 +17,11 @@ A child *improves* when it is valid and beats its parent significantly: a valida
 at least ``margin`` (relative), a lower AIC/BIC, or a significant likelihood ratio. The beam of
 the next step holds the best improving children. An invalid child prunes its branch, not the
 search; a child that does not improve is not grown further. A child made invalid only by facade
-apertures at zero (a facade that lets no sun in) is tried again without those windows in the
-same step; so is a child whose unmeasured initial temperature ended on its bound, with that
-bound narrowed to the temperatures around the state (as the forward selection does). The
-search stops when no child of the beam improves. The accepted model is the best
-valid candidate by the criterion.
+apertures at zero or undetermined (a facade that lets no sun in, or too little to tell) is tried
+again without those windows in the same step; so is a child whose unmeasured initial
+temperature ended on its bound, with that bound narrowed to the temperatures around the state
+(as the forward selection does). The search stops when no child of the beam improves. The
+accepted model is the best valid candidate by the criterion.
 
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
 the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
@@ -117,8 +117,9 @@ class Search(Selection):
                 value = "n/a" if not math.isfinite(n.criterion) else f"{n.criterion:.4g}"
                 mark = "*" if n.case == self.accepted else " "
                 why = f" ({n.why})" if n.why else ""
+                retry = " (retried, bounds narrowed)" if n.case != n.structure else ""
                 lines.append(
-                    f"{mark} {'  ' * indent}{n.structure}  [{self.criterion} {value}] "
+                    f"{mark} {'  ' * indent}{n.structure}{retry}  [{self.criterion} {value}] "
                     f"{n.status}{why}"
                 )
                 walk(n.case, indent + 1)

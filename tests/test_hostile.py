@@ -370,6 +370,19 @@ CASES = [
     ),
     ("--map without a canonical name", good, [*FIT, "--map", "=T_zon"], ["--map"]),
     ("empty --model", good, ["fit", "{data}", "--model", ""], ["no library model"]),
+    ("search: --beam 0", good, ["select", "{data}", "--beam", "0"], ["--beam"]),
+    (
+        "search: no T_amb for the grammar",
+        dropped("T_amb"),
+        ["select", "{data}"],
+        ["T_amb"],
+    ),
+    (
+        "select --method ml --out",
+        good,
+        ["select", "{data}", "--method", "ml", "--models", "BM_Ti", "--out", "{data}.out"],
+        ["--out"],
+    ),
     (
         "--models all, none fed",
         dropped("Q_hea", "I_glo_hor"),

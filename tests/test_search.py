@@ -207,7 +207,6 @@ def test_bad_search_options(building, option, words):
 def _invalid(*flags):
     from types import SimpleNamespace
 
-
     def flagged(kind=None):
         return tuple(n for f in flags if f.severe for n in f.parameters)
 

@@ -31,13 +31,14 @@ write(
             "batched call. A child must be valid and lower the validation error by 2 %; an "
             "invalid child prunes its branch. The gaps are handled as everywhere in jaxbox: "
             "output gaps masked, short input gaps interpolated, long ones split the data into "
-            "segments with their own initial states."
+            "segments with their own initial states. Here the search may add at most two "
+            "components (`max_depth=2`), to keep the notebook short."
         ),
         code(
             "with warnings.catch_warnings():\n"
             '    warnings.simplefilter("ignore", DataWarning)\n'
             '    gb = jaxbox.GreyBox(b.data, name="zoo building")\n'
-            "    search = jaxbox.structure_search(gb, starts=4, max_depth=3, progress=print)"
+            "    search = jaxbox.structure_search(gb, starts=4, max_depth=2, progress=print)"
         ),
         md("The search tree: each structure, what it adds, its validation SE and its fate."),
         code(

@@ -129,9 +129,11 @@ def _logu(rng, lo, hi) -> float:
 def _zone_params(structure, z: int, hlc: float, rng, extra_share: float) -> dict[str, float]:
     """Parameters of zone ``z`` with a loss of ``hlc`` [W/K] to the ambient and boundaries
     (``extra_share`` of it to a zone held as a boundary)."""
+    from ..models._grammar import is_boundary_token
+
     s = "" if z == 0 else str(z)
     tok = set(structure.zone_tokens(z))
-    bounds = [t for t in tok if _is_boundary(t)]
+    bounds = [t for t in tok if is_boundary_token(t)]
     inf = float(rng.uniform(0.1, 0.3)) if "Inf" in tok else 0.0
     bou = {t: float(rng.uniform(0.1, 0.25)) for t in sorted(bounds)}
     wall = 1.0 - inf - sum(bou.values()) - extra_share
@@ -175,12 +177,6 @@ def _zone_params(structure, z: int, hlc: float, rng, extra_share: float) -> dict
     if "Ae" in tok:
         p[f"gA_wal{s}"] = hlc * float(rng.uniform(0.002, 0.008))
     return p
-
-
-def _is_boundary(token: str) -> bool:
-    from ..models._grammar import _ORDER, _rank
-
-    return not token.startswith("Win") and _rank(token)[0] == _ORDER.index("<bou>")
 
 
 def _draw_params(structure, hlc: float, rng) -> dict[str, float]:

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -57,6 +57,7 @@ __all__ = [
     "random_structure",
     "parse_structure",
     "is_structure_name",
+    "is_boundary_token",
 ]
 
 #: facade irradiance columns and their window letters
@@ -145,7 +146,6 @@ class Structure:
         tokens: per-zone component tokens as ``(zone, token)`` pairs, and structure tokens
             (``Cpl``, ``CplC``) with zone ``-1``.
         bound_zones: zone numbers whose measured temperature is a boundary input.
-        windows: facade letters of the ``Win`` token (``"SEW"``), per zone.
     """
 
     states: tuple[int, ...] = (0,)
@@ -179,10 +179,6 @@ class Structure:
     def __str__(self) -> str:
         return self.name
 
-    @property
-    def n_components(self) -> int:
-        return len(self.tokens) + len(self.states) + len(self.bound_zones)
-
     # ---- building -------------------------------------------------------------------------------
     def network(self, grammar: Grammar | None = None) -> RCNetwork:
         """The RC network of this structure (``grammar`` gives the heating columns; by default
@@ -198,7 +194,7 @@ class Structure:
             if "Inf" in tok:
                 net = c.infiltration(net, zn)
             for t in sorted(tok, key=_rank):
-                if _rank(t)[0] == _ORDER.index("<bou>"):
+                if is_boundary_token(t):
                     base = t[:-1] if t.endswith("C") else t
                     net = c.boundary(
                         net, zn, to=f"T_{base.lower()}", name=base.lower(), capacity=t.endswith("C")
@@ -269,6 +265,11 @@ def _rank(token: str) -> tuple[int, str]:
     if base in _ORDER:
         return (_ORDER.index(base), token)
     return (_ORDER.index("<bou>"), token)
+
+
+def is_boundary_token(token: str) -> bool:
+    """Whether a zone token is a boundary to a measured temperature (``Bou``, ``CelC``…)."""
+    return _rank(token)[0] == _ORDER.index("<bou>")
 
 
 # ---- parsing ------------------------------------------------------------------------------------
@@ -397,8 +398,3 @@ def random_structure(
             break
         s = ext[int(rng.integers(len(ext)))][1]
     return s
-
-
-def structures(grammar: Grammar, names: Sequence[str]) -> list[Structure]:
-    """Parse names into structures (checked against the grammar's data)."""
-    return [parse_structure(n) for n in names]

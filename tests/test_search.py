@@ -242,3 +242,13 @@ def test_a_searched_greybox_saves_and_loads(search, tmp_path):
     assert back.cases[s.accepted].is_valid
     unjudged = [n.case for n in s.tree if s.greybox.cases[n.case].verdict is None]
     assert all(back.cases[n].verdict is None for n in unjudged)
+
+
+def test_the_report_draws_the_search_tree(search):
+    from jaxbox.report import greybox_report
+
+    s, _ = search
+    page = greybox_report(s.greybox, s)
+    assert "<h2>Structure search</h2>" in page
+    assert page.count("<li>") == len(s.tree)  # one item per candidate
+    assert f"<b>{s.accepted}</b>" in page

@@ -110,9 +110,7 @@ def _tree_section(search) -> list[str]:
     tree = getattr(search, "tree", ())
     if not tree:
         return []
-    children: dict = {}
-    for n in tree:
-        children.setdefault(n.parent, []).append(n)
+    children = search.children()
 
     def walk(parent) -> list[str]:
         out = ["<ul>"]

@@ -40,13 +40,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Sequence
 
 import numpy as np
 from scipy import stats
 
 from ..fit import DEFAULT_STARTS
-from ..models._grammar import Grammar, Structure, extensions, roots
+from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
 from ._cases import Case, Progress, quiet, run_cases
 from ._forward import Selection, _as_greybox, _narrowed_retry, _pinned_unmeasured_states
 
@@ -105,11 +104,16 @@ class Search(Selection):
         d.update(criterion=self.criterion, tree=[n.to_dict() for n in self.tree])
         return d
 
+    def children(self) -> dict[str | None, list[SearchNode]]:
+        """Parent case name (``None`` for the roots) -> its candidates, in the order run."""
+        out: dict[str | None, list[SearchNode]] = {}
+        for n in self.tree:
+            out.setdefault(n.parent, []).append(n)
+        return out
+
     def tree_text(self) -> str:
         """The search tree as indented text (one line per candidate)."""
-        children: dict[str | None, list[SearchNode]] = {}
-        for n in self.tree:
-            children.setdefault(n.parent, []).append(n)
+        children = self.children()
         lines: list[str] = []
 
         def walk(parent, indent):
@@ -202,12 +206,6 @@ def _rank(case: Case, judge: _Judge, several_outputs: bool) -> tuple:
 
 
 # ---- the search ---------------------------------------------------------------------------------
-
-
-def _assess(case: Case) -> None:
-    """Intervals and verdict of a run case (lazily, only when it could improve)."""
-    if case.done and case.verdict is None:
-        case.assess()
 
 
 def structure_search(
@@ -309,8 +307,9 @@ def structure_search(
             if len(winners) >= beam:  # the beam is full: not judged, not grown
                 node.update(status="improves", why=why)
                 continue
-            fresh = child.verdict is None
-            _assess(child)
+            fresh = child.verdict is None  # judged lazily: only now that it could improve
+            if fresh:
+                child.assess()
             if not child.is_valid:
                 first = child.reasons[0] if child.reasons else "not valid"
                 node.update(status="not valid", why=first)
@@ -321,7 +320,6 @@ def structure_search(
             winners.append(child)
         return winners
 
-    beam_cases: list[Case] = []
     first = [declare(s, None, "root", 0) for s in roots(grammar)]
     say(
         f"structure search ({criterion}, beam {beam}) from "
@@ -354,7 +352,7 @@ def structure_search(
             break
         children: list[tuple[Case, Case]] = []
         for parent in beam_cases:
-            structure = _structure_of(nodes[parent.name]["structure"])
+            structure = parse_structure(nodes[parent.name]["structure"])
             for added, child in extensions(structure, grammar):
                 if child.name not in seen:
                     children.append((declare(child, parent, added, depth), parent))
@@ -366,7 +364,7 @@ def structure_search(
         repairs = []
         for child, parent in children:
             node = nodes[child.name]
-            fix = _without_dead_facades(_structure_of(node["structure"]), child)
+            fix = _without_dead_facades(parse_structure(node["structure"]), child)
             pinned = _pinned_unmeasured_states(child) if child.verdict is not None else []
             if fix is not None and fix[1].name not in seen:
                 what = f"{node['added']}, {fix[0]}"
@@ -421,7 +419,8 @@ def structure_search(
 
 def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Structure] | None:
     """The structure without the facade windows whose apertures alone made ``case`` invalid
-    (at or near zero: that facade lets no sun in), as ``(what was dropped, structure)``;
+    (at or near zero, or undetermined: that facade lets no sun in, or too little to tell), as
+    ``(what was dropped, structure)``;
     ``None`` when that is not why it is invalid, or no window would be left."""
     verdict = case.verdict
     if verdict is None or verdict.valid:
@@ -446,16 +445,5 @@ def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Struct
             dropped += dead
     if not dropped or flagged - covered:
         return None
-    what = f"without the window(s) {', '.join(dropped)} (aperture at zero)"
+    what = f"without the window(s) {', '.join(dropped)} (aperture at zero or undetermined)"
     return what, dataclasses.replace(structure, tokens=frozenset(tokens))
-
-
-def _structure_of(name: str) -> Structure:
-    from ..models._grammar import parse_structure
-
-    return parse_structure(name)
-
-
-def search_many(greyboxes: Sequence, **options) -> list[Search]:
-    """:func:`structure_search` on each building in turn (same options)."""
-    return [structure_search(gb, **options) for gb in greyboxes]

@@ -182,14 +182,9 @@ def main(argv=None) -> None:
     if args.skip:
         doc["rows"] = json.loads(Path(args.json).read_text())["rows"][: args.skip]
         zoo = zoo[len(doc["rows"]) :]
-    import jax
-
     for b in zoo:
         row = run_one(b, args.starts)
-        # every building compiles new structures: free the executables held in memory (the
-        # persistent cache keeps them on disk), or a long run exhausts the process's mappings
-        jax.clear_caches()
-        jaxbox._compiled.clear()
+        jaxbox._compiled.release()  # every building compiles new structures
         doc["rows"].append(row)
         print(json.dumps(row), flush=True)
         Path(args.json).write_text(json.dumps(doc, indent=1))  # partial results survive

@@ -15,7 +15,7 @@ from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from typing import Any
 
-__all__ = ["cached", "clear", "entries", "info", "set_max_entries"]
+__all__ = ["cached", "clear", "release", "entries", "info", "set_max_entries"]
 
 _LOCK = threading.Lock()
 _ENTRIES: OrderedDict[Hashable, Any] = OrderedDict()
@@ -50,6 +50,19 @@ def clear() -> None:
     with _LOCK:
         _ENTRIES.clear()
         _STATS.update(compiles=0, hits=0, evictions=0)
+
+
+def release() -> None:
+    """:func:`clear`, and JAX's own caches of compiled functions too.
+
+    A long run that compiles ever new structures (a structure search per building) keeps every
+    executable mapped otherwise, until the process runs out of memory maps; with the persistent
+    compilation cache on, what is needed again comes back from disk.
+    """
+    import jax
+
+    clear()
+    jax.clear_caches()
 
 
 def info(room: str | None = None) -> dict:

@@ -177,6 +177,10 @@ def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0):
             )
             for spec, data, ident, valid in sets
         ]
+    # --margin left out: each method's own default (0.02 for the search, 0 for the chains)
+    common = dict(starts=args.starts, seed=args.seed, max_steps=args.max_steps)
+    if args.margin is not None:
+        common["margin"] = args.margin
     if candidates == "search":
         say = progress(args)
         selections = []
@@ -185,27 +189,13 @@ def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0):
                 say(f"== {gb.name}")
             selections.append(
                 structure_search(
-                    gb,
-                    criterion=getattr(args, "criterion", "cv"),
-                    beam=getattr(args, "beam", 1),
-                    starts=args.starts,
-                    seed=args.seed,
-                    margin=0.02 if args.margin is None else args.margin,
-                    max_steps=args.max_steps,
-                    progress=say,
+                    gb, criterion=args.criterion, beam=args.beam, progress=say, **common
                 )
             )
             check_interrupted()
         return list(zip(boxes, selections, strict=True))
     selections = forward_selection_many(
-        boxes,
-        candidates,
-        starts=args.starts,
-        seed=args.seed,
-        margin=0.0 if args.margin is None else args.margin,
-        patience=args.patience,
-        max_steps=args.max_steps,
-        progress=progress(args),
+        boxes, candidates, patience=args.patience, progress=progress(args), **common
     )
     check_interrupted()
     return list(zip(boxes, selections, strict=True))

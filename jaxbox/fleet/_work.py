@@ -249,18 +249,15 @@ def _selections(models, boxes, cfg: FleetConfig) -> list:
     from ..select import forward_selection_many, structure_search
 
     settings = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
+    if cfg.margin is not None:  # else each method's own default
+        settings["margin"] = cfg.margin
     if models == "search":
-        margin = 0.02 if cfg.margin is None else cfg.margin
-        return [
-            structure_search(gb, starts=cfg.starts, seed=cfg.seed, margin=margin, **settings)
-            for gb in boxes
-        ]
+        return [structure_search(gb, starts=cfg.starts, seed=cfg.seed, **settings) for gb in boxes]
     return forward_selection_many(
         boxes,
         [m.name for m in models],
         starts=cfg.starts,
         seed=cfg.seed,
-        margin=0.0 if cfg.margin is None else cfg.margin,
         patience=cfg.patience,
         **settings,
     )
@@ -338,18 +335,6 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
         out[n] = (row, report, timing)
 
 
-def _free_executables() -> None:
-    """Let go of the compiled functions held in memory after a building's search: every search
-    compiles structures of its own, and a worker that keeps them all runs out of memory maps
-    (the persistent compilation cache keeps them on disk)."""
-    import jax
-
-    from .._compiled import clear
-
-    clear()
-    jax.clear_caches()
-
-
 def process_partition(
     index: int, buildings: list[Building], config: dict, fit_json: bool = True
 ) -> dict:
@@ -366,6 +351,7 @@ def process_partition(
         ``{"rows": [one dict per building], "docs": {building: fit document}, "html":
         {building: report}}``, in the order of ``buildings``.
     """
+    from .._compiled import release
     from ..data import DataError
     from ..models import Grammar, ModelError, get_model, roots
     from ..select import candidate_models
@@ -403,7 +389,7 @@ def process_partition(
             elif cfg.models == "search":  # each building its own search
                 for n, item in checked.items():
                     _selection("search", {n: item}, cfg, fit_json, out)
-                    _free_executables()
+                    release()  # each search compiles structures of its own
             else:
                 groups: dict[tuple, dict] = {}
                 for n, item in checked.items():  # the same candidates climb together

@@ -120,6 +120,11 @@ class Case:
         """Fit every start in one batched call, post-simulate, and judge validity."""
         return run_cases([self], progress)[0]
 
+    @property
+    def postsim(self) -> str:
+        """The post-simulation method of the validation (``settings["postsim"]``)."""
+        return self.settings.get("postsim", "diffrax")
+
     def _request(self) -> dict:
         """The :func:`jaxbox.fit.fit_batch` request of this case."""
         opts = {k: v for k, v in self.settings.items() if k in FIT_SETTINGS}
@@ -141,9 +146,7 @@ class Case:
 
         self.result = result
         t1 = time.perf_counter()
-        self.validation = validate(
-            self.result, self.valid, method=self.settings.get("postsim", "diffrax")
-        )
+        self.validation = validate(self.result, self.valid, method=self.postsim)
         t2 = time.perf_counter()
         self.timing = {
             "fit_s": fit_s,

@@ -524,7 +524,7 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
         timing=dict(rd["timing"]),
         settings=dict(rd["settings"]),
     )
-    case.validation = validate(case.result, valid, method=case.settings.get("postsim", "diffrax"))
+    case.validation = validate(case.result, valid, method=case.postsim)
     if rd.get("verdict") is not None:
         case.verdict = verdict_of(case.result, case.validation)
     return case

@@ -269,8 +269,9 @@ def fit_batch(
     ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
     ``atol``). Requests with the same number of free parameters, data of the same shape and the
     same solver settings are solved in one batch (with the exact simulator even when their model
-    structures differ, provided they have as many states and fixed parameters and measure the
-    same states; with diffrax only for the same structure); the others in batches of their own.
+    structures, numbers of states, parameters and inputs differ, provided they measure the same
+    states: the smaller ones are padded; with diffrax only for the same structure); the others in
+    batches of their own.
     Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request.
 
     Args:
@@ -319,6 +320,13 @@ def fit_batch(
         )
         fused = solver[3] is None or isinstance(solver[3], LevenbergMarquardt)
         structure = None if problem.simulator == "exact" and fused else _problem_key(problem)
+        if structure is None:  # variants of any size share a compiled solve (padded)
+            t, _, y, w = arrays
+            shape = (
+                problem.model.segments,
+                tuple(problem.output_states),
+                *map(np.shape, (t, y, w)),
+            )
         key = (*solver[:3], solver_key(solver[3]))
         groups.setdefault((key, shape, problem.simulator, structure), []).append(item)
     for members in groups.values():

@@ -225,7 +225,183 @@ def _groups(problems: Sequence[Problem], counts: Sequence[int]):
     return tuple((p, c) for p, c in out)
 
 
-def _build(groups, slot_counts, max_steps: int, solver):
+# ---- variants of different shapes in one compiled solve ---------------------------------------
+
+
+def _paddable(problems: Sequence[Problem], solver) -> bool:
+    """Whether variants of different sizes can share one compiled solve: jaxbox's
+    Levenberg–Marquardt on the exact simulator, measuring the same states, with as many
+    initial-state segments."""
+    return (
+        (solver is None or isinstance(solver, LevenbergMarquardt))
+        and all(p.simulator == "exact" for p in problems)
+        and len({(p.output_states, p.model.segments) for p in problems}) == 1
+    )
+
+
+def _same_data(datas) -> bool:
+    """Whether every job has the very same ``(t, u, y, w)`` (one dataset, several models)."""
+    first = datas[0]
+    return all(
+        all(
+            np.shape(a) == np.shape(b) and np.array_equal(a, b)
+            for a, b in zip(d, first, strict=True)
+        )
+        for d in datas[1:]
+    )
+
+
+def _input_layout(problems, datas):
+    """One input layout for variants with different inputs: the union of their inputs by name
+    when they share the data (``t``, ``y``, ``w`` and every input of the same name), else each
+    job's own inputs padded with zero columns. Returns ``(layout, datas)``: ``layout`` maps a
+    problem to the columns of its inputs."""
+    shared = all(
+        all(
+            np.array_equal(a, b)
+            for a, b in zip(
+                (d[0], d[2], d[3]), (datas[0][0], datas[0][2], datas[0][3]), strict=True
+            )
+        )
+        for d in datas
+    )
+    columns: dict[str, np.ndarray] = {}
+    for prob, d in zip(problems, datas, strict=True):
+        for j, name in enumerate(prob.model.inputs):
+            col = d[1][:, j]
+            if name in columns and not np.array_equal(columns[name], col, equal_nan=True):
+                shared = False
+            columns.setdefault(name, col)
+    if shared:
+        names = list(columns)
+        u = np.stack([columns[n] for n in names], axis=1) if names else datas[0][1]
+        layout = {"union": tuple(names), "inputs": len(names)}
+        return layout, [(d[0], u, d[2], d[3]) for d in datas]
+    m = max(d[1].shape[1] for d in datas)
+    padded = [(d[0], np.pad(d[1], ((0, 0), (0, m - d[1].shape[1]))), d[2], d[3]) for d in datas]
+    return {"union": None, "inputs": m}, padded
+
+
+def _pad_members(problems, z0s, members):
+    """Starts and per-member arrays padded to the widest variant: inert coordinates (zero, in
+    bounds [0, 1], scale 1) that no residual depends on, so the solver leaves them where they
+    are (their column of J is zero: see :class:`~jaxbox.fit.LevenbergMarquardt`)."""
+    p = max(z.shape[1] for z in z0s)
+    q = max(m[0].shape[1] for m in members)
+
+    def pad(a, width, value):
+        return np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=value)
+
+    z0s = [pad(z, p, 0.0) for z in z0s]
+    members = [
+        (pad(f, q, 0.0), pad(lo, p, 0.0), pad(hi, p, 1.0), pad(sc, p, 1.0), dt)
+        for f, lo, hi, sc, dt in members
+    ]
+    return z0s, members
+
+
+def _pad_spec(prob: Problem, layout) -> tuple:
+    """Static padding of one variant: ``(free, fixed, states, its input columns, states of the
+    batch, inputs of the batch)``."""
+    names = layout["union"]
+    inputs = tuple(range(len(prob.model.inputs)))
+    if names is not None:
+        inputs = tuple(names.index(n) for n in prob.model.inputs)
+    n = len(prob.model.states)
+    return (len(prob.free), len(prob.fixed), n, inputs, layout["states"], layout["inputs"])
+
+
+def _padded_matrices(prob: Problem, spec, args):
+    """``prob.matrices`` (and their tangents) of a batch, padded to the batch's widest variant:
+    extra states that stay at zero (Φ = I, no input, x0 = 0), the inputs at the layout's
+    columns, zero tangents along the padding coordinates."""
+    n_free, n_fixed, n, inputs, n_max, m_max = spec
+    Z, fixed, lo, hi, sc, dt = args
+    own = (Z[:, :n_free], fixed[:, :n_fixed], lo[:, :n_free], hi[:, :n_free], sc[:, :n_free], dt)
+    (Phi, G0, G1, x0) = jax.vmap(prob.matrices)(*own)
+    (dPhi, dG0, dG1, dx0) = jax.vmap(jax.jacfwd(prob.matrices))(*own)
+    dq = Z.shape[1] - n_free
+    P = np.zeros((len(inputs), m_max))
+    P[np.arange(len(inputs)), list(inputs)] = 1.0
+
+    def states(a, axes, tangent):
+        """Pad the state axes ``axes`` to ``n_max`` (and the tangent axis to the batch's)."""
+        width = [(0, 0)] * a.ndim
+        for ax in axes:
+            width[ax] = (0, n_max - n)
+        if tangent:
+            width[-1] = (0, dq)
+        return jnp.pad(a, width)
+
+    eye = np.zeros((n_max, n_max))
+    eye[np.arange(n, n_max), np.arange(n, n_max)] = 1.0
+    Phi = states(Phi, (1, 2), False) + eye
+    G0, G1 = (states(jnp.einsum("bnm,mk->bnk", g, P), (1,), False) for g in (G0, G1))
+    dG0, dG1 = (states(jnp.einsum("bnmq,mk->bnkq", g, P), (1,), True) for g in (dG0, dG1))
+    return (
+        (Phi, G0, G1, states(x0, (x0.ndim - 1,), False)),
+        (states(dPhi, (1, 2), True), dG0, dG1, states(dx0, (dx0.ndim - 2,), True)),
+    )
+
+
+#: the arrays of a network in array form, in the order the compiled solve takes them
+_RC_KEYS = ("R", "scale", "fk", "fa", "fb", "KG", "KH", "sk", "sa", "sb", "KS", "C", "T0", "pad")
+
+
+def _rc_members(problems, counts, layout, width: int, fixed_width: int):
+    """Per member (start) ``(kinds [B, p], *arrays)`` of every variant's network in array form
+    (:meth:`~jaxbox.models.RCModel.rc_arrays`), padded to the batch's largest; ``None`` when a
+    network has no array form (a constant node)."""
+    from ..models._network import ModelError
+
+    nets = [p.model.network for p in problems]
+    if any(node.constant for net in nets for node in net.nodes):
+        return None
+    names = layout["union"]
+    sizes = dict(
+        states=layout["states"],
+        edges=max(len(net.edges) for net in nets),
+        sources=max(max(len(net.sources) for net in nets), 1),
+        factors=max(
+            [1]
+            + [sum(k != "const" for k, _ in e.factors) for net in nets for e in net.edges]
+            + [sum(k != "const" for k, _ in s.gain) for net in nets for s in net.sources]
+        ),
+    )
+    parts = []
+    for prob, c in zip(problems, counts, strict=True):
+        free = list(prob.free) + [f"\0p{i}" for i in range(width - len(prob.free))]
+        fixed = [n for n, _ in prob.fixed]
+        fixed += [f"\0q{i}" for i in range(fixed_width - len(fixed))]
+        inputs = list(prob.model.inputs) if names is None else list(names)
+        inputs += [f"\0u{i}" for i in range(layout["inputs"] - len(inputs))]
+        try:
+            arrays = prob.model.rc_arrays(free + fixed + ["1", "0"], inputs=inputs, **sizes)
+        except ModelError:
+            return None
+        kinds = np.asarray(list(prob.transform.kinds) + [1] * (width - len(prob.free)))
+        one = (kinds, *(arrays[k] for k in _RC_KEYS))
+        parts.append(tuple(np.broadcast_to(a, (c, *np.shape(a))) for a in one))
+    return tuple(np.concatenate(p, axis=0) for p in zip(*parts, strict=True))
+
+
+def _rc_matrices(style: str):
+    """Discrete matrices of one member from its network in array form: ``(z, fixed, lo, hi,
+    sc, dt, kinds, *arrays) -> (Φ, Γ0, Γ1, x0)`` (see :meth:`Problem.matrices`)."""
+    from ..models._network import rc_from_arrays
+    from ..simulate._exact import discretize_foh_rc
+    from ._transforms import to_physical_coded
+
+    def matrices(z, fixed, lo, hi, sc, dt, kinds, *arrays):
+        p = to_physical_coded(z, lo, hi, sc, kinds, style)
+        v = jnp.concatenate([p, fixed, jnp.asarray([1.0, 0.0], dtype=p.dtype)])
+        A, B, caps, x0 = rc_from_arrays(v, dict(zip(_RC_KEYS, arrays, strict=True)))
+        return (*discretize_foh_rc(A, B, caps, dt), x0)
+
+    return matrices
+
+
+def _build(groups, slot_counts, max_steps: int, solver, pads=None, rc: bool = False):
     if not isinstance(solver, LevenbergMarquardt):
         return _build_generic(groups, max_steps, solver)
     exact = all(p.simulator == "exact" for p, _ in groups)
@@ -235,7 +411,7 @@ def _build(groups, slot_counts, max_steps: int, solver):
         raise FitError("model variants batched together must measure the same states")
     from ..simulate._exact import normal_equations
 
-    def solve(z0, fixed, lo, hi, sc, dt, t, u, y, w):
+    def solve(z0, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
         per_member = u.shape[1] != 1
 
         def lin(Z, idx):
@@ -243,13 +419,25 @@ def _build(groups, slot_counts, max_steps: int, solver):
             data = tuple(a[:, idx] if per_member else a for a in (t, u, y, w))
             if not exact:
                 return groups[0][0].normal_equations(Z, members, data)
+            if rc:  # every variant through one program: its network in array form
+                args = (Z, *members, *(a[idx] for a in structure))
+                mats = _rc_matrices(groups[0][0].transform.style)
+                tt, uu, yy, ww = data
+                prim = jax.vmap(mats)(*args)
+                tang = jax.vmap(jax.jacfwd(mats))(*args)
+                return normal_equations(prim, tang, groups[0][0].output_states, uu, yy, ww, t=tt)
             prim, tang, start = [], [], 0
-            for (prob, _), count in zip(groups, slot_counts, strict=True):
+            for k, ((prob, _), count) in enumerate(zip(groups, slot_counts, strict=True)):
                 sl = slice(start, start + count)
                 start += count
                 args = (Z[sl],) + tuple(a[sl] for a in members)
-                prim.append(jax.vmap(prob.matrices)(*args))
-                tang.append(jax.vmap(jax.jacfwd(prob.matrices))(*args))
+                if pads is None:
+                    prim.append(jax.vmap(prob.matrices)(*args))
+                    tang.append(jax.vmap(jax.jacfwd(prob.matrices))(*args))
+                else:
+                    pm, pt = _padded_matrices(prob, pads[k], args)
+                    prim.append(pm)
+                    tang.append(pt)
             cat = lambda parts: tuple(  # noqa: E731
                 jnp.concatenate(x, axis=0) if len(x) > 1 else x[0] for x in zip(*parts, strict=True)
             )
@@ -352,6 +540,13 @@ def solve_jobs(
         problems.append(prob)
         z0s.append(z0)
         counts.append(s)
+    variants = len({_problem_key(p) for p in problems}) > 1
+    if variants and _paddable(problems, solver):
+        layout, datas = _input_layout(problems, datas)
+        layout["states"] = max(len(p.model.states) for p in problems)
+        z0s, members = _pad_members(problems, z0s, members)
+    else:
+        layout = None
     shapes = {(np.shape(z)[1], *(np.shape(a) for a in d)) for z, d in zip(z0s, datas, strict=True)}
     if len(shapes) > 1:
         raise FitError(
@@ -360,7 +555,7 @@ def solve_jobs(
         )
     z0 = np.concatenate(z0s, axis=0)
     member_arrays = tuple(np.concatenate(parts, axis=0) for parts in zip(*members, strict=True))
-    if len(jobs) == 1:
+    if len(jobs) == 1 or _same_data(datas):
         data = tuple(a[:, None] for a in datas[0])  # shared by every start: [N, 1, …]
     else:
         data = tuple(
@@ -372,6 +567,13 @@ def solve_jobs(
         )
     args = tuple(jnp.asarray(a, dtype=float) for a in (z0, *member_arrays, *data))
     groups = _groups(problems, counts)
+    pads = None if layout is None else tuple(_pad_spec(p, layout) for p, _ in groups)
+    rc = None
+    if layout is not None and len({p.transform.style for p in problems}) == 1:
+        rc = _rc_members(problems, counts, layout, z0.shape[1], member_arrays[0].shape[1])
+    if rc is not None:  # one program for every variant: the key holds no structure
+        args = args + tuple(jnp.asarray(a) for a in rc)
+        pads = ("rc", problems[0].transform.style, problems[0].output_states)
     n_slots = default_slots(len(z0)) if slots is None else max(1, int(slots))
     slot_counts = tuple(min(c, max(1, round(n_slots * c / len(z0)))) for _, c in groups)
     if solver is None:
@@ -383,15 +585,21 @@ def solve_jobs(
         )
     key = (
         "fit",
-        tuple((_problem_key(p), c) for p, c in groups),
+        tuple((_problem_key(p), c) if rc is None else c for p, c in groups),
         slot_counts,
         solver_key(solver),
-        tuple(a.shape for a in args),
+        tuple((a.shape, a.dtype) for a in args),
         max_steps,
+        pads,
     )
     t0 = time.perf_counter()
     compiled, built = _compiled.cached(
-        key, lambda: _build(groups, slot_counts, max_steps, solver).lower(*args).compile()
+        key,
+        lambda: (
+            _build(groups, slot_counts, max_steps, solver, pads, rc is not None)
+            .lower(*args)
+            .compile()
+        ),
     )
     compile_s = time.perf_counter() - t0 if built else 0.0
     try:
@@ -404,18 +612,17 @@ def solve_jobs(
     fit_s = time.perf_counter() - t0
     z = np.asarray(z)
     p_parts, start = [], 0
+    width = z.shape[1]
     for prob, c in zip(problems, counts, strict=True):
-        sl = slice(start, start + c)
-        p_parts.append(
-            np.asarray(
-                prob.transform.to_physical(
-                    jnp.asarray(z[sl]),
-                    member_arrays[1][sl],
-                    member_arrays[2][sl],
-                    member_arrays[3][sl],
-                )
-            )
+        sl, k = slice(start, start + c), len(prob.free)
+        phys = prob.transform.to_physical(
+            jnp.asarray(z[sl, :k]),
+            member_arrays[1][sl, :k],
+            member_arrays[2][sl, :k],
+            member_arrays[3][sl, :k],
         )
+        # a padded job (see _pad_members): its padding columns are NaN, result_from drops them
+        p_parts.append(np.pad(np.asarray(phys), ((0, 0), (0, width - k)), constant_values=np.nan))
         start += c
     return {
         "job": np.repeat(np.arange(len(jobs)), counts),
@@ -477,6 +684,7 @@ def make_starts(problem: Problem, data, starts, seed, concentration) -> np.ndarr
 def result_from(problem, data, x0s, out, sl, settings, timing) -> FitResult:
     """A :class:`FitResult` from the members ``sl`` of a :func:`solve_jobs` output."""
     p, cost, code, steps = out["p"][sl], out["cost"][sl], out["code"][sl], out["steps"][sl]
+    p = p[:, : len(problem.free)]  # without the padding of a batch of variants
     status = [_status(c, k, q) for c, k, q in zip(code, cost, p, strict=True)]
     report = StartReport(initial=x0s, params=p, cost=cost, steps=steps, status=tuple(status))
     best = report.best_index()

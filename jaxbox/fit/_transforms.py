@@ -105,6 +105,23 @@ class Transform:
         return out
 
 
+def to_physical_coded(z, lower, upper, scale, kinds, style: str = "logistic"):
+    """:meth:`Transform.to_physical` with the kinds as an array (codes of :data:`KINDS`) instead
+    of static: one program for parameters of any kinds (the batched fit of model variants)."""
+    sig = _squash(style, z)
+    is_log = kinds == _LOG
+    llo = jnp.log(jnp.where(is_log, lower, 1.0))
+    lhi = jnp.log(jnp.where(is_log, upper, 1.0))
+    span = jnp.where(jnp.isfinite(upper - lower), upper - lower, 0.0)
+    lo = jnp.where(jnp.isfinite(lower), lower, 0.0)
+    low = jnp.where(kinds == _LOWER, z, 0.0)
+    return jnp.select(
+        [is_log, kinds == _LIN, kinds == _LOWER],
+        [jnp.exp(llo + (lhi - llo) * sig), lo + span * sig, lo + scale * jnp.exp(low)],
+        scale * z,
+    )
+
+
 STYLES = ("logistic", "algebraic", "sine", "unbounded")
 
 

@@ -29,8 +29,9 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -640,6 +641,134 @@ class RCModel:
         )
         return G / caps[:, None], H / caps[:, None], caps, held
 
+    def rc_arrays(
+        self,
+        slots: Sequence[str],
+        *,
+        states: int,
+        inputs: Sequence[str],
+        edges: int,
+        sources: int,
+        factors: int,
+    ) -> dict[str, np.ndarray]:
+        """The network as arrays for :func:`rc_from_arrays`: one compiled program for every
+        structure of the same (padded) size.
+
+        Args:
+            slots: parameter name of each entry of the value vector ``v`` that
+                :func:`rc_from_arrays` receives; it must end with two entries named ``"1"``
+                and ``"0"`` holding the constants 1 and 0.
+            states: states after padding (≥ this model's); the extra ones are inert.
+            inputs: the input columns after padding (a superset of this model's inputs).
+            edges, sources, factors: edges, heat sources and factors per product after padding.
+
+        Returns:
+            ``R`` [E], ``scale`` [E], ``fk``/``fa``/``fb`` [E, F] (a factor is ``fa + fb·v[fk]``),
+            ``KG`` [E, n, n], ``KH`` [E, n, m], ``sk``/``sa``/``sb`` [S, F], ``KS`` [S, n, m],
+            ``C`` [n], ``T0`` [n] (``[segments, n]`` with segments) and ``pad`` [n] (1 for a
+            padding state).
+
+        Raises:
+            ModelError: a network with a constant node (not supported), or sizes too small.
+        """
+        net = self.network
+        if any(node.constant for node in net.nodes):
+            raise ModelError(f"model {self.name} holds a constant node: no array form")
+        where = {name: i for i, name in enumerate(slots)}
+        one, zero = where["1"], where["0"]
+        names = [m.name for m in net.nodes]
+        idx = {name: i for i, name in enumerate(names)}
+        uidx = {u: j for j, u in enumerate(inputs)}
+        n, m = states, len(inputs)
+        E, S, F = edges, sources, factors
+        if len(names) > n or len(net.edges) > E or len(net.sources) > S:
+            raise ModelError(f"model {self.name} does not fit the padded sizes")
+        out = dict(
+            R=np.full(E, one),
+            scale=np.ones(E),
+            fk=np.full((E, F), one),
+            fa=np.ones((E, F)),
+            fb=np.zeros((E, F)),
+            KG=np.zeros((E, n, n)),
+            KH=np.zeros((E, n, m)),
+            sk=np.full((S, F), one),
+            sa=np.ones((S, F)),
+            sb=np.zeros((S, F)),
+            KS=np.zeros((S, n, m)),
+            C=np.full(n, one),
+            pad=np.zeros(n),
+        )
+
+        def product(terms, row, k, a, b, scale=1.0):
+            """Write the factors of a product into row ``row``; returns the constant part."""
+            f = 0
+            for kind, value in terms:
+                if kind == "const":
+                    scale *= float(value)
+                    continue
+                if f >= F:
+                    raise ModelError(f"model {self.name}: more than {F} factors in a product")
+                k[row, f] = where[value]
+                a[row, f], b[row, f] = (0.0, 1.0) if kind == "param" else (1.0, -1.0)
+                f += 1
+            return scale
+
+        for e_i, e in enumerate(net.edges):
+            out["R"][e_i] = where[e.R]
+            out["scale"][e_i] = product(e.factors, e_i, out["fk"], out["fa"], out["fb"], e.scale)
+            i = idx[e.a]
+            out["KG"][e_i, i, i] -= 1.0
+            if e.b in idx:
+                j = idx[e.b]
+                out["KG"][e_i, j, j] -= 1.0
+                out["KG"][e_i, i, j] += 1.0
+                out["KG"][e_i, j, i] += 1.0
+            else:
+                out["KH"][e_i, i, uidx[e.b]] += 1.0
+        for s_i, src in enumerate(net.sources):
+            c = product(src.gain, s_i, out["sk"], out["sa"], out["sb"])
+            out["KS"][s_i, idx[src.node], uidx[src.input]] = c
+        for i, node in enumerate(net.nodes):
+            out["C"][i] = where[node.C]
+        out["pad"][len(names) :] = 1.0
+        if self.segments > 1:
+            t0 = np.full((self.segments, n), zero)
+            for k in range(1, self.segments + 1):
+                for i, node in enumerate(net.nodes):
+                    t0[k - 1, i] = where.get(node.T0 if k == 1 else f"{node.T0}_s{k}", zero)
+        else:
+            t0 = np.full(n, zero)
+            for i, node in enumerate(net.nodes):
+                t0[i] = where.get(node.T0, zero)
+        out["T0"] = t0
+        return out
+
+    def state_space_numpy(self, theta: Mapping) -> tuple[np.ndarray, ...]:
+        """:meth:`state_space` evaluated in numpy (float values): no JAX dispatch, so nothing is
+        compiled for a new structure (post-simulation, time constants, reports)."""
+        if any(node.constant for node in self.network.nodes):
+            return tuple(np.asarray(m, dtype=float) for m in self.state_space(theta))
+        names = [p.name for p in self.parameters if p.name in theta]
+        v = np.asarray([float(theta[n]) for n in names] + [1.0, 0.0])
+        net = self.network
+        arrays = self.rc_arrays(
+            names + ["1", "0"],
+            states=len(net.nodes),
+            inputs=self.inputs,
+            edges=len(net.edges),
+            sources=len(net.sources),
+            factors=max(
+                [1]
+                + [sum(k != "const" for k, _ in e.factors) for e in net.edges]
+                + [sum(k != "const" for k, _ in s.gain) for s in net.sources]
+            ),
+        )
+        A, B, _, _ = rc_from_arrays(v, arrays, xp=np)
+        out_nodes = [i for i, m in enumerate(net.nodes) if m.output]
+        C = np.zeros((len(out_nodes), len(net.nodes)))
+        C[np.arange(len(out_nodes)), out_nodes] = 1.0
+        return A, B, C, np.zeros((len(out_nodes), len(self.inputs)))
+
     def state_space(self, theta: Mapping) -> tuple:
         """Continuous-time matrices (A [1/s], B, C, D) for parameters θ (SI values).
 
@@ -657,3 +786,31 @@ class RCModel:
     def initial_state(self, theta: Mapping):
         """Initial node temperatures x0 [°C] from the ``T_*0`` parameters in θ."""
         return jnp.stack([jnp.asarray(theta[m.T0], dtype=float) for m in self.network.nodes])
+
+
+def rc_from_arrays(v, arrays, xp=jnp) -> tuple:
+    """``(A [1/s], B, caps [J/K], x0 [°C])`` of a network in array form (:meth:`RCModel.rc_arrays`)
+    for the parameter values ``v`` (one entry per slot); ``xp`` is ``jax.numpy`` (traceable) or
+    ``numpy`` (no dispatch or compilation: for evaluations outside compiled code).
+
+    The same program for every structure of the same padded size. A padding state gets a
+    decoupled decay faster than every mode of the network (three or more times its largest
+    diagonal rate, none the same: the spectrum stays simple, so the eigendecomposition of the
+    discretisation and its derivatives stay exact), no input and the initial value 0.
+    """
+    take = lambda k: v[k]  # noqa: E731
+    f_edge = xp.prod(arrays["fa"] + arrays["fb"] * take(arrays["fk"]), axis=-1)
+    cond = 1.0 / (arrays["scale"] * take(arrays["R"]) * f_edge)
+    gain = xp.prod(arrays["sa"] + arrays["sb"] * take(arrays["sk"]), axis=-1)
+    G = xp.tensordot(cond, arrays["KG"], 1)
+    H = xp.tensordot(cond, arrays["KH"], 1) + xp.tensordot(gain, arrays["KS"], 1)
+    caps = take(arrays["C"])
+    A, B = G / caps[:, None], H / caps[:, None]
+    pad = arrays["pad"]
+    if xp is jnp or np.any(pad):  # (traced: always)
+        fastest = xp.max(xp.abs(xp.diagonal(A)) * (1.0 - pad))
+        if xp is jnp:
+            fastest = jax.lax.stop_gradient(fastest)
+        rank = xp.cumsum(pad)  # 1, 2, … along the padding states
+        A = A - xp.diag(pad * (2.0 + rank) * xp.maximum(fastest, 1e-12))
+    return A, B, caps, take(arrays["T0"])

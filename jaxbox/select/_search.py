@@ -188,7 +188,7 @@ class _Judge:
         c, p = self.value(child), self.value(parent)
         if self.criterion == "cv":
             ok = c < (1.0 - self.margin) * p
-            return ok, f"SE {c:.4g} K against {p:.4g} K of its parent"
+            return ok, f"SE {c:.4g} K against {p:.4g} K of {parent.model.name}"
         if self.criterion in ("aic", "bic"):
             return c < p, f"{self.criterion.upper()} {c:.1f} against {p:.1f}"
         dk = max(child.n_params - parent.n_params, 1)
@@ -218,6 +218,7 @@ def structure_search(
     margin: float = 0.02,
     alpha: float = 0.05,
     max_depth: int = 10,
+    lookahead: int = 2,
     grammar: Grammar | None = None,
     progress: Progress | None = None,
     **settings,
@@ -234,6 +235,10 @@ def structure_search(
         margin: relative decrease of the validation SE that counts as an improvement (``cv``).
         alpha: significance level of the likelihood-ratio test (``lr``).
         max_depth: most components added to a root.
+        lookahead: when no extension improves, how many of them (the best fits on the
+            identification data) are grown one component further all the same, as stepping
+            stones (components that help only together, such as an envelope and an internal
+            mass); 0 stops at once.
         grammar: what the data can drive (default: from the data's columns).
         progress: called with one line of text per step and per candidate.
         settings: solver settings for the fits (``max_steps``…).
@@ -250,7 +255,11 @@ def structure_search(
     say = progress or quiet
     if criterion not in CRITERIA:
         raise ValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
-    for label, value, lo in (("beam", beam, 1), ("max_depth", max_depth, 0)):
+    for label, value, lo in (
+        ("beam", beam, 1),
+        ("max_depth", max_depth, 0),
+        ("lookahead", lookahead, 0),
+    ):
         if not isinstance(value, int) or isinstance(value, bool) or value < lo:
             raise ValueError(f"{label} must be a whole number ≥ {lo}, got {value!r}")
     if not isinstance(margin, int | float) or not 0.0 <= margin < 1.0:
@@ -344,31 +353,29 @@ def structure_search(
                     "grown all the same"
                 )
     stopped = "no root could be fitted" if not beam_cases else ""
-    depth = 0
-    while beam_cases and not stopped:
-        depth += 1
-        if depth > max_depth:
-            stopped = f"reached max_depth={max_depth}"
-            break
+
+    def grow(pairs: list[tuple[Case, Case]], depth: int) -> tuple[list[Case], list]:
+        """Identify every new extension of each ``(case, reference)`` pair in one batched call
+        (the repairs in a second); each child starts from ``case`` and is judged against
+        ``reference``. Returns the winners and the (child, reference) pairs."""
         children: list[tuple[Case, Case]] = []
-        for parent in beam_cases:
-            structure = parse_structure(nodes[parent.name]["structure"])
+        for grown, ref in pairs:
+            structure = parse_structure(nodes[grown.name]["structure"])
             for added, child in extensions(structure, grammar):
                 if child.name not in seen:
-                    children.append((declare(child, parent, added, depth), parent))
+                    children.append((declare(child, grown, added, depth), ref))
         if not children:
-            stopped = "the grammar has no further extension the data can drive"
-            break
+            return [], []
         run([c for c, _ in children], depth)
         winners = settle(children)
         repairs = []
-        for child, parent in children:
+        for child, ref in children:
             node = nodes[child.name]
             fix = _without_dead_facades(parse_structure(node["structure"]), child)
             pinned = _pinned_unmeasured_states(child) if child.verdict is not None else []
             if fix is not None and fix[1].name not in seen:
                 what = f"{node['added']}, {fix[0]}"
-                repairs.append((declare(fix[1], parent, what, depth), parent))
+                repairs.append((declare(fix[1], gb.cases[node["parent"]], what, depth), ref))
             elif not child.is_valid and pinned:
                 try:
                     retry = _narrowed_retry(gb, child, pinned, say)
@@ -382,10 +389,37 @@ def structure_search(
                 )
                 for key in ("criterion", "status", "why"):
                     nodes[retry.name].pop(key, None)
-                repairs.append((retry, parent))
+                repairs.append((retry, ref))
         if repairs:  # dead facades dropped, pinned initial temperatures narrowed: once more
             run([c for c, _ in repairs], depth)
             winners = settle(children + repairs)
+        return winners, children + repairs
+
+    depth = 0
+    while beam_cases and not stopped:
+        depth += 1
+        if depth > max_depth:
+            stopped = f"reached max_depth={max_depth}"
+            break
+        winners, children = grow([(c, c) for c in beam_cases], depth)
+        if not children:
+            stopped = "the grammar has no further extension the data can drive"
+            break
+        stones = _stepping_stones(children, lookahead) if not winners else []
+        if stones and depth < max_depth:
+            for stone, _ in stones:
+                node = nodes[stone.name]
+                node["why"] = f"{node['status']}: {node.get('why', '')}".rstrip(": ")
+                node["status"] = "stepping stone"
+            say(
+                f"step {depth}: no extension improves; looking one component further from "
+                + ", ".join(s.model.name for s, _ in stones)
+            )
+            depth += 1
+            winners, more = grow(stones, depth)
+            if not winners:
+                stopped = f"step {depth}: no extension improves, one or two components further"
+                break
         if not winners:
             stopped = f"step {depth}: no extension improves significantly"
             break
@@ -415,6 +449,21 @@ def structure_search(
         criterion=criterion,
         tree=tree,
     )
+
+
+def _stepping_stones(children: list[tuple[Case, Case]], n: int) -> list[tuple[Case, Case]]:
+    """The ``n`` children that fit the identification data best, among those fitting it clearly
+    better (cost at least 10 % lower) than the case they were judged against, with it."""
+    fitted = [
+        (c, ref)
+        for c, ref in children
+        if c.done
+        and ref.done
+        and np.isfinite(c.result.cost)
+        and c.result.cost < 0.9 * ref.result.cost
+    ]
+    fitted.sort(key=lambda cr: cr[0].result.cost)
+    return fitted[:n]
 
 
 def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Structure] | None:

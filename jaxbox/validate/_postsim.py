@@ -334,9 +334,8 @@ def _across_gap(model, params, x, u0, u1, gap):
 
     if not (np.all(np.isfinite(u0)) and np.all(np.isfinite(u1)) and np.all(np.isfinite(x))):
         return None
-    theta = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
-    A, B, _, _ = model.state_space(theta)
-    Phi, G0, G1 = (np.asarray(m) for m in discretize_foh(A, B, gap))
+    A, B, _, _ = model.state_space_numpy({k: float(v) for k, v in params.items()})
+    Phi, G0, G1 = (np.asarray(m) for m in discretize_foh(jnp.asarray(A), jnp.asarray(B), gap))
     return Phi @ np.asarray(x) + G0 @ u0 + G1 @ (u1 - u0)
 
 
@@ -349,8 +348,10 @@ def _simulate(model, params, t, u, x0, method, options):
     import jax.numpy as jnp
 
     if method == "exact":
-        theta = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
-        A, B, C, D = (jnp.asarray(m, dtype=float) for m in model.state_space(theta))
+        A, B, C, D = (
+            jnp.asarray(m, dtype=float)
+            for m in model.state_space_numpy({k: float(v) for k, v in params.items()})
+        )
         y, x = _exact_runs(A, B, C, D, jnp.asarray(t), jnp.asarray(u), jnp.asarray(x0, float))
         return np.asarray(y), np.asarray(x)
     fn = _JIT.get((model, method, options))

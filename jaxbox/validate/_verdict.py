@@ -69,6 +69,10 @@ MAX_RMSE = 5.0
 MAX_RMSE_RATIO = 10.0
 #: ... applied above this validation RMSE [K].
 RMSE_FLOOR = 0.5
+#: Widest acceptable 95 % confidence interval of a parameter, as a fraction of its value
+#: (half-width): 1.0 asks that the interval exclude zero, i.e. that the parameter be
+#: significantly different from zero at the 5 % level (the t-test of CTSM and pySIP).
+MAX_REL_CI = 0.5
 #: Plausible heat-loss coefficient UA [W/K] of a building (a room … a large block).
 UA_RANGE = (1.0, 1e5)
 #: Plausible total heat capacity [J/K] of the nodes of a building (a small room … a large block).
@@ -182,18 +186,9 @@ def _fmt(value: float, unit: str) -> str:
     return f"{value:.4g} {unit}".rstrip()
 
 
-_STATE_SPACE: dict = {}
-
-
 def _state_space(model, params) -> tuple[np.ndarray, ...]:
-    """(A, B, C, D) at ``params`` as numpy arrays (jitted once per model)."""
-    fn = _STATE_SPACE.get(model)
-    if fn is None:
-        import jax
-
-        fn = _STATE_SPACE[model] = jax.jit(model.state_space)
-    theta = {k: np.asarray(v, dtype=float) for k, v in params.items()}
-    return tuple(np.asarray(m, dtype=float) for m in fn(theta))
+    """(A, B, C, D) at ``params`` as numpy arrays (evaluated in numpy: nothing to compile)."""
+    return model.state_space_numpy({k: float(np.asarray(v)) for k, v in params.items()})
 
 
 def _state_matrix(model, params) -> np.ndarray:
@@ -714,7 +709,7 @@ def check_validity(
     result,
     uncertainty=None,
     *,
-    max_rel_ci: float = 0.5,
+    max_rel_ci: float | None = None,
     bound_tol: float = 0.01,
     tau_range: tuple[float, float] = (1.0, 10 * _YEAR),
     limits: Mapping[str, tuple[float, float]] | None = None,
@@ -737,7 +732,7 @@ def check_validity(
         uncertainty: its :class:`~jaxbox.validate.Uncertainty` (computed when ``None`` and
             ``check_intervals``).
         max_rel_ci: widest acceptable confidence interval, as a fraction of the value
-            (half-width; 0.5 accepts ``θ̂ ± 50 %``).
+            (half-width; 0.5 accepts ``θ̂ ± 50 %``); default :data:`MAX_REL_CI`.
         bound_tol: a free parameter within this fraction of its range (in the transform's
             scale: logarithmic for R and C) from a bound is *near* the bound.
         tau_range: acceptable time constants [s] (default 1 s … 10 years).
@@ -770,7 +765,7 @@ def check_validity(
     ctx = _judged(
         result,
         uncertainty,
-        max_rel_ci=max_rel_ci,
+        max_rel_ci=MAX_REL_CI if max_rel_ci is None else max_rel_ci,
         bound_tol=bound_tol,
         tau_range=tau_range,
         limits={**PHYSICAL_LIMITS, **(limits or {})},

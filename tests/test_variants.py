@@ -1,0 +1,136 @@
+"""Model variants of different sizes fitted in one compiled call, and the array form of a network
+that makes it possible (one program for every structure of the same padded size)."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from _reference import synthetic_building
+
+import jaxbox
+from jaxbox import _compiled
+from jaxbox.fit import fit_batch
+from jaxbox.fit._transforms import make_transform, to_physical_coded
+from jaxbox.models import (
+    Grammar,
+    RCNetwork,
+    get_model,
+    library_models,
+    parse_structure,
+    random_structure,
+)
+from jaxbox.models import components as c
+
+jaxbox.enable_x64()
+
+TRUTH = {"C_zon": 2e6, "C_wal": 3e7, "C_int": 2e7, "R_wal": 0.01, "R_int": 0.002, "gA": 2.0}
+TRUTH.update(T_zon0=19.0, T_wal0=16.0, T_int0=18.0)
+VARIANTS = ["Zon", "Zon+Wal", "Zon+Int", "Zon+Wal+Int", "Zon+Hea"]
+
+
+@pytest.fixture(scope="module")
+def data():
+    return synthetic_building(get_model("Zon+Wal+Int"), TRUTH, n=200, seed=5, noise=0.03)
+
+
+@pytest.fixture(scope="module")
+def together_and_alone(data):
+    g = Grammar.from_columns(data.columns)
+    models = [parse_structure(n).build(g) for n in VARIANTS]
+    before = _compiled.info("fit")["entries"]
+    together = fit_batch([dict(model=m, data=data, starts=4, seed=2) for m in models])
+    compiled = _compiled.info("fit")["entries"] - before
+    alone = [fit_batch([dict(model=m, data=data, starts=4, seed=2)])[0] for m in models]
+    return together, alone, compiled
+
+
+def test_variants_of_different_sizes_share_one_compiled_solve(together_and_alone):
+    together, _, compiled = together_and_alone
+    assert compiled == 1  # five structures, 1 to 3 states, 4 to 9 parameters: one program
+    assert {r.timing["batch"] for r in together} == {len(VARIANTS)}
+    assert [len(r.problem.model.states) for r in together] == [1, 2, 2, 3, 2]
+
+
+def test_a_batch_of_variants_gives_each_fit_alone(together_and_alone):
+    together, alone, _ = together_and_alone
+    for a, b in zip(together, alone, strict=True):
+        assert a.problem.free == b.problem.free
+        assert a.starts.status == b.starts.status
+        done = a.starts.converged  # (a start stopped by the step cap, in a flat valley, may
+        assert done.sum() >= 1  # drift by rounding: its cost is compared loosely)
+        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-7)
+        np.testing.assert_allclose(a.starts.cost, b.starts.cost, rtol=1e-3)
+        np.testing.assert_array_equal(a.starts.steps[done], b.starts.steps[done])
+        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-7)
+    # the true structure fits to the noise
+    assert together[3].cost < 1.2 * 0.03**2
+
+
+def _with_constant_ground(name):
+    """A zone with a constant, estimated ground temperature (a constant node: no array form)."""
+    net = c.zone(RCNetwork(name, "zone and a constant ground"))
+    return c.window(c.heating(c.ground(net, to=None))).build()
+
+
+def test_a_constant_node_in_a_batch_of_variants(data):
+    """A network with a constant node has no array form: the batch pads each variant's own
+    matrices instead, with the same results."""
+    g = Grammar.from_columns(data.columns)
+    models = [_with_constant_ground("ZonGro"), parse_structure("Zon+Wal").build(g)]
+    assert models[0].network._constant_nodes()
+    together = fit_batch([dict(model=m, data=data, starts=3, seed=1) for m in models])
+    for m, a in zip(models, together, strict=True):
+        b = fit_batch([dict(model=m, data=data, starts=3, seed=1)])[0]
+        np.testing.assert_allclose(a.starts.cost, b.starts.cost, rtol=1e-7)
+
+
+def test_the_array_form_gives_the_state_space_of_every_model():
+    g = Grammar.from_columns(
+        ["T_zon", "T_amb", "T_bou", "T_cel", "Q_hea", "I_glo_hor", "I_s", "I_e", "I_w", "P_ele"]
+    )
+    rng = np.random.default_rng(4)
+    models = [m for m in library_models() if not m.network._constant_nodes()]
+    models += [random_structure(g, rng).build(g) for _ in range(40)]
+    g2 = Grammar.from_columns(["T_zon1", "T_zon2", "T_amb", "Q_hea1", "Q_hea2", "I_glo_hor"])
+    models += [random_structure(g2, rng).build(g2) for _ in range(20)]
+    for m in models:
+        theta = {p.name: float(rng.uniform(0.05, 2.0)) for p in m.parameters}
+        got = m.state_space_numpy(theta)
+        want = m.state_space({k: jnp.asarray(v) for k, v in theta.items()})
+        for x, y in zip(got, want, strict=True):
+            np.testing.assert_allclose(x, np.asarray(y), rtol=1e-13, atol=1e-300, err_msg=m.name)
+
+
+def test_padding_states_decay_apart_from_the_network():
+    """A padding state has no input, starts at 0 and decays faster than every mode of the
+    network, each at its own rate: the spectrum stays simple."""
+    from jaxbox.models._network import rc_from_arrays
+
+    m = get_model("Zon+Wal+Int")
+    names = [p.name for p in m.parameters]
+    arrays = m.rc_arrays(
+        names + ["1", "0"], states=5, inputs=m.inputs + ("T_x",), edges=4, sources=3, factors=2
+    )
+    theta = {**TRUTH, "R_wal": 0.01}
+    v = np.asarray([theta[n] for n in names] + [1.0, 0.0])
+    A, B, caps, x0 = rc_from_arrays(v, arrays, xp=np)
+    A0, B0, _, _ = m.state_space_numpy(theta)
+    np.testing.assert_allclose(A[:3, :3], A0, rtol=1e-14)
+    np.testing.assert_allclose(B[:3, : len(m.inputs)], B0, rtol=1e-14)
+    assert np.all(A[3:, :3] == 0) and np.all(A[:3, 3:] == 0) and np.all(B[3:] == 0)
+    assert np.all(x0[3:] == 0)
+    real = np.linalg.eigvals(A0).real
+    pad = np.diag(A)[3:]
+    assert np.all(pad < 2.5 * real.min()) and len(set(pad)) == 2
+
+
+def test_coded_transform_equals_the_static_one():
+    names = ["R", "T", "lo", "free"]
+    lower = np.asarray([1e-5, -3.0, 0.5, -np.inf])
+    upper = np.asarray([10.0, 37.0, np.inf, np.inf])
+    tr = make_transform(names, lower, upper, guess=np.asarray([0.01, 20.0, 2.0, 0.3]))
+    z = np.random.default_rng(0).normal(size=(7, 4))
+    want = np.asarray(tr.to_physical(jnp.asarray(z)))
+    got = to_physical_coded(
+        jnp.asarray(z), tr.lower, tr.upper, tr.scale, jnp.asarray(tr.kinds), tr.style
+    )
+    np.testing.assert_allclose(np.asarray(got), want, rtol=1e-14)

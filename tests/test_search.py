@@ -141,7 +141,7 @@ def test_search_tree_is_a_tree_with_reasons(search):
     for n in s.tree:
         if n.parent is not None:
             parent = by_name[n.parent]
-            assert parent.status in ("grown", "accepted")
+            assert parent.status in ("grown", "accepted", "stepping stone")
             assert n.depth == parent.depth + 1
     # the extensions of the accepted structure were tried, and none of them improved enough
     kids = [n for n in s.tree if n.parent == "Zon+Wal"]
@@ -194,6 +194,7 @@ def test_likelihood_criteria(building, criterion):
         ({"beam": 0}, "beam"),
         ({"margin": 1.5}, "margin"),
         ({"alpha": 0.0}, "alpha"),
+        ({"lookahead": -1}, "lookahead"),
     ],
 )
 def test_bad_search_options(building, option, words):
@@ -252,3 +253,65 @@ def test_the_report_draws_the_search_tree(search):
     assert "<h2>Structure search</h2>" in page
     assert page.count("<li>") == len(s.tree)  # one item per candidate
     assert f"<b>{s.accepted}</b>" in page
+
+
+# ---- lineages and stepping stones (the rules, on stand-in cases) ---------------------------------
+
+
+def _fake(name, outputs, se, rel, cost=1.0, parent_cost=None):
+    """A stand-in case: ``se`` its validation SE, ``rel`` its RMSE / spread per output."""
+    from types import SimpleNamespace
+
+    y = np.stack([np.linspace(0.0, 1.0, 50) for _ in outputs], axis=1)
+    spread = float(np.std(y[:, 0]))
+    return SimpleNamespace(
+        name=name,
+        model=SimpleNamespace(outputs=tuple(outputs), name=name),
+        done=True,
+        score=se,
+        valid=object(),
+        n_params=3,
+        result=SimpleNamespace(cost=cost),
+        validation=SimpleNamespace(
+            outputs=tuple(outputs),
+            rmse_cross={o: r * spread for o, r in zip(outputs, rel, strict=True)},
+            y_cross=y,
+        ),
+    )
+
+
+def test_between_lineages_the_shared_zone_decides():
+    from jaxbox.select._search import _accept, _Judge
+
+    judge = _Judge("cv", 0.02, 0.05)
+    both = _fake("Zon1+Zon2+Cpl", ["T_zon1", "T_zon2"], se=0.3, rel=[0.05, 0.30])
+    held = _fake("Zon2+Bz1", ["T_zon2"], se=0.1, rel=[0.10])
+    # the boundary model predicts the zone both share three times better: it wins
+    assert _accept([both, held], judge) is held
+    # not far better on the shared zone (a measured input is an edge): more zones win
+    close = _fake("Zon2+Bz1", ["T_zon2"], se=0.1, rel=[0.25])
+    assert _accept([both, close], judge) is both
+    # within a lineage the criterion decides
+    better = _fake("Zon1+Zon2+Wal1+Cpl", ["T_zon1", "T_zon2"], se=0.2, rel=[0.05, 0.05])
+    assert _accept([both, better, held], judge) is better
+    assert _accept([], judge) is None
+
+
+def test_stepping_stones_are_the_best_relative_fits_per_lineage():
+    from jaxbox.select._search import _stepping_stones
+
+    ref = _fake("Zon", ["T_zon"], se=1.0, rel=[1.0], cost=1.0)
+    kids = [
+        _fake("Zon+Wal", ["T_zon"], se=1.5, rel=[1.5], cost=0.3),
+        _fake("Zon+Int", ["T_zon"], se=1.1, rel=[1.1], cost=0.5),
+        _fake("Zon+Hea", ["T_zon"], se=1.2, rel=[1.2], cost=0.95),  # not 10 % better
+        _fake("Zon+Bou", ["T_zon"], se=1.0, rel=[1.0], cost=0.6),
+    ]
+    stones = _stepping_stones([(k, ref) for k in kids], 2)
+    assert [s.name for s, _ in stones] == ["Zon+Wal", "Zon+Int"]
+    assert all(r is ref for _, r in stones)
+    assert _stepping_stones([(k, ref) for k in kids], 0) == []
+    ref2 = _fake("Zon2+Bz1", ["T_zon2"], se=1.0, rel=[1.0], cost=2.0)
+    other = _fake("Zon2+Wal2+Bz1", ["T_zon2"], se=1.0, rel=[1.0], cost=1.0)
+    stones = _stepping_stones([(k, ref) for k in kids] + [(other, ref2)], 1)
+    assert [s.name for s, _ in stones] == ["Zon+Wal", "Zon2+Wal2+Bz1"]  # one per lineage

@@ -321,3 +321,27 @@ def test_heating_in_kilowatts_is_flagged_by_the_heat_loss_coefficient(halves):
         res, check_data=False, ua_range=None, capacity_range=None, check_intervals=False
     )
     assert not any(f.kind in ("heat_loss", "capacity") for f in off.flags)
+
+
+def test_a_fast_state_pinned_at_its_start_is_a_warning_a_slow_one_a_reason():
+    """An unmeasured initial temperature on its bound biases the energy balance only when the
+    state remembers it: a heater of 20 min in two weeks of hourly data forgets it at once."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from _reference import synthetic_building
+
+    truth = {"C_zon": 4e6, "C_hea": 2e5, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
+    truth.update(T_zon0=20.0, T_hea0=30.0)
+    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=0.05)
+    fast = fit_model("Zon+Hea", data, starts=3, bounds={"T_hea0": (-3.0, 5.0)})
+    assert fast.params["T_hea0"] > 4.9  # pinned at its upper bound
+    v = check_validity(fast, check_intervals=False)
+    assert "T_hea0" not in v.flagged("at_bound")
+    assert any("T_hea0" in w and "fast state" in w for w in v.warnings)
+    truth = {"C_zon": 2e6, "C_wal": 3e7, "R_wal": 0.01, "gA": 2.0, "T_zon0": 19.0, "T_wal0": 16.0}
+    data = synthetic_building(get_model("ZonWal"), truth, n=336, seed=2, noise=0.05)
+    slow = fit_model("ZonWal", data, starts=3, bounds={"T_wal0": (-3.0, 5.0)})
+    v = check_validity(slow, check_intervals=False)
+    assert "T_wal0" in v.flagged("at_bound")

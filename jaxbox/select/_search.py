@@ -20,15 +20,24 @@ search; a child that does not improve is not grown further. A child made invalid
 apertures at zero or undetermined (a facade that lets no sun in, or too little to tell) is tried
 again without those windows in the same step; so is a child whose unmeasured initial
 temperature ended on its bound, with that bound narrowed to the temperatures around the state
-(as the forward selection does). The search stops when no child of the beam improves. The
-accepted model is the best valid candidate by the criterion.
+(as the forward selection does).
+
+When no child of a beam improves, the search looks one component further before it stops: the
+``lookahead`` children that fit the identification data best (relative to their parent, at
+least 10 % better) are grown all the same as *stepping stones*, and their children are judged
+against the beam's case. Components that help only together (an envelope capacity and an
+internal mass: either alone can fit worse on validation than neither) are found that way. The
+search stops when neither step improves.
 
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
 the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
-one). The two-state root is grown even when it is not valid (a coupled model too simple to be
-valid may become so with a component more), as is the best root when none is valid.
-Candidates predicting more zones rank first; among those predicting different zones the
-validation SE is taken relative to each output's spread.
+one). Each set of predicted zones is a *lineage* with its own beam: candidates are compared by
+the criterion within a lineage only. The two-state root is grown even when it is not valid (a
+coupled model too simple to be valid may become so with a component more), as is the best root
+when none is valid. The accepted model is the best valid candidate of its lineage; between
+lineages, the one predicting more zones, unless another predicts the zones they share far better
+(mean RMSE relative to each zone's measured spread, lower by a third: a zone fed the other
+zone's measured temperature has an edge it does not owe to its structure).
 
 Validity is judged lazily: a candidate's intervals and verdict are computed only when its
 criterion value could make it improve, which keeps the cost of a step close to the cost of its
@@ -53,6 +62,9 @@ __all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
 
 #: criteria of :func:`structure_search`
 CRITERIA = ("cv", "aic", "bic", "lr")
+#: between lineages, how much lower (relative) the error on the shared zones of a model
+#: predicting fewer zones must be for it to be accepted
+LINEAGE_MARGIN = 0.33
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +80,8 @@ class SearchNode:
         criterion: its criterion value (SE [K] for ``cv``; AIC/BIC; the likelihood-ratio
             p-value for ``lr``).
         status: ``"accepted"``, ``"grown"`` (in a beam), ``"improves"`` (not in the beam),
-            ``"no improvement"``, ``"not valid"``, ``"failed"`` or ``"not judged"``.
+            ``"stepping stone"`` (grown for the lookahead without improving), ``"no
+            improvement"``, ``"not valid"``, ``"failed"`` or ``"not judged"``.
         why: the reason in words (the verdict's first reason, the comparison with the parent).
     """
 
@@ -149,15 +162,18 @@ def _loglik(case: Case) -> tuple[float, int]:
     return ll, n
 
 
-def _relative_se(case: Case) -> float:
-    """Validation SE with each output's RMSE divided by its measured spread."""
+def _relative_rmse(case: Case, outputs) -> float:
+    """Mean over ``outputs`` of the validation RMSE (identification RMSE without validation
+    data) divided by that output's measured spread: comparable across models of different
+    zones."""
     v = case.validation
     rmse, y = (v.rmse_cross, v.y_cross) if case.valid is not None else (v.rmse_auto, v.y_auto)
-    out = 0.0
-    for j, (o, w) in enumerate(zip(v.outputs, v.weights, strict=True)):
-        spread = float(np.nanstd(np.asarray(y)[:, j]))
-        out += float(w) * float(rmse[o]) / max(spread, 1e-9)
-    return out
+    out = []
+    for j, o in enumerate(v.outputs):
+        if o in outputs:
+            spread = float(np.nanstd(np.asarray(y)[:, j]))
+            out.append(float(rmse[o]) / max(spread, 1e-9))
+    return float(np.mean(out)) if out else math.inf
 
 
 class _Judge:
@@ -197,12 +213,41 @@ class _Judge:
         return pval < self.alpha, f"LR {stat:.1f} on {dk} df, p = {pval:.2g}"
 
 
-def _rank(case: Case, judge: _Judge, several_outputs: bool) -> tuple:
-    """Sort key: more predicted zones first, then the criterion (relative SE across zones)."""
-    n_out = len(case.model.outputs)
-    if several_outputs and judge.criterion == "cv" and case.done and np.isfinite(case.score):
-        return (-n_out, _relative_se(case))
-    return (-n_out, judge.value(case))
+def _rank(case: Case, judge: _Judge) -> float:
+    """Sort key within a lineage (candidates of the same zones): the criterion."""
+    return judge.value(case)
+
+
+def _lineage(case: Case) -> tuple[str, ...]:
+    """The zones a candidate predicts: candidates are compared by the criterion within one."""
+    return tuple(case.model.outputs)
+
+
+def _accept(valid: list[Case], judge: _Judge) -> Case | None:
+    """The accepted model: the best valid candidate of each lineage by the criterion; between
+    lineages (models predicting different zones), the one predicting more zones unless another
+    predicts the zones they share far better (relative RMSE lower by :data:`LINEAGE_MARGIN`: a
+    model fed the other zone's measured temperature has an edge it does not owe to its
+    structure)."""
+    best: dict[tuple, Case] = {}
+    for c in valid:
+        k = _lineage(c)
+        if k not in best or _rank(c, judge) < _rank(best[k], judge):
+            best[k] = c
+    if not best:
+        return None
+    order = sorted(best.values(), key=lambda c: (-len(_lineage(c)), _rank(c, judge)))
+    champion = order[0]
+    for other in order[1:]:
+        common = set(_lineage(champion)) & set(_lineage(other))
+        if not common:  # no zone in common: their mean relative errors
+            common_c, common_o = set(_lineage(champion)), set(_lineage(other))
+        else:
+            common_c = common_o = common
+        a, b = _relative_rmse(champion, common_c), _relative_rmse(other, common_o)
+        if b < (1.0 - LINEAGE_MARGIN) * a:
+            champion = other
+    return champion
 
 
 # ---- the search ---------------------------------------------------------------------------------
@@ -272,7 +317,6 @@ def structure_search(
     except ModelError as err:
         raise ValueError(str(err)) from None
     judge = _Judge(criterion, float(margin), float(alpha))
-    several = len(grammar.zones) > 1
     kw = {"starts": starts, "seed": seed, **settings}
     t0 = time.perf_counter()
     nodes: dict[str, dict] = {}  # case name -> node fields
@@ -301,8 +345,8 @@ def structure_search(
 
     def settle(children: list[tuple[Case, Case | None]]) -> list[Case]:
         """Judge a step's children; the improving valid ones, best first."""
-        order = sorted(children, key=lambda cp: _rank(cp[0], judge, several))
-        winners = []
+        order = sorted(children, key=lambda cp: _rank(cp[0], judge))
+        winners: list[Case] = []
         for child, parent in order:
             node = nodes[child.name]
             node["criterion"] = judge.value(child)
@@ -313,7 +357,7 @@ def structure_search(
             if not better:
                 node.update(status="no improvement", why=why)
                 continue
-            if len(winners) >= beam:  # the beam is full: not judged, not grown
+            if sum(_lineage(w) == _lineage(child) for w in winners) >= beam:  # (its lineage's)
                 node.update(status="improves", why=why)
                 continue
             fresh = child.verdict is None  # judged lazily: only now that it could improve
@@ -337,7 +381,7 @@ def structure_search(
     run(first, 0)
     beam_cases = settle([(c, None) for c in first])
     if not beam_cases:  # nothing valid among the roots: grow the best one all the same
-        best = min(first, key=lambda c: _rank(c, judge, several))
+        best = min(first, key=lambda c: _rank(c, judge))
         if best.done:
             beam_cases = [best]
             nodes[best.name]["status"] = "grown"
@@ -405,7 +449,11 @@ def structure_search(
         if not children:
             stopped = "the grammar has no further extension the data can drive"
             break
-        stones = _stepping_stones(children, lookahead) if not winners else []
+        # a lineage whose every extension fails to improve looks one component further, from
+        # the extensions that fit its identification data best (components that help only
+        # together, such as an envelope and an internal mass)
+        stuck = {_lineage(c) for c in beam_cases} - {_lineage(w) for w in winners}
+        stones = _stepping_stones([cr for cr in children if _lineage(cr[0]) in stuck], lookahead)
         if stones and depth < max_depth:
             for stone, _ in stones:
                 node = nodes[stone.name]
@@ -416,19 +464,19 @@ def structure_search(
                 + ", ".join(s.model.name for s, _ in stones)
             )
             depth += 1
-            winners, more = grow(stones, depth)
-            if not winners:
-                stopped = f"step {depth}: no extension improves, one or two components further"
-                break
+            further, _ = grow(stones, depth)
+            winners += further
         if not winners:
-            stopped = f"step {depth}: no extension improves significantly"
+            stopped = f"step {depth}: no extension improves significantly" + (
+                ", one or two components further" if stones else ""
+            )
             break
         beam_cases = winners
     elapsed = time.perf_counter() - t0
 
     valid = [gb.cases[n] for n in nodes if gb.cases[n].done and gb.cases[n].verdict is not None]
     valid = [c for c in valid if c.is_valid]
-    accepted = min(valid, key=lambda c: _rank(c, judge, several), default=None)
+    accepted = _accept(valid, judge)
     for name, node in nodes.items():
         node.setdefault("criterion", math.inf)
         node.setdefault("status", "not judged")
@@ -452,18 +500,23 @@ def structure_search(
 
 
 def _stepping_stones(children: list[tuple[Case, Case]], n: int) -> list[tuple[Case, Case]]:
-    """The ``n`` children that fit the identification data best, among those fitting it clearly
-    better (cost at least 10 % lower) than the case they were judged against, with it."""
+    """Per lineage, the ``n`` children that fit the identification data best relative to the
+    case they were judged against, among those fitting it clearly better (cost at least 10 %
+    lower), with that case."""
     fitted = [
-        (c, ref)
+        (c.result.cost / ref.result.cost, c, ref)
         for c, ref in children
         if c.done
         and ref.done
         and np.isfinite(c.result.cost)
         and c.result.cost < 0.9 * ref.result.cost
     ]
-    fitted.sort(key=lambda cr: cr[0].result.cost)
-    return fitted[:n]
+    fitted.sort(key=lambda x: x[0])
+    out: list[tuple[Case, Case]] = []
+    for _, c, ref in fitted:
+        if sum(_lineage(o) == _lineage(c) for o, _ in out) < n:
+            out.append((c, ref))
+    return out
 
 
 def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Structure] | None:

@@ -73,6 +73,11 @@ RMSE_FLOOR = 0.5
 #: (half-width): 1.0 asks that the interval exclude zero, i.e. that the parameter be
 #: significantly different from zero at the 5 % level (the t-test of CTSM and pySIP).
 MAX_REL_CI = 0.5
+#: An unmeasured state whose initial temperature the outputs forget (less than FORGOTTEN K per K
+#: left) within this share of the identification span: that temperature pinned at a bound is
+#: a warning, not a reason (a heater in weeks of data).
+FAST_STATE_SHARE = 0.02
+FORGOTTEN = 0.05
 #: Plausible heat-loss coefficient UA [W/K] of a building (a room … a large block).
 UA_RANGE = (1.0, 1e5)
 #: Plausible total heat capacity [J/K] of the nodes of a building (a small room … a large block).
@@ -335,6 +340,28 @@ def _excludes_bound(ctx: _Judged, name: str, bound: float) -> str | None:
     return None
 
 
+def _span(result) -> float:
+    """Duration [s] of the identification data of a fit (0 when unknown)."""
+    t = np.asarray(getattr(result.data, "t", ()), dtype=float)
+    return float(t[-1] - t[0]) if t.size > 1 else 0.0
+
+
+def _forgets_its_start(ctx: _Judged, node: int | None, after: float) -> bool:
+    """Whether the outputs forget an error in the initial temperature of state ``node``: less
+    than :data:`FORGOTTEN` K per K left in every output ``after`` seconds (the response
+    ``C·exp(A·after)·e_node`` of the state matrix at the optimum)."""
+    if node is None or ctx.A is None or not after > 0 or not np.all(np.isfinite(ctx.A)):
+        return False
+    from scipy.linalg import expm
+
+    nodes = list(ctx.model.network.nodes)
+    outputs = [i for i, m in enumerate(nodes) if m.output is not None]
+    if node >= ctx.A.shape[0] or not outputs:
+        return False
+    response = expm(ctx.A * after)[outputs, node]
+    return bool(np.max(np.abs(response)) < FORGOTTEN)
+
+
 def _check_bounds(ctx: _Judged) -> list[Flag]:
     result, specs = ctx.result, ctx.specs
     nodes = list(ctx.model.network.nodes)
@@ -355,6 +382,19 @@ def _check_bounds(ctx: _Judged) -> list[Flag]:
             extra = ""
             if node is not None and ctx.A is not None and ctx.A[node, node] < 0:
                 extra = f" (its own time constant is {_fmt_time(-1.0 / ctx.A[node, node])})"
+            if _forgets_its_start(ctx, node, FAST_STATE_SHARE * _span(result)):
+                flags.append(
+                    Flag(
+                        "at_bound",
+                        (n,),
+                        f"initial temperature {n} = {_fmt(result.params[n], unit)} is pinned "
+                        f"{on} its {side} bound {_fmt(b, unit)}{extra}: the outputs forget "
+                        f"that start within {100 * FAST_STATE_SHARE:g} % of the data (a fast "
+                        "state), so the estimate stands",
+                        severe=False,
+                    )
+                )
+                continue
             flags.append(
                 Flag(
                     "at_bound",

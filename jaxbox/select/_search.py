@@ -20,7 +20,9 @@ search; a child that does not improve is not grown further. A child made invalid
 apertures at zero or undetermined (a facade that lets no sun in, or too little to tell) is tried
 again without those windows in the same step; so is a child whose unmeasured initial
 temperature ended on its bound, with that bound narrowed to the temperatures around the state
-(as the forward selection does).
+(as the forward selection does), and so is a child made invalid only by resistances on their
+upper bound, with those heat paths cut (the resistances fixed at that bound: the data do not
+use them).
 
 When no child of a beam improves, the search looks one component further before it stops: the
 ``lookahead`` children that fit the identification data best (relative to their parent, at
@@ -134,7 +136,7 @@ class Search(Selection):
                 value = "n/a" if not math.isfinite(n.criterion) else f"{n.criterion:.4g}"
                 mark = "*" if n.case == self.accepted else " "
                 why = f" ({n.why})" if n.why else ""
-                retry = " (retried, bounds narrowed)" if n.case != n.structure else ""
+                retry = " (retried)" if n.case != n.structure else ""
                 lines.append(
                     f"{mark} {'  ' * indent}{n.structure}{retry}  [{self.criterion} {value}] "
                     f"{n.status}{why}"
@@ -420,6 +422,17 @@ def structure_search(
             if fix is not None and fix[1].name not in seen:
                 what = f"{node['added']}, {fix[0]}"
                 repairs.append((declare(fix[1], gb.cases[node["parent"]], what, depth), ref))
+            elif not child.is_valid and (cut := _resistances_at_their_top(child)):
+                retry = _cut_retry(gb, child, cut, say)
+                nodes[retry.name] = dict(
+                    node,
+                    case=retry.name,
+                    added=f"{node['added']}; retried with {', '.join(cut)} cut (fixed at its "
+                    "upper bound)",
+                )
+                for key in ("criterion", "status", "why"):
+                    nodes[retry.name].pop(key, None)
+                repairs.append((retry, ref))
             elif not child.is_valid and pinned:
                 try:
                     retry = _narrowed_retry(gb, child, pinned, say)
@@ -517,6 +530,55 @@ def _stepping_stones(children: list[tuple[Case, Case]], n: int) -> list[tuple[Ca
         if sum(_lineage(o) == _lineage(c) for o, _ in out) < n:
             out.append((c, ref))
     return out
+
+
+def _resistances_at_their_top(case: Case) -> list[str]:
+    """The resistances at their upper bound when nothing else makes ``case`` invalid (but
+    intervals, which such a flat direction widens): heat paths the data do not use (their
+    conductance wants to vanish)."""
+    if case.verdict is None or case.is_valid or not case.done:
+        return []
+    at_bound = set(case.verdict.flagged("at_bound"))
+    pos = case.result.bound_position()
+    top = {n for n in at_bound if n.startswith("R_") and pos.get(n, 0.0) > 0.5}
+    # the other reasons may only be intervals, which an unused path blurs
+    blurred = {n for kind in _BLURRED for n in case.verdict.flagged(kind)}
+    if not top or top != at_bound or set(case.verdict.flagged()) - blurred - top:
+        return []
+    return sorted(top)
+
+
+#: verdict flags that a parameter on its bound can cause in the others (a flat direction)
+_BLURRED = ("wide_interval", "poorly_identifiable", "not_identifiable")
+
+
+def _cut_retry(gb, case: Case, names: list[str], say: Progress) -> Case:
+    """Declare (not run) a retry of ``case`` from its optimum with the resistances ``names``
+    fixed at their upper bound: the heat paths the data do not use are cut (as a facade that
+    lets no sun in is dropped), and the other parameters are judged without them."""
+    fixed = dict(case.fixed)
+    for n in names:
+        fixed[n] = float(case.result.bounds[n][1])
+    free = tuple(n for n in case.result.free if n not in fixed)
+    say(f"  {case.name}: {', '.join(names)} on the upper bound; retry with that path cut")
+    retry = gb.add_case(
+        case.model,
+        name=f"{case.name}+cut",
+        guess={k: float(case.result.params[k]) for k in free},
+        free=free,
+        fixed=fixed,
+        bounds={k: v for k, v in case.bounds.items() if k in free},
+        starts=case.starts,
+        seed=case.seed,
+        train=(str(case.ident.start), str(case.ident.end)),
+        valid=None if case.valid is None else (str(case.valid.start), str(case.valid.end)),
+        **case.settings,
+    )
+    retry.parent = case.parent
+    told = ", ".join(f"{n} = {fixed[n]:g} K/W" for n in names)
+    retry.notes.append(f"retry of {case.name}: unused heat path(s) cut ({told}, fixed)")
+    case.notes.append(f"resistance on its upper bound; retried as {retry.name}")
+    return retry
 
 
 def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Structure] | None:

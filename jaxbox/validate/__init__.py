@@ -40,6 +40,8 @@ from ._uncertainty import Uncertainty as Uncertainty
 from ._uncertainty import sensitivities as sensitivities
 from ._uncertainty import uncertainty as uncertainty
 from ._verdict import CAPACITY_RANGE as CAPACITY_RANGE
+from ._verdict import FAST_STATE_SHARE as FAST_STATE_SHARE
+from ._verdict import MAX_REL_CI as MAX_REL_CI
 from ._verdict import MAX_RMSE as MAX_RMSE
 from ._verdict import MAX_RMSE_RATIO as MAX_RMSE_RATIO
 from ._verdict import PHYSICAL_LIMITS as PHYSICAL_LIMITS

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._verdict import MAX_REL_CI
+
 __all__ = [
     "plot_fit",
     "plot_residuals",
@@ -268,8 +270,9 @@ def plot_cross_correlation(analysis, *, title: str | None = None):
     return fig
 
 
-def plot_confidence_intervals(uncertainty, *, max_rel_ci: float | None = 0.5, title=None):
-    """Normalised confidence intervals: ± half-width as a percentage of each value.
+def plot_confidence_intervals(uncertainty, *, max_rel_ci: float | None = MAX_REL_CI, title=None):
+    """Normalised confidence intervals: ± half-width as a percentage of each value, with the
+    verdict's limit ``max_rel_ci`` (dashed; ``None``: none).
 
     Parameters that are not identifiable are marked in red without a bar; those on a poorly
     identifiable direction are drawn in red.

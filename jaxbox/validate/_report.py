@@ -42,7 +42,7 @@ def fit_report(
     validation=None,
     uncertainty=None,
     include_initial_states: bool = False,
-    max_rel_ci: float = 0.5,
+    max_rel_ci: float | None = None,
     horizons=None,
     verdict_options: dict | None = None,
 ) -> dict:
@@ -56,7 +56,8 @@ def fit_report(
             ``valid`` (skips the post-simulation).
         uncertainty: an :class:`~jaxbox.validate.Uncertainty` already computed.
         include_initial_states: intervals for the initial states too.
-        max_rel_ci: widest acceptable confidence interval (fraction of the value).
+        max_rel_ci: widest acceptable confidence interval (fraction of the value; default
+            :data:`~jaxbox.validate.MAX_REL_CI`).
         horizons: k-step-ahead prediction horizons [samples] (default 1, 2, 3, 6, 12, 24).
         verdict_options: more keyword arguments of :func:`~jaxbox.validate.check_validity`.
 

@@ -315,3 +315,25 @@ def test_stepping_stones_are_the_best_relative_fits_per_lineage():
     other = _fake("Zon2+Wal2+Bz1", ["T_zon2"], se=1.0, rel=[1.0], cost=1.0)
     stones = _stepping_stones([(k, ref) for k in kids] + [(other, ref2)], 1)
     assert [s.name for s, _ in stones] == ["Zon+Wal", "Zon2+Wal2+Bz1"]  # one per lineage
+
+
+def test_a_resistance_on_its_upper_bound_is_cut(building):
+    """A heat path the data do not use (its resistance on the upper bound, nothing else wrong
+    but the intervals it blurs) is cut: retried with the resistance fixed at that bound."""
+    from jaxbox.select._cases import run_cases
+    from jaxbox.select._search import _cut_retry, _resistances_at_their_top
+
+    gb = GreyBox(building.data, name="cut")
+    case = gb.add_case("Zon+Wal", starts=3, bounds={"R_wal": (1e-5, 0.004)})
+    run_cases([case])
+    assert not case.is_valid and "R_wal" in case.verdict.flagged("at_bound")
+    assert _resistances_at_their_top(case) == ["R_wal"]
+    retry = _cut_retry(gb, case, ["R_wal"], lambda _: None)
+    run_cases([retry])
+    assert retry.fixed == {"R_wal": pytest.approx(0.004)}
+    assert "R_wal" not in retry.result.free
+    assert any("cut" in n for n in retry.notes)
+    # a lower bound, or another reason, is no unused path
+    low = gb.add_case("Zon+Wal", starts=3, bounds={"R_wal": (0.05, 10.0)})
+    run_cases([low])
+    assert "R_wal" in low.verdict.flagged("at_bound") and _resistances_at_their_top(low) == []

@@ -354,20 +354,12 @@ def _rc_members(problems, counts, layout, width: int, fixed_width: int):
     network has no array form (a constant node)."""
     from ..models._network import ModelError
 
-    nets = [p.model.network for p in problems]
-    if any(node.constant for net in nets for node in net.nodes):
+    if any(node.constant for p in problems for node in p.model.network.nodes):
         return None
     names = layout["union"]
-    sizes = dict(
-        states=layout["states"],
-        edges=max(len(net.edges) for net in nets),
-        sources=max(max(len(net.sources) for net in nets), 1),
-        factors=max(
-            [1]
-            + [sum(k != "const" for k, _ in e.factors) for net in nets for e in net.edges]
-            + [sum(k != "const" for k, _ in s.gain) for net in nets for s in net.sources]
-        ),
-    )
+    each = [p.model.array_sizes() for p in problems]
+    sizes = {k: max(e[k] for e in each) for k in each[0]}
+    sizes["states"] = layout["states"]
     parts = []
     for prob, c in zip(problems, counts, strict=True):
         free = list(prob.free) + [f"\0p{i}" for i in range(width - len(prob.free))]

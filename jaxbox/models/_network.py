@@ -641,6 +641,19 @@ class RCModel:
         )
         return G / caps[:, None], H / caps[:, None], caps, held
 
+    def array_sizes(self) -> dict[str, int]:
+        """Sizes of this network in array form (:meth:`rc_arrays`): ``states``, ``edges``,
+        ``sources`` (at least 1) and ``factors`` (parameters in the longest product, at least
+        1)."""
+        net = self.network
+        products = [e.factors for e in net.edges] + [s.gain for s in net.sources]
+        return dict(
+            states=len(net.nodes),
+            edges=len(net.edges),
+            sources=max(len(net.sources), 1),
+            factors=max([1] + [sum(k != "const" for k, _ in f) for f in products]),
+        )
+
     def rc_arrays(
         self,
         slots: Sequence[str],
@@ -751,18 +764,7 @@ class RCModel:
         names = [p.name for p in self.parameters if p.name in theta]
         v = np.asarray([float(theta[n]) for n in names] + [1.0, 0.0])
         net = self.network
-        arrays = self.rc_arrays(
-            names + ["1", "0"],
-            states=len(net.nodes),
-            inputs=self.inputs,
-            edges=len(net.edges),
-            sources=len(net.sources),
-            factors=max(
-                [1]
-                + [sum(k != "const" for k, _ in e.factors) for e in net.edges]
-                + [sum(k != "const" for k, _ in s.gain) for s in net.sources]
-            ),
-        )
+        arrays = self.rc_arrays(names + ["1", "0"], inputs=self.inputs, **self.array_sizes())
         A, B, _, _ = rc_from_arrays(v, arrays, xp=np)
         out_nodes = [i for i, m in enumerate(net.nodes) if m.output]
         C = np.zeros((len(out_nodes), len(net.nodes)))

@@ -418,35 +418,33 @@ def structure_search(
         for child, ref in children:
             node = nodes[child.name]
             fix = _without_dead_facades(parse_structure(node["structure"]), child)
-            pinned = _pinned_unmeasured_states(child) if child.verdict is not None else []
             if fix is not None and fix[1].name not in seen:
                 what = f"{node['added']}, {fix[0]}"
                 repairs.append((declare(fix[1], gb.cases[node["parent"]], what, depth), ref))
-            elif not child.is_valid and (cut := _resistances_at_their_top(child)):
+                continue
+            if child.is_valid or child.verdict is None:
+                continue
+            if cut := _resistances_at_their_top(child):
                 retry = _cut_retry(gb, child, cut, say)
-                nodes[retry.name] = dict(
-                    node,
-                    case=retry.name,
-                    added=f"{node['added']}; retried with {', '.join(cut)} cut (fixed at its "
-                    "upper bound)",
-                )
-                for key in ("criterion", "status", "why"):
-                    nodes[retry.name].pop(key, None)
-                repairs.append((retry, ref))
-            elif not child.is_valid and pinned:
+                how = f"{', '.join(cut)} cut (fixed at the upper bound)"
+            elif fast := _fast_capacities(child):
+                retry = _settled_retry(gb, child, fast, say)
+                how = f"{', '.join(fast)} fixed at the estimate (a fast node: only its lag shows)"
+            elif pinned := _pinned_unmeasured_states(child):
                 try:
                     retry = _narrowed_retry(gb, child, pinned, say)
                 except ValueError as err:
                     say(f"  retry failed ({err})")
                     continue
-                nodes[retry.name] = dict(
-                    node,
-                    case=retry.name,
-                    added=f"{node['added']}; retried with {', '.join(pinned)} narrowed",
-                )
-                for key in ("criterion", "status", "why"):
-                    nodes[retry.name].pop(key, None)
-                repairs.append((retry, ref))
+                how = f"{', '.join(pinned)} narrowed"
+            else:
+                continue
+            nodes[retry.name] = dict(
+                node, case=retry.name, added=f"{node['added']}; retried with {how}"
+            )
+            for key in ("criterion", "status", "why"):
+                nodes[retry.name].pop(key, None)
+            repairs.append((retry, ref))
         if repairs:  # dead facades dropped, pinned initial temperatures narrowed: once more
             run([c for c, _ in repairs], depth)
             winners = settle(children + repairs)
@@ -552,18 +550,36 @@ def _resistances_at_their_top(case: Case) -> list[str]:
 _BLURRED = ("wide_interval", "poorly_identifiable", "not_identifiable")
 
 
-def _cut_retry(gb, case: Case, names: list[str], say: Progress) -> Case:
-    """Declare (not run) a retry of ``case`` from its optimum with the resistances ``names``
-    fixed at their upper bound: the heat paths the data do not use are cut (as a facade that
-    lets no sun in is dropped), and the other parameters are judged without them."""
-    fixed = dict(case.fixed)
-    for n in names:
-        fixed[n] = float(case.result.bounds[n][1])
+def _fast_capacities(case: Case) -> list[str]:
+    """Capacities of fast nodes (own time constant below two sampling steps) that only their
+    intervals make ``case`` invalid for: at this sampling the data see such a node's lag
+    (``R·C``), not its capacity."""
+    if case.verdict is None or case.is_valid or not case.done:
+        return []
+    blurred = {n for kind in _BLURRED for n in case.verdict.flagged(kind)}
+    if set(case.verdict.flagged()) - blurred:
+        return []
+    from ..validate._verdict import _state_space
+
+    A = _state_space(case.model, case.result.params)[0]
+    dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
+    fast = []
+    for i, node in enumerate(case.model.network.nodes):
+        if node.C in blurred and A[i, i] < 0 and -1.0 / A[i, i] < 2.0 * dt:
+            fast.append(node.C)
+    return sorted(fast)
+
+
+def _fixed_retry(gb, case: Case, fixed: dict, suffix: str, why: str, say: Progress) -> Case:
+    """Declare (not run) a retry of ``case`` from its optimum with the parameters ``fixed``
+    (name -> value) fixed; the others are estimated and judged again."""
+    fixed = {**case.fixed, **fixed}
     free = tuple(n for n in case.result.free if n not in fixed)
-    say(f"  {case.name}: {', '.join(names)} on the upper bound; retry with that path cut")
+    told = ", ".join(f"{n} = {v:.4g}" for n, v in fixed.items() if n not in case.fixed)
+    say(f"  {case.name}: retry with {told} fixed ({why})")
     retry = gb.add_case(
         case.model,
-        name=f"{case.name}+cut",
+        name=f"{case.name}+{suffix}",
         guess={k: float(case.result.params[k]) for k in free},
         free=free,
         fixed=fixed,
@@ -575,10 +591,24 @@ def _cut_retry(gb, case: Case, names: list[str], say: Progress) -> Case:
         **case.settings,
     )
     retry.parent = case.parent
-    told = ", ".join(f"{n} = {fixed[n]:g} K/W" for n in names)
-    retry.notes.append(f"retry of {case.name}: unused heat path(s) cut ({told}, fixed)")
-    case.notes.append(f"resistance on its upper bound; retried as {retry.name}")
+    retry.notes.append(f"retry of {case.name}: {told} fixed ({why})")
+    case.notes.append(f"retried as {retry.name} ({why})")
     return retry
+
+
+def _cut_retry(gb, case: Case, names: list[str], say: Progress) -> Case:
+    """A retry of ``case`` with the resistances ``names`` fixed at their upper bound: the heat
+    paths the data do not use are cut (as a facade that lets no sun in is dropped), and the
+    other parameters are judged without them."""
+    fixed = {n: float(case.result.bounds[n][1]) for n in names}
+    return _fixed_retry(gb, case, fixed, "cut", "unused heat path cut", say)
+
+
+def _settled_retry(gb, case: Case, names: list[str], say: Progress) -> Case:
+    """A retry of ``case`` with the capacities ``names`` of fast nodes fixed at their estimates:
+    the lag ``R·C`` the data see is then carried by the resistance alone."""
+    fixed = {n: float(case.result.params[n]) for n in names}
+    return _fixed_retry(gb, case, fixed, "settled", "capacity of a fast node", say)
 
 
 def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Structure] | None:

@@ -337,3 +337,29 @@ def test_a_resistance_on_its_upper_bound_is_cut(building):
     low = gb.add_case("Zon+Wal", starts=3, bounds={"R_wal": (0.05, 10.0)})
     run_cases([low])
     assert "R_wal" in low.verdict.flagged("at_bound") and _resistances_at_their_top(low) == []
+
+
+def test_a_fast_capacity_the_data_cannot_see_is_settled():
+    """Hourly data see a 20-minute heater's lag, not its capacity: the capacity's interval
+    invalidates the fit, and the retry with it fixed at its estimate is valid and as good."""
+    from jaxbox.select._cases import run_cases
+    from jaxbox.select._search import _fast_capacities, _settled_retry
+
+    truth = {"C_zon": 4e6, "C_hea": 2e5, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
+    truth.update(T_zon0=20.0, T_hea0=25.0)
+    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=0.05)
+    gb = GreyBox(data, name="heater")
+    case = gb.add_case("Zon+Hea", starts=4)
+    run_cases([case])
+    assert not case.is_valid and "C_hea" in case.verdict.flagged("wide_interval")
+    assert _fast_capacities(case) == ["C_hea"]
+    retry = _settled_retry(gb, case, ["C_hea"], lambda _: None)
+    run_cases([retry])
+    assert retry.is_valid, retry.reasons
+    assert retry.fixed == {"C_hea": pytest.approx(case.result.params["C_hea"])}
+    assert retry.score == pytest.approx(case.score, rel=0.02)
+    # the heater's lag R·C is what the data determine
+    tau = retry.result.params["R_hea"] * retry.fixed["C_hea"]
+    assert tau == pytest.approx(truth["R_hea"] * truth["C_hea"], rel=0.3)
+    # a case not judged yet has nothing to settle
+    assert _fast_capacities(gb.add_case("Zon", starts=1)) == []

@@ -20,9 +20,11 @@ search; a child that does not improve is not grown further. A child made invalid
 apertures at zero or undetermined (a facade that lets no sun in, or too little to tell) is tried
 again without those windows in the same step; so is a child whose unmeasured initial
 temperature ended on its bound, with that bound narrowed to the temperatures around the state
-(as the forward selection does), and so is a child made invalid only by resistances on their
+(as the forward selection does); so is a child made invalid only by resistances on their
 upper bound, with those heat paths cut (the resistances fixed at that bound: the data do not
-use them).
+use them), and a child made invalid only by the interval of a fast node's capacity (own time
+constant under two sampling steps), with that capacity fixed at its estimate (the data see the
+node's lag, not its capacity).
 
 When no child of a beam improves, the search looks one component further before it stops: the
 ``lookahead`` children that fit the identification data best (relative to their parent, at

@@ -363,3 +363,19 @@ def test_a_fast_capacity_the_data_cannot_see_is_settled():
     assert tau == pytest.approx(truth["R_hea"] * truth["C_hea"], rel=0.3)
     # a case not judged yet has nothing to settle
     assert _fast_capacities(gb.add_case("Zon", starts=1)) == []
+
+
+def test_a_pinned_initial_temperature_is_narrowed_from_the_data(building):
+    from jaxbox.select._cases import run_cases
+    from jaxbox.select._forward import _narrowed_retry, _pinned_unmeasured_states
+
+    gb = GreyBox(building.data, name="pinned")
+    case = gb.add_case("Zon+Wal", starts=2, bounds={"T_wal0": (-3.0, 5.0)})
+    run_cases([case])
+    assert _pinned_unmeasured_states(case) == ["T_wal0"]
+    retry = _narrowed_retry(gb, case, ["T_wal0"], lambda _: None)
+    assert retry.name == "Zon+Wal+narrowed" and retry.starts == case.starts
+    lo, hi = retry.bounds["T_wal0"]
+    assert 5.0 < hi < 37.0 and lo > -3.0  # the span of the temperatures around the envelope
+    run_cases([retry])
+    assert retry.done and any("narrowed" in n for n in retry.notes)

@@ -101,6 +101,25 @@ def _pinned_unmeasured_states(case: Case) -> list[str]:
     return [n for n in flagged if case.model.parameter(n).is_initial_state and n not in measured]
 
 
+def _retry_of(gb: GreyBox, case: Case, suffix: str, **changes) -> Case:
+    """Declare (not run) a case like ``case`` (same model, windows, starts, seed and settings)
+    named ``<case>+<suffix>``, with ``changes`` (``guess``, ``free``, ``fixed``, ``bounds``) and
+    the same parent."""
+    fields = dict(guess=case.guess, free=case.free, fixed=case.fixed, bounds=case.bounds)
+    retry = gb.add_case(
+        case.model,
+        name=f"{case.name}+{suffix}",
+        **{**fields, **changes},
+        starts=case.starts,
+        seed=case.seed,
+        train=(str(case.ident.start), str(case.ident.end)),
+        valid=None if case.valid is None else (str(case.valid.start), str(case.valid.end)),
+        **case.settings,
+    )
+    retry.parent = case.parent
+    return retry
+
+
 def _narrowed_retry(gb: GreyBox, case: Case, pinned, say: Progress) -> Case:
     """Declare (not run) a retry of ``case`` with the pinned initial temperatures' bounds
     narrowed to the span of the temperatures around their states."""
@@ -112,20 +131,7 @@ def _narrowed_retry(gb: GreyBox, case: Case, pinned, say: Progress) -> Case:
         bounds[n] = (lo, hi)
         told.append(f"{n} in [{lo:.2f}, {hi:.2f}] °C")
     say(f"  {case.name}: initial temperature(s) on a bound; retry with {', '.join(told)}")
-    retry = gb.add_case(
-        case.model,
-        name=f"{case.name}+narrowed",
-        guess=case.guess,
-        free=case.free,
-        fixed=case.fixed,
-        bounds=bounds,
-        starts=case.starts,
-        seed=case.seed,
-        train=(str(case.ident.start), str(case.ident.end)),
-        valid=None if case.valid is None else (str(case.valid.start), str(case.valid.end)),
-        **case.settings,
-    )
-    retry.parent = case.parent
+    retry = _retry_of(gb, case, "narrowed", bounds=bounds)
     retry.notes.append(f"retry of {case.name}: bounds narrowed from the data ({', '.join(told)})")
     case.notes.append(f"initial temperature on its bound; retried as {retry.name}")
     return retry

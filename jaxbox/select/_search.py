@@ -60,7 +60,13 @@ from scipy import stats
 from ..fit import DEFAULT_STARTS
 from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
 from ._cases import Case, Progress, quiet, run_cases
-from ._forward import Selection, _as_greybox, _narrowed_retry, _pinned_unmeasured_states
+from ._forward import (
+    Selection,
+    _as_greybox,
+    _narrowed_retry,
+    _pinned_unmeasured_states,
+    _retry_of,
+)
 
 __all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
 
@@ -579,20 +585,15 @@ def _fixed_retry(gb, case: Case, fixed: dict, suffix: str, why: str, say: Progre
     free = tuple(n for n in case.result.free if n not in fixed)
     told = ", ".join(f"{n} = {v:.4g}" for n, v in fixed.items() if n not in case.fixed)
     say(f"  {case.name}: retry with {told} fixed ({why})")
-    retry = gb.add_case(
-        case.model,
-        name=f"{case.name}+{suffix}",
+    retry = _retry_of(
+        gb,
+        case,
+        suffix,
         guess={k: float(case.result.params[k]) for k in free},
         free=free,
         fixed=fixed,
         bounds={k: v for k, v in case.bounds.items() if k in free},
-        starts=case.starts,
-        seed=case.seed,
-        train=(str(case.ident.start), str(case.ident.end)),
-        valid=None if case.valid is None else (str(case.valid.start), str(case.valid.end)),
-        **case.settings,
     )
-    retry.parent = case.parent
     retry.notes.append(f"retry of {case.name}: {told} fixed ({why})")
     case.notes.append(f"retried as {retry.name} ({why})")
     return retry

@@ -204,53 +204,9 @@ def _draw_params(structure, hlc: float, rng) -> dict[str, float]:
 # ---- numerics -----------------------------------------------------------------------------------
 
 
-def _factor(kind, value, theta) -> float:
-    if kind == "const":
-        return float(value)
-    v = float(theta[value])
-    return v if kind == "param" else 1.0 - v
-
-
-def _rc(model, theta) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(A [1/s], B, caps [J/K])`` of ``model`` at ``theta`` in numpy, as
-    :meth:`~jaxbox.models.RCModel.rc_form` (no constant nodes in the grammar's networks)."""
-    net = model.network
-    names = [m.name for m in net.nodes]
-    idx = {name: i for i, name in enumerate(names)}
-    uidx = {u: j for j, u in enumerate(model.inputs)}
-    n, m = len(names), len(model.inputs)
-    G, H = np.zeros((n, n)), np.zeros((n, m))
-    for e in net.edges:
-        r = e.scale * float(theta[e.R])
-        for kind, value in e.factors:
-            r *= _factor(kind, value, theta)
-        g, i = 1.0 / r, idx[e.a]
-        G[i, i] -= g
-        if e.b in idx:
-            j = idx[e.b]
-            G[j, j] -= g
-            G[i, j] += g
-            G[j, i] += g
-        else:
-            H[i, uidx[e.b]] += g
-    for src in net.sources:
-        gain = 1.0
-        for kind, value in src.gain:
-            gain *= _factor(kind, value, theta)
-        H[idx[src.node], uidx[src.input]] += gain
-    caps = np.array([float(theta[node.C]) for node in net.nodes])
-    return G / caps[:, None], H / caps[:, None], caps
-
-
 def _matrices(model, theta) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(A, B, C)`` of ``model`` at ``theta`` (numpy)."""
-    if any(node.constant for node in model.network.nodes):  # pragma: no cover - not in grammar
-        raise ValueError(f"{model.name}: constant nodes are not simulated by the zoo")
-    A, B, _ = _rc(model, theta)
-    out = [i for i, node in enumerate(model.network.nodes) if node.output]
-    C = np.zeros((len(out), A.shape[0]))
-    C[np.arange(len(out)), out] = 1.0
-    return A, B, C
+    """``(A, B, C)`` of ``model`` at ``theta`` (numpy: nothing to compile)."""
+    return model.state_space_numpy(theta)[:3]
 
 
 def _time_constants(A: np.ndarray) -> np.ndarray:
@@ -297,7 +253,7 @@ def _kpis(model, theta, A, B, C) -> dict:
 def _modes(model, theta):
     """``(λ [1/s], T, T⁻¹)`` with ``A = T diag(λ) T⁻¹``, from the symmetric form
     ``K^{1/2} A K^{-1/2} = Q diag(λ) Qᵀ`` (K the heat capacities): ``T = K^{-1/2} Q``."""
-    A, _, caps = _rc(model, theta)
+    A, _, caps = model.rc_numpy(theta)
     k = np.sqrt(caps)
     S = A * k[:, None] / k
     lam, Q = np.linalg.eigh(0.5 * (S + S.T))

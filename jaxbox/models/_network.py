@@ -76,13 +76,6 @@ def _gain_text(factors) -> str:
     return "*".join(out)
 
 
-def _factor_value(kind, value, theta):
-    if kind == "const":
-        return value
-    v = jnp.asarray(theta[value], dtype=float)
-    return v if kind == "param" else 1.0 - v
-
-
 @dataclasses.dataclass(frozen=True)
 class _Node:
     name: str
@@ -588,58 +581,15 @@ class RCModel:
         Assembled as ``G = Σ_e g_e K_e`` over the edges, with constant incidence matrices
         ``K_e`` and the conductances ``g_e`` [W/K] stacked in one vector (likewise ``H`` over
         edges to inputs and heat sources), instead of a chain of indexed updates: a small
-        program for XLA to compile once differentiated and batched. ``caps`` holds 1 for a
-        constant node and ``held`` (static) marks them; their rows of A and B are zero.
+        program for XLA to compile once differentiated and batched (the arrays of
+        :meth:`rc_arrays`, through :func:`rc_from_arrays`). ``caps`` holds 1 for a constant
+        node and ``held`` (static) marks them; their rows of A and B are zero.
         """
-        net = self.network
-        names = [m.name for m in net.nodes]
-        idx = {name: i for i, name in enumerate(names)}
-        uidx = {u: j for j, u in enumerate(self.inputs)}
-        n, m = len(names), len(self.inputs)
-        held = tuple(bool(node.constant) for node in net.nodes)
-        live = np.asarray([0.0 if h else 1.0 for h in held])[:, None]
-        cond, KG, KH = [], [], []
-        for e in net.edges:
-            r = e.scale * jnp.asarray(theta[e.R], dtype=float)
-            for kind, value in e.factors:
-                r = r * _factor_value(kind, value, theta)
-            cond.append(1.0 / r)
-            kg, kh = np.zeros((n, n)), np.zeros((n, m))
-            i = idx[e.a]
-            kg[i, i] -= 1.0
-            if e.b in idx:
-                j = idx[e.b]
-                kg[j, j] -= 1.0
-                kg[i, j] += 1.0
-                kg[j, i] += 1.0
-            else:
-                kh[i, uidx[e.b]] += 1.0
-            KG.append(kg * live)
-            KH.append(kh * live)
-        G = jnp.zeros((n, n))
-        H = jnp.zeros((n, m))
-        if cond:
-            c = jnp.stack(cond)
-            G = jnp.tensordot(c, jnp.asarray(np.stack(KG)), 1)
-            H = jnp.tensordot(c, jnp.asarray(np.stack(KH)), 1)
-        gains, KS = [], []
-        for s in net.sources:
-            gain = 1.0
-            for kind, value in s.gain:
-                gain = gain * _factor_value(kind, value, theta)
-            gains.append(jnp.asarray(gain, dtype=float))
-            ks = np.zeros((n, m))
-            ks[idx[s.node], uidx[s.input]] = 1.0
-            KS.append(ks * live)
-        if gains:
-            H = H + jnp.tensordot(jnp.stack(gains), jnp.asarray(np.stack(KS)), 1)
-        caps = jnp.stack(
-            [
-                jnp.asarray(1.0 if h else theta[node.C], dtype=float)
-                for node, h in zip(net.nodes, held, strict=True)
-            ]
-        )
-        return G / caps[:, None], H / caps[:, None], caps, held
+        names = [n for n in self.param_names if n in theta]
+        v = jnp.stack([jnp.asarray(theta[n], dtype=float) for n in names] + [1.0, 0.0])
+        arrays = self.rc_arrays(names + ["1", "0"], inputs=self.inputs, **self.array_sizes())
+        A, B, caps, _ = rc_from_arrays(v, arrays)
+        return A, B, caps, tuple(bool(node.constant) for node in self.network.nodes)
 
     def array_sizes(self) -> dict[str, int]:
         """Sizes of this network in array form (:meth:`rc_arrays`): ``states``, ``edges``,
@@ -679,14 +629,12 @@ class RCModel:
             ``R`` [E], ``scale`` [E], ``fk``/``fa``/``fb`` [E, F] (a factor is ``fa + fb·v[fk]``),
             ``KG`` [E, n, n], ``KH`` [E, n, m], ``sk``/``sa``/``sb`` [S, F], ``KS`` [S, n, m],
             ``C`` [n], ``T0`` [n] (``[segments, n]`` with segments) and ``pad`` [n] (1 for a
-            padding state).
+            padding state). A constant node's rows are zero and its capacity slot is ``"1"``.
 
         Raises:
-            ModelError: a network with a constant node (not supported), or sizes too small.
+            ModelError: sizes too small for the network.
         """
         net = self.network
-        if any(node.constant for node in net.nodes):
-            raise ModelError(f"model {self.name} holds a constant node: no array form")
         where = {name: i for i, name in enumerate(slots)}
         one, zero = where["1"], where["0"]
         names = [m.name for m in net.nodes]
@@ -742,7 +690,11 @@ class RCModel:
             c = product(src.gain, s_i, out["sk"], out["sa"], out["sb"])
             out["KS"][s_i, idx[src.node], uidx[src.input]] = c
         for i, node in enumerate(net.nodes):
-            out["C"][i] = where[node.C]
+            if node.constant:  # held: dT/dt = 0
+                for k in ("KG", "KH", "KS"):
+                    out[k][:, i] = 0.0
+            else:
+                out["C"][i] = where[node.C]
         out["pad"][len(names) :] = 1.0
         if self.segments > 1:
             t0 = np.full((self.segments, n), zero)
@@ -756,16 +708,20 @@ class RCModel:
         out["T0"] = t0
         return out
 
+    def rc_numpy(self, theta: Mapping) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(A [1/s], B, caps [J/K])`` of :meth:`rc_form` evaluated in numpy (float values): no
+        JAX dispatch, so nothing is compiled for a new structure."""
+        names = [n for n in self.param_names if n in theta]
+        v = np.asarray([float(theta[n]) for n in names] + [1.0, 0.0])
+        arrays = self.rc_arrays(names + ["1", "0"], inputs=self.inputs, **self.array_sizes())
+        A, B, caps, _ = rc_from_arrays(v, arrays, xp=np)
+        return A, B, caps
+
     def state_space_numpy(self, theta: Mapping) -> tuple[np.ndarray, ...]:
         """:meth:`state_space` evaluated in numpy (float values): no JAX dispatch, so nothing is
         compiled for a new structure (post-simulation, time constants, reports)."""
-        if any(node.constant for node in self.network.nodes):
-            return tuple(np.asarray(m, dtype=float) for m in self.state_space(theta))
-        names = [p.name for p in self.parameters if p.name in theta]
-        v = np.asarray([float(theta[n]) for n in names] + [1.0, 0.0])
+        A, B, _ = self.rc_numpy(theta)
         net = self.network
-        arrays = self.rc_arrays(names + ["1", "0"], inputs=self.inputs, **self.array_sizes())
-        A, B, _, _ = rc_from_arrays(v, arrays, xp=np)
         out_nodes = [i for i, m in enumerate(net.nodes) if m.output]
         C = np.zeros((len(out_nodes), len(net.nodes)))
         C[np.arange(len(out_nodes)), out_nodes] = 1.0
@@ -809,7 +765,7 @@ def rc_from_arrays(v, arrays, xp=jnp) -> tuple:
     caps = take(arrays["C"])
     A, B = G / caps[:, None], H / caps[:, None]
     pad = arrays["pad"]
-    if xp is jnp or np.any(pad):  # (traced: always)
+    if not (isinstance(pad, np.ndarray) and not pad.any()):  # padding states (traced: always)
         fastest = xp.max(xp.abs(xp.diagonal(A)) * (1.0 - pad))
         if xp is jnp:
             fastest = jax.lax.stop_gradient(fastest)

@@ -240,7 +240,8 @@ def _paddable(problems: Sequence[Problem], solver) -> bool:
 
 
 def _same_data(datas) -> bool:
-    """Whether every job has the very same ``(t, u, y, w)`` (one dataset, several models)."""
+    """Whether every job has the very same arrays (``(t, u, y, w)``: one dataset, several
+    models)."""
     first = datas[0]
     return all(
         all(
@@ -256,15 +257,7 @@ def _input_layout(problems, datas):
     when they share the data (``t``, ``y``, ``w`` and every input of the same name), else each
     job's own inputs padded with zero columns. Returns ``(layout, datas)``: ``layout`` maps a
     problem to the columns of its inputs."""
-    shared = all(
-        all(
-            np.array_equal(a, b)
-            for a, b in zip(
-                (d[0], d[2], d[3]), (datas[0][0], datas[0][2], datas[0][3]), strict=True
-            )
-        )
-        for d in datas
-    )
+    shared = _same_data([(d[0], d[2], d[3]) for d in datas])
     columns: dict[str, np.ndarray] = {}
     for prob, d in zip(problems, datas, strict=True):
         for j, name in enumerate(prob.model.inputs):

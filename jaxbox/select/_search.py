@@ -453,7 +453,7 @@ def structure_search(
             for key in ("criterion", "status", "why"):
                 nodes[retry.name].pop(key, None)
             repairs.append((retry, ref))
-        if repairs:  # dead facades dropped, pinned initial temperatures narrowed: once more
+        if repairs:  # the repaired cases: once more
             run([c for c, _ in repairs], depth)
             winners = settle(children + repairs)
         return winners, children + repairs
@@ -567,9 +567,7 @@ def _fast_capacities(case: Case) -> list[str]:
     blurred = {n for kind in _BLURRED for n in case.verdict.flagged(kind)}
     if set(case.verdict.flagged()) - blurred:
         return []
-    from ..validate._verdict import _state_space
-
-    A = _state_space(case.model, case.result.params)[0]
+    A = case.model.rc_numpy({k: float(v) for k, v in case.result.params.items()})[0]
     dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
     fast = []
     for i, node in enumerate(case.model.network.nodes):

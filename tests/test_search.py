@@ -365,6 +365,42 @@ def test_a_fast_capacity_the_data_cannot_see_is_settled():
     assert _fast_capacities(gb.add_case("Zon", starts=1)) == []
 
 
+def test_a_capacity_seen_only_through_its_lag_is_settled():
+    """A heater slower than two sampling steps, seen through the zone it warms: the data fix its
+    lag R·C (its interval, by the delta method, within ±100 %) but not how R and C split. The
+    capacity is fixed at its estimate, and the retry's interval of R_hea (now the lag's) agrees
+    with the delta method's interval of the lag."""
+    from jaxbox.select._cases import run_cases
+    from jaxbox.select._search import (
+        _fast_capacities,
+        _own_time_constants,
+        _settled_retry,
+        _time_constant_intervals,
+    )
+    from jaxbox.validate import uncertainty
+
+    truth = {"C_zon": 4e6, "C_hea": 1e6, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
+    truth.update(T_zon0=20.0, T_hea0=25.0)
+    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=0.3)
+    gb = GreyBox(data, name="slow heater")
+    case = gb.add_case("Zon+Hea", starts=4)
+    run_cases([case])
+    assert not case.is_valid and "C_hea" in case.verdict.flagged("wide_interval")
+    params = {k: float(v) for k, v in case.result.params.items()}
+    hea = [n.C for n in case.model.network.nodes].index("C_hea")
+    tau = _own_time_constants(case.model, params)[hea]
+    assert tau == pytest.approx(params["R_hea"] * params["C_hea"])
+    assert tau > 2 * 3600.0  # not a fast node: the interval of its lag decides
+    rel = _time_constant_intervals(case, params, [hea])[hea]
+    assert rel < 1.0
+    assert _fast_capacities(case) == ["C_hea"]
+    retry = _settled_retry(gb, case, ["C_hea"], lambda _: None)
+    run_cases([retry])
+    assert retry.is_valid, retry.reasons
+    unc = uncertainty(retry.result)
+    assert unc.rel_ci[list(unc.names).index("R_hea")] == pytest.approx(rel, rel=0.25)
+
+
 def test_a_pinned_initial_temperature_is_narrowed_from_the_data(building):
     from jaxbox.select._cases import run_cases
     from jaxbox.select._forward import _narrowed_retry, _pinned_unmeasured_states

@@ -59,6 +59,7 @@ from scipy import stats
 
 from ..fit import DEFAULT_STARTS
 from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
+from ..validate import MAX_REL_CI
 from ._cases import Case, Progress, quiet, run_cases
 from ._forward import (
     Selection,
@@ -437,7 +438,7 @@ def structure_search(
                 how = f"{', '.join(cut)} cut (fixed at the upper bound)"
             elif fast := _fast_capacities(child):
                 retry = _settled_retry(gb, child, fast, say)
-                how = f"{', '.join(fast)} fixed at the estimate (a fast node: only its lag shows)"
+                how = f"{', '.join(fast)} fixed at the estimate (only its lag shows)"
             elif pinned := _pinned_unmeasured_states(child):
                 try:
                     retry = _narrowed_retry(gb, child, pinned, say)
@@ -559,21 +560,69 @@ _BLURRED = ("wide_interval", "poorly_identifiable", "not_identifiable")
 
 
 def _fast_capacities(case: Case) -> list[str]:
-    """Capacities of fast nodes (own time constant below two sampling steps) that only their
-    intervals make ``case`` invalid for: at this sampling the data see such a node's lag
-    (``R·C``), not its capacity."""
+    """Capacities that only their intervals make ``case`` invalid for, of nodes whose lag the
+    data see but not the capacity: a fast node (own time constant ``τ = C/ΣG`` below two
+    sampling steps), or a node whose ``τ`` is determined (its 95 % interval within
+    :data:`~jaxbox.validate.MAX_REL_CI`) while ``C`` is not — a heater seen only through the
+    zone it warms shows ``R·C``, not how it splits."""
     if case.verdict is None or case.is_valid or not case.done:
         return []
     blurred = {n for kind in _BLURRED for n in case.verdict.flagged(kind)}
     if set(case.verdict.flagged()) - blurred:
         return []
-    A = case.model.rc_numpy({k: float(v) for k, v in case.result.params.items()})[0]
+    params = {k: float(v) for k, v in case.result.params.items()}
+    tau = _own_time_constants(case.model, params)
     dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
-    fast = []
-    for i, node in enumerate(case.model.network.nodes):
-        if node.C in blurred and A[i, i] < 0 and -1.0 / A[i, i] < 2.0 * dt:
-            fast.append(node.C)
+    nodes = case.model.network.nodes
+    fast = [n.C for n, t in zip(nodes, tau, strict=True) if n.C in blurred and t < 2.0 * dt]
+    rest = [i for i, n in enumerate(nodes) if n.C in blurred and n.C not in fast]
+    if rest:
+        rel = _time_constant_intervals(case, params, rest)
+        fast += [nodes[i].C for i in rest if rel.get(i, np.inf) <= MAX_REL_CI]
     return sorted(fast)
+
+
+def _own_time_constants(model, params: dict) -> np.ndarray:
+    """``C_i / Σ_j G_ij`` [s] per node (``inf`` for a node with no conductance)."""
+    d = -np.diagonal(model.rc_numpy(params)[0])
+    with np.errstate(divide="ignore"):
+        return np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), np.inf)
+
+
+def _time_constant_intervals(case: Case, params: dict, nodes: list[int]) -> dict[int, float]:
+    """Half-width of the 95 % interval of each node's own time constant, relative to it (delta
+    method through the covariance of the free parameters, derivatives by central differences
+    in the logarithm of the positive ones)."""
+    from ..validate import uncertainty
+
+    try:
+        unc = uncertainty(case.result)
+    except ValueError:
+        return {}
+    free = list(unc.free)
+    cov = np.asarray(unc.cov_free, dtype=float)
+    tau0 = _own_time_constants(case.model, params)
+    grad = np.zeros((len(nodes), len(free)))
+    for k, name in enumerate(free):
+        v = params[name]
+        if not v > 0 or name.startswith("T_"):
+            continue
+        h = 1e-5
+        up = _own_time_constants(case.model, {**params, name: v * math.exp(h)})
+        dn = _own_time_constants(case.model, {**params, name: v * math.exp(-h)})
+        grad[:, k] = (up[nodes] - dn[nodes]) / (2 * h * v)  # ∂τ/∂θ_k
+    out = {}
+    for j, i in enumerate(nodes):
+        g = grad[j]
+        used = g != 0
+        if not np.isfinite(tau0[i]) or not used.any():
+            continue
+        sub = cov[np.ix_(used, used)]
+        if not np.all(np.isfinite(sub)):
+            continue
+        std = math.sqrt(max(float(g[used] @ sub @ g[used]), 0.0))
+        out[i] = unc.t_quantile * std / tau0[i]
+    return out
 
 
 def _fixed_retry(gb, case: Case, fixed: dict, suffix: str, why: str, say: Progress) -> Case:

@@ -20,8 +20,8 @@ from .._x64 import require_x64
 from ..data import DataError, Dataset, concat_periods, prepare_window
 from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
 from ..models import get_model
-from ._defaults import DEFAULT_MAX_STEPS, DEFAULT_STARTS
-from ._fit import _problem_key, make_starts, result_from, solve_jobs, solver_key
+from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
+from ._fit import _problem_key, check_homotopy, make_starts, result_from, solve_jobs, solver_key
 from ._problem import FitError, make_problem, problem_arrays
 from ._result import FitResult
 from ._solver import LevenbergMarquardt
@@ -69,6 +69,8 @@ def fit_model(
     atol: float = 1e-16,
     concentration: float = 4.0,
     solver: optx.AbstractLeastSquaresSolver | None = None,
+    homotopy: Sequence[float] | None = DEFAULT_HOMOTOPY,
+    release: bool = True,
     max_gap: float | str = DEFAULT_MAX_GAP,
     slots: int | None = None,
     method: str = "oe",
@@ -112,6 +114,18 @@ def fit_model(
             ``optimistix.Dogleg``, ``optimistix.GaussNewton``, …) runs one
             ``optimistix.least_squares`` per start under ``vmap``, with its own tolerances and
             a Jacobian by forward-mode autodiff through the simulator.
+        homotopy: observer gains of a continuation (default
+            :data:`~jaxbox.fit.DEFAULT_HOMOTOPY`; ``()``: none). Every start is solved along two
+            routes, the output error directly and this continuation, and keeps the better end.
+            At gain ``κ`` the simulated measured states are pulled towards their measurements
+            after every sample, ``x̂ ← x̂ − κ (x̂ − y)``; ``κ = 1`` is one-step-ahead prediction,
+            whose cost has far fewer local minima than the simulation error. Each stage starts
+            where the previous one ended, so a start follows its optimum as the gain falls to 0.
+            With :class:`jaxbox.LevenbergMarquardt` on the exact simulator; other solvers and
+            the diffrax simulator fit the output error directly.
+        release: a route that ends with parameters within 0.1 % of their bounds (where the
+            bound transform freezes them) is solved once more from there with those parameters
+            back at their start values, and ends at the better of the two (jaxbox's solver).
         max_gap: the longest input gap [s] (or text such as ``"2h"``) filled by interpolation.
         slots: starts iterated together (default :func:`default_slots`); a start that has
             terminated hands its slot to the next. Results do not depend on it.
@@ -152,6 +166,8 @@ def fit_model(
                 "atol": atol,
                 "concentration": concentration,
                 "solver": solver,
+                "homotopy": homotopy,
+                "release": release,
                 "max_gap": max_gap,
             }
         ],
@@ -168,7 +184,7 @@ _DEFAULTS = {
 #: the problem arguments, the solver settings (requests solved together share them) and the
 #: start arguments of a request
 _PROBLEM = ("free", "fixed", "bounds", "guess", "weights", "simulator", "sim_options")
-_SOLVER = ("max_steps", "rtol", "atol", "solver")
+_SOLVER = ("max_steps", "rtol", "atol", "solver", "homotopy", "release")
 _STARTS = ("starts", "seed", "concentration")
 
 
@@ -190,6 +206,8 @@ def fit_many(
     atol: float = 1e-16,
     concentration: float = 4.0,
     solver: optx.AbstractLeastSquaresSolver | None = None,
+    homotopy: Sequence[float] | None = DEFAULT_HOMOTOPY,
+    release: bool = True,
     max_gap: float | str = DEFAULT_MAX_GAP,
     slots: int | None = None,
 ) -> list[FitResult] | dict[str, FitResult]:
@@ -245,6 +263,8 @@ def fit_many(
         "rtol": rtol,
         "atol": atol,
         "solver": solver,
+        "homotopy": homotopy,
+        "release": release,
         "max_gap": max_gap,
     }
     outcomes = fit_batch(
@@ -267,11 +287,11 @@ def fit_batch(
     A request is a mapping with ``model`` and ``data`` and any of the keyword arguments of
     :func:`~jaxbox.fit.fit_model` (``free``, ``fixed``, ``bounds``, ``guess``, ``starts``, ``seed``,
     ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
-    ``atol``). Requests with the same number of free parameters, data of the same shape and the
-    same solver settings are solved in one batch (with the exact simulator even when their model
-    structures, numbers of states, parameters and inputs differ, provided they measure the same
-    states: the smaller ones are padded; with diffrax only for the same structure); the others in
-    batches of their own.
+    ``atol``, ``solver``, ``homotopy``, ``release``, ``max_gap``). Requests with the same number
+    of free parameters, data of the same shape and the same solver settings are solved in one
+    batch (with the exact simulator even when their model structures, numbers of states,
+    parameters and inputs differ, provided they measure the same states: the smaller ones are
+    padded; with diffrax only for the same structure); the others in batches of their own.
     Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request.
 
     Args:
@@ -301,7 +321,14 @@ def fit_batch(
             model, data = fit_data(get_model(req["model"]), req["data"], arg["max_gap"])
             problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
             x0 = make_starts(problem, data, *(arg[k] for k in _STARTS))
-            solver = (int(arg["max_steps"]), float(arg["rtol"]), float(arg["atol"]), arg["solver"])
+            solver = (
+                int(arg["max_steps"]),
+                float(arg["rtol"]),
+                float(arg["atol"]),
+                arg["solver"],
+                check_homotopy(arg["homotopy"]),
+                bool(arg["release"]),
+            )
             prepared.append((i, problem, data, x0, problem_arrays(problem, data), solver))
         except FitError as err:
             if errors == "raise":
@@ -327,10 +354,10 @@ def fit_batch(
                 tuple(problem.output_states),
                 *map(np.shape, (t, y, w)),
             )
-        key = (*solver[:3], solver_key(solver[3]))
+        key = (*solver[:3], solver_key(solver[3]), *solver[4:])
         groups.setdefault((key, shape, problem.simulator, structure), []).append(item)
     for members in groups.values():
-        max_steps, rtol, atol, solver = members[0][5]
+        max_steps, rtol, atol, solver, homotopy, release = members[0][5]
         out = solve_jobs(
             [(problem, x0, arrays) for _, problem, _, x0, arrays, _ in members],
             max_steps=max_steps,
@@ -338,6 +365,8 @@ def fit_batch(
             atol=atol,
             slots=slots,
             solver=solver,
+            homotopy=homotopy,
+            release=release,
         )
         timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(members)}
         first = 0
@@ -348,6 +377,8 @@ def fit_batch(
                 "max_steps": max_steps,
                 "rtol": rtol,
                 "atol": atol,
+                "homotopy": homotopy,
+                "release": release,
                 "seed": requests[i].get("seed", _DEFAULTS["seed"]),
                 "slots": slots,
                 "max_gap": duration_seconds(requests[i].get("max_gap", _DEFAULTS["max_gap"])),

@@ -40,6 +40,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -48,14 +49,26 @@ from jax import lax
 from jaxtyping import Float
 
 from .. import _compiled
-from ._defaults import DEFAULT_MAX_STEPS
+from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS
 from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
 from ._solver import LevenbergMarquardt
 from ._starts import sample_starts
+from ._transforms import position_in_bounds, two_sided
 
-__all__ = ["solve_starts", "solve_jobs", "compile_cache_info", "clear_compile_cache"]
+__all__ = [
+    "solve_starts",
+    "solve_jobs",
+    "check_homotopy",
+    "compile_cache_info",
+    "clear_compile_cache",
+]
 
+
+#: relative tolerance of the stages of a continuation before the last (see :func:`_multistart`)
+STAGE_RTOL = 1e-3
+#: a bounded coordinate this close to a bound (as a fraction of the bounds) is released
+EDGE = 1e-3
 
 #: termination codes of the batched solve
 CONVERGED, MAX_STEPS, NONFINITE, RUNNING = 0, 1, 2, -1
@@ -83,6 +96,26 @@ def solver_key(solver) -> object:
     return solver
 
 
+def check_homotopy(gains) -> tuple[float, ...]:
+    """The observer gains of a continuation, checked: each in (0, 1], strictly decreasing
+    (``()`` or ``None``: no continuation, the output-error problem from the start)."""
+    if gains is None:
+        return ()
+    if isinstance(gains, str) or not hasattr(gains, "__iter__"):
+        raise FitError(
+            f"homotopy must be a sequence of observer gains in (0, 1], strictly decreasing "
+            f"(e.g. {DEFAULT_HOMOTOPY}), or () for none; got {gains!r}"
+        )
+    out = tuple(float(g) for g in gains)
+    falling = all(b < a for a, b in zip(out, out[1:], strict=False))
+    if any(not (0.0 < g <= 1.0) for g in out) or not falling:
+        raise FitError(
+            f"homotopy gains must lie in (0, 1] and strictly decrease (e.g. "
+            f"{DEFAULT_HOMOTOPY}); got {out}"
+        )
+    return out
+
+
 def default_slots(n_starts: int) -> int:
     """Starts iterated together: enough to use the vector units, few enough that a start that
     has terminated soon hands its slot to the next one instead of idling."""
@@ -101,37 +134,79 @@ def _multistart(
     max_steps: int,
     start_counts: Sequence[int] | None = None,
     slot_counts: Sequence[int] | None = None,
+    routes: Sequence[Sequence[float]] = ((),),
+    release=None,
 ):
     """Every start of ``z0`` [S, p] through ``solver``, a fixed number of *slots* at a time.
 
     Each iteration evaluates the normal equations of every slot at once — ``lin(Z [B, p],
-    idx [B]) -> (Σ r² [B], Jᵀr [B, p], JᵀJ [B, p, p])``, ``idx`` naming the start each slot
-    holds — and then advances each slot by one ``solver.step`` (under ``vmap``; the step reads
-    its slot's evaluation through ``options["normal_equations"]``). A slot whose start
-    terminates (``solver.terminate``) or reaches ``max_steps`` takes the next start of its group
-    (``slot_counts`` slots for each group of ``start_counts`` consecutive starts), through
-    ``solver.init``, so the batch stays busy until the queue is empty; each start's result does
-    not depend on the batch it ran in. Traceable (call it under ``jax.jit``). Returns
-    ``(z [S, p], cost [S], code [S], steps [S])``.
+    idx [B], gain [B] | None) -> (Σ r² [B], Jᵀr [B, p], JᵀJ [B, p, p])``, ``idx`` naming the
+    start each slot works on and ``gain`` the observer gain of its stage (see
+    :func:`~jaxbox.simulate._exact.normal_equations`) — and then advances each slot by one
+    ``solver.step`` (under ``vmap``; the step reads its slot's evaluation through
+    ``options["normal_equations"]``).
+
+    Each start is solved once along each of the ``routes``. A route is a sequence of observer
+    gains, the stages of a continuation, followed by the output-error problem itself (gain 0);
+    ``()`` is the output-error problem alone. A stage ends when ``solver.terminate`` says so (the
+    stages before the last at the looser tolerance :data:`STAGE_RTOL`) or at ``max_steps``, and
+    the next stage starts where it ended (``solver.init``). With ``release = (bounded [S, p],
+    position)``, a route that ends with bounded coordinates (``bounded``) within
+    :data:`EDGE` of a bound (``position(Z) -> [B, p]``, 0 … 1 in the bounds) gets one more
+    output-error stage from that point with those coordinates back at their start values: the
+    logistic transform freezes a coordinate near its bound, and the data may want it elsewhere.
+    The route ends at the better of the two.
+
+    A slot whose route has ended takes the next (start, route) of its group (``slot_counts``
+    slots for each group of ``start_counts`` consecutive starts), so the batch stays busy until
+    the queue is empty; each start's result does not depend on the batch it ran in. Traceable
+    (call it under ``jax.jit``). Returns ``(z [S, p], cost [S], code [S], steps [S])`` of the
+    best route of each start (the lowest finite cost); ``steps`` counts every stage of every
+    route, ``code`` is that of the best route's last stage (``MAX_STEPS``: it reached the cap).
     """
     n_starts, p = z0.shape
     dtype = z0.dtype
     start_counts = tuple(start_counts or (n_starts,))
     slot_counts = tuple(slot_counts or (n_starts,))
-    n_groups = len(start_counts)
+    n_routes = len(routes)
+    # the stages of every route, one after the other, then the release stage
+    gains, first_stage, last_stage = [], [], []
+    for route in routes:
+        first_stage.append(len(gains))
+        gains.extend(float(g) for g in route)
+        gains.append(0.0)
+        last_stage.append(len(gains) - 1)
+    release_stage = len(gains)
+    gains.append(0.0)
+    gain_of = jnp.asarray(gains, dtype)
+    continued = any(len(r) for r in routes)
+    first_stage, last_stage = jnp.asarray(first_stage), jnp.asarray(last_stage)
+    # members: (start, route) pairs, the routes of a start next to each other
+    member_counts = tuple(c * n_routes for c in start_counts)
+    n_members = n_starts * n_routes
+    n_groups = len(member_counts)
     batch = sum(slot_counts)
     group = np.repeat(np.arange(n_groups), slot_counts)
-    first = np.concatenate([[0], np.cumsum(start_counts)[:-1]])
+    first = np.concatenate([[0], np.cumsum(member_counts)[:-1]])
     slot_first = np.concatenate([[0], np.cumsum(slot_counts)[:-1]])
-    end = jnp.asarray(first + np.asarray(start_counts))
+    end = jnp.asarray(first + np.asarray(member_counts))
     idx0 = np.asarray(first[group] + np.arange(batch) - slot_first[group])
     tags = frozenset()
+
+    # the stages before a route's last end at a looser tolerance: their optimum is a waypoint
+    waypoint = solver
+    if continued and hasattr(solver, "rtol"):
+        waypoint = eqx.tree_at(lambda s: s.rtol, solver, max(solver.rtol, STAGE_RTOL))
 
     def init(z):
         return solver.init(None, z, None, _FROM_BATCH, None, None, tags)
 
-    def step(y, state, evaluation):
-        return solver.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
+    def step(y, state, evaluation, final):
+        new = solver.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
+        if waypoint is solver:
+            return new
+        other = waypoint.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
+        return jax.tree_util.tree_map(lambda a, b: jnp.where(final, a, b), new, other)
 
     def terminate(y, state):
         return solver.terminate(None, y, None, _FROM_BATCH, state, tags)
@@ -141,18 +216,34 @@ def _multistart(
             lambda x, y: jnp.where(mask.reshape((batch,) + (1,) * (x.ndim - 1)), x, y), a, b
         )
 
-    rounds = -(-np.asarray(start_counts) // np.asarray(slot_counts))
-    cap = int((max_steps + 1) * rounds.max() + 1)
+    def trapped(y, start):
+        """Bounded coordinates within EDGE of a bound: [B, p]."""
+        if release is None:
+            return jnp.zeros(y.shape, bool)
+        bounded, position = release
+        pos = position(y)
+        return bounded[start] & ((pos < EDGE) | (pos > 1.0 - EDGE))
+
+    stages = max(len(r) + 1 for r in routes) + (release is not None)
+    rounds = -(-np.asarray(member_counts) // np.asarray(slot_counts))
+    cap = int((max_steps + 1) * stages * rounds.max() + 1)
+    zeros = jnp.zeros((batch,), jnp.int32)
+    start0 = jnp.asarray(idx0 // n_routes, jnp.int32)
     carry = dict(
         idx=jnp.asarray(idx0, jnp.int32),
-        y=z0[idx0],
-        state=jax.vmap(init)(z0[idx0]),
+        y=z0[start0],
+        state=jax.vmap(init)(z0[start0]),
+        stage=first_stage[jnp.asarray(idx0 % n_routes)].astype(jnp.int32),
+        before=zeros,  # steps of the earlier stages of each slot's route
+        saved_y=jnp.full((batch, p), jnp.nan, dtype),  # where a route stood before its release
+        saved_cost=jnp.full((batch,), jnp.inf, dtype),
+        saved_code=zeros,
         live=jnp.ones((batch,), bool),
         nxt=jnp.asarray(first + np.asarray(slot_counts), jnp.int32),
-        out_z=jnp.full((n_starts, p), jnp.nan, dtype),
-        out_cost=jnp.full((n_starts,), jnp.nan, dtype),
-        out_code=jnp.full((n_starts,), MAX_STEPS, jnp.int32),
-        out_steps=jnp.zeros((n_starts,), jnp.int32),
+        out_z=jnp.full((n_members, p), jnp.nan, dtype),
+        out_cost=jnp.full((n_members,), jnp.nan, dtype),
+        out_code=jnp.full((n_members,), MAX_STEPS, jnp.int32),
+        out_steps=jnp.zeros((n_members,), jnp.int32),
         it=jnp.asarray(0, jnp.int32),
     )
 
@@ -160,34 +251,62 @@ def _multistart(
         return (c["it"] < cap) & jnp.any(c["live"])
 
     def body(c):
-        live = c["live"]
-        cost, g, H = lin(c["state"].y_eval, c["idx"])
-        y, state = jax.vmap(step)(c["y"], c["state"], (0.5 * cost, g, H))
+        live, stage, idx = c["live"], c["stage"], c["idx"]
+        start, route = idx // n_routes, idx % n_routes
+        gain = gain_of[stage] if continued else None
+        cost, g, H = lin(c["state"].y_eval, start, gain)
+        y, state = jax.vmap(step)(c["y"], c["state"], (0.5 * cost, g, H), gain_of[stage] == 0)
         done, result = jax.vmap(terminate)(y, state)
-        steps = state.num_steps
+        steps = c["before"] + state.num_steps
         diverged = done & (result == optx.RESULTS.nonlinear_divergence)
         converged = done & ~diverged
-        capped = ~done & (steps >= max_steps)
-        finished = live & (done | capped)
+        capped = ~done & (state.num_steps >= max_steps)
+        ended = live & (done | capped)
         code = jnp.where(converged, CONVERGED, jnp.where(diverged, NONFINITE, MAX_STEPS))
-        # results of the finished starts
-        target = jnp.where(finished, c["idx"], n_starts)  # out of range: dropped
-        final_cost = jnp.where(diverged, cost, 2.0 * state.f_info.f)
-        out_z = c["out_z"].at[target].set(y, mode="drop")
+        cost_now = jnp.where(diverged, cost, 2.0 * state.f_info.f)
+        # a stage that ended hands its point to the next stage of its route
+        in_release = stage == release_stage
+        advance = ended & ~diverged & ~in_release & (stage < last_stage[route])
+        route_end = ended & ~advance
+        edge = trapped(y, start)
+        go_release = route_end & ~diverged & ~in_release & jnp.any(edge, axis=1)
+        finished = route_end & ~go_release
+        # a released route ends at the better of its two ends
+        keep = in_release & ~(jnp.isfinite(cost_now) & (cost_now < c["saved_cost"]))
+        final_z = jnp.where(keep[:, None], c["saved_y"], y)
+        final_cost = jnp.where(keep, c["saved_cost"], cost_now)
+        final_code = jnp.where(keep, c["saved_code"], code)
+        target = jnp.where(finished, idx, n_members)  # out of range: dropped
+        out_z = c["out_z"].at[target].set(final_z, mode="drop")
         out_cost = c["out_cost"].at[target].set(final_cost, mode="drop")
-        out_code = c["out_code"].at[target].set(code, mode="drop")
+        out_code = c["out_code"].at[target].set(final_code, mode="drop")
         out_steps = c["out_steps"].at[target].set(steps, mode="drop")
-        # the freed slots take the next starts of their group
+        # the freed slots take the next members of their group
         onehot = (group[:, None] == np.arange(n_groups)[None, :]) & finished[:, None]
         rank = jnp.cumsum(onehot, axis=0)[jnp.arange(batch), group] - 1
         new_idx = c["nxt"][group] + rank
         load = finished & (new_idx < end[group])
         nxt = jnp.minimum(c["nxt"] + jnp.sum(onehot, axis=0), end).astype(jnp.int32)
-        z_new = z0[jnp.where(load, new_idx, 0)]
+        new_idx = jnp.where(load, new_idx, 0)
+        released = jnp.where(edge, z0[start], y)
+        y_new = jnp.where(
+            load[:, None], z0[new_idx // n_routes], jnp.where(go_release[:, None], released, y)
+        )
+        renew = load | advance | go_release
+        stage_new = jnp.where(
+            load,
+            first_stage[new_idx % n_routes],
+            jnp.where(advance, stage + 1, jnp.where(go_release, release_stage, stage)),
+        )
         return dict(
-            idx=jnp.where(load, new_idx, c["idx"]).astype(jnp.int32),
-            y=where(load, z_new, y),
-            state=where(load, jax.vmap(init)(z_new), state),
+            idx=jnp.where(load, new_idx, idx).astype(jnp.int32),
+            y=where(renew, y_new, y),
+            state=where(renew, jax.vmap(init)(y_new), state),
+            stage=stage_new.astype(jnp.int32),
+            before=jnp.where(load, 0, jnp.where(advance | go_release, steps, c["before"])),
+            saved_y=jnp.where(go_release[:, None], y, c["saved_y"]),
+            saved_cost=jnp.where(go_release, cost_now, jnp.where(load, jnp.inf, c["saved_cost"])),
+            saved_code=jnp.where(go_release, code, c["saved_code"]),
             live=jnp.where(finished, load, live),
             nxt=nxt,
             out_z=out_z,
@@ -198,7 +317,13 @@ def _multistart(
         )
 
     c = lax.while_loop(cond, body, carry)
-    return c["out_z"], c["out_cost"], c["out_code"], c["out_steps"]
+    # each start's best route
+    cost = c["out_cost"].reshape(n_starts, n_routes)
+    best = jnp.argmin(jnp.where(jnp.isfinite(cost), cost, jnp.inf), axis=1)
+    rows = jnp.arange(n_starts)
+    pick = lambda a: a.reshape((n_starts, n_routes) + a.shape[1:])[rows, best]  # noqa: E731
+    steps = c["out_steps"].reshape(n_starts, n_routes).sum(axis=1)
+    return pick(c["out_z"]), pick(c["out_cost"]), pick(c["out_code"]), steps
 
 
 # ---- jobs: (problem, starts, data) sharing one compiled solve ------------------------------------
@@ -386,7 +511,16 @@ def _rc_matrices(style: str):
     return matrices
 
 
-def _build(groups, slot_counts, max_steps: int, solver, pads=None, rc: bool = False):
+def _build(
+    groups,
+    slot_counts,
+    max_steps: int,
+    solver,
+    pads=None,
+    rc: bool = False,
+    homotopy=(),
+    release: bool = True,
+):
     if not isinstance(solver, LevenbergMarquardt):
         return _build_generic(groups, max_steps, solver)
     exact = all(p.simulator == "exact" for p, _ in groups)
@@ -396,10 +530,12 @@ def _build(groups, slot_counts, max_steps: int, solver, pads=None, rc: bool = Fa
         raise FitError("model variants batched together must measure the same states")
     from ..simulate._exact import normal_equations
 
-    def solve(z0, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
+    style = groups[0][0].transform.style
+
+    def solve(z0, bounded, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
         per_member = u.shape[1] != 1
 
-        def lin(Z, idx):
+        def lin(Z, idx, gain):
             members = tuple(a[idx] for a in (fixed, lo, hi, sc, dt))
             data = tuple(a[:, idx] if per_member else a for a in (t, u, y, w))
             if not exact:
@@ -410,7 +546,9 @@ def _build(groups, slot_counts, max_steps: int, solver, pads=None, rc: bool = Fa
                 tt, uu, yy, ww = data
                 prim = jax.vmap(mats)(*args)
                 tang = jax.vmap(jax.jacfwd(mats))(*args)
-                return normal_equations(prim, tang, groups[0][0].output_states, uu, yy, ww, t=tt)
+                return normal_equations(
+                    prim, tang, groups[0][0].output_states, uu, yy, ww, t=tt, gain=gain
+                )
             prim, tang, start = [], [], 0
             for k, ((prob, _), count) in enumerate(zip(groups, slot_counts, strict=True)):
                 sl = slice(start, start + count)
@@ -428,7 +566,7 @@ def _build(groups, slot_counts, max_steps: int, solver, pads=None, rc: bool = Fa
             )
             tt, uu, yy, ww = data
             return normal_equations(
-                cat(prim), cat(tang), groups[0][0].output_states, uu, yy, ww, t=tt
+                cat(prim), cat(tang), groups[0][0].output_states, uu, yy, ww, t=tt, gain=gain
             )
 
         return _multistart(
@@ -438,6 +576,9 @@ def _build(groups, slot_counts, max_steps: int, solver, pads=None, rc: bool = Fa
             max_steps=max_steps,
             start_counts=tuple(c for _, c in groups),
             slot_counts=slot_counts,
+            # the continuation needs the observer of the exact route
+            routes=((), homotopy) if homotopy and exact else ((),),
+            release=(bounded, lambda Z: position_in_bounds(style, Z)) if release else None,
         )
 
     return jax.jit(solve)
@@ -453,7 +594,7 @@ def _build_generic(groups, max_steps: int, solver):
         )
     prob = groups[0][0]
 
-    def solve(z0, fixed, lo, hi, sc, dt, t, u, y, w):
+    def solve(z0, bounded, fixed, lo, hi, sc, dt, t, u, y, w):
         per_member = u.shape[1] != 1
 
         def one(z, f, a, b, c, tt, uu, yy, ww):
@@ -485,6 +626,8 @@ def solve_jobs(
     atol: float = 1e-16,
     slots: int | None = None,
     solver: optx.AbstractLeastSquaresSolver | None = None,
+    homotopy: Sequence[float] = DEFAULT_HOMOTOPY,
+    release: bool = True,
 ) -> dict:
     """Run a least-squares solver for several jobs in one compiled, batched call.
 
@@ -492,7 +635,11 @@ def solve_jobs(
     :func:`~jaxbox.fit.problem_arrays`. Every job must have the same number of free parameters,
     samples, states, inputs and outputs; jobs may differ in data (buildings, windows), bounds,
     fixed values and, with the exact simulator, in model structure (variants of the same shape).
-    A single job shares its data across its starts.
+    A single job shares its data across its starts. With jaxbox's solver each start is solved
+    along two routes, the output-error problem directly and, on the exact simulator, the
+    continuation ``homotopy`` (observer gains, see :func:`check_homotopy`; ``()``: none), and a
+    route that ends with coordinates on their bounds is retried with them released
+    (``release``); the better route is the start's result (see :func:`_multistart`).
 
     Returns a dict with per member (all starts of all jobs, in order): ``job`` [B], ``z``, ``p``
     [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s] and
@@ -501,7 +648,8 @@ def solve_jobs(
     """
     if not jobs:
         raise FitError("no job to solve")
-    problems, z0s, counts, members, datas = [], [], [], [], []
+    homotopy = check_homotopy(homotopy)
+    problems, z0s, counts, members, datas, edges = [], [], [], [], [], []
     for prob, starts, arrays in jobs:
         starts = np.atleast_2d(np.asarray(starts, dtype=float))
         tr = prob.transform
@@ -524,6 +672,7 @@ def solve_jobs(
         datas.append((np.asarray(t, float), np.asarray(u, float), np.asarray(y, float), w))
         problems.append(prob)
         z0s.append(z0)
+        edges.append(np.broadcast_to(two_sided(tr.kinds), z0.shape))
         counts.append(s)
     variants = len({_problem_key(p) for p in problems}) > 1
     if variants and _paddable(problems, solver):
@@ -539,6 +688,10 @@ def solve_jobs(
             f"shape (samples, inputs, outputs); got {sorted(shapes)}"
         )
     z0 = np.concatenate(z0s, axis=0)
+    # the coordinates a route may release from a bound (none of a variant's padding)
+    bounded = np.concatenate(
+        [np.pad(e, ((0, 0), (0, z0.shape[1] - e.shape[1]))) for e in edges], axis=0
+    )
     member_arrays = tuple(np.concatenate(parts, axis=0) for parts in zip(*members, strict=True))
     if len(jobs) == 1 or _same_data(datas):
         data = tuple(a[:, None] for a in datas[0])  # shared by every start: [N, 1, …]
@@ -551,6 +704,7 @@ def solve_jobs(
             for k in range(4)
         )
     args = tuple(jnp.asarray(a, dtype=float) for a in (z0, *member_arrays, *data))
+    args = (args[0], jnp.asarray(bounded), *args[1:])
     groups = _groups(problems, counts)
     pads = None if layout is None else tuple(_pad_spec(p, layout) for p, _ in groups)
     rc = None
@@ -576,12 +730,14 @@ def solve_jobs(
         tuple((a.shape, a.dtype) for a in args),
         max_steps,
         pads,
+        homotopy,
+        bool(release),
     )
     t0 = time.perf_counter()
     compiled, built = _compiled.cached(
         key,
         lambda: (
-            _build(groups, slot_counts, max_steps, solver, pads, rc is not None)
+            _build(groups, slot_counts, max_steps, solver, pads, rc is not None, homotopy, release)
             .lower(*args)
             .compile()
         ),
@@ -631,6 +787,8 @@ def solve_starts(
     rtol: float = 1e-6,
     atol: float = 1e-16,
     slots: int | None = None,
+    homotopy: Sequence[float] = DEFAULT_HOMOTOPY,
+    release: bool = True,
 ):
     """Run LM from every start (physical values [S, p]) in one compiled, batched call.
 
@@ -638,7 +796,13 @@ def solve_starts(
     2 non-finite), ``steps``, ``cost`` [S], ``compile_s`` and ``fit_s``.
     """
     out = solve_jobs(
-        [(problem, starts, arrays)], max_steps=max_steps, rtol=rtol, atol=atol, slots=slots
+        [(problem, starts, arrays)],
+        max_steps=max_steps,
+        rtol=rtol,
+        atol=atol,
+        slots=slots,
+        homotopy=homotopy,
+        release=release,
     )
     out.pop("job")
     return out

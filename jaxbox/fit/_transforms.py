@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["Transform", "make_transform", "KINDS"]
+__all__ = ["Transform", "make_transform", "position_in_bounds", "two_sided", "KINDS"]
 
 KINDS = ("log", "linear", "lower", "free")
 _LOG, _LIN, _LOWER, _FREE = range(4)
@@ -125,6 +125,12 @@ def to_physical_coded(z, lower, upper, scale, kinds, style: str = "logistic"):
 STYLES = ("logistic", "algebraic", "sine", "unbounded")
 
 
+def position_in_bounds(style: str, z):
+    """Where a two-sided (``log`` or ``linear``) coordinate stands in its bounds, 0 (lower) …
+    1 (upper), from its internal value ``z`` (jnp, any shape)."""
+    return _squash(style, z)
+
+
 def _squash(style, z):
     """Position in the bounds, 0 … 1, from the internal coordinate (slope 1/4 at the centre)."""
     if style == "logistic":
@@ -154,6 +160,11 @@ def _unsquash(style, f):
 
 
 DEFAULT_STYLE = {"style": "logistic"}
+
+
+def two_sided(kinds) -> np.ndarray:
+    """Which coordinates of these kinds have two finite bounds (``log`` and ``linear``)."""
+    return np.isin(np.asarray(kinds, dtype=int), (_LOG, _LIN))
 
 
 def make_transform(names, lower, upper, guess) -> Transform:

@@ -256,7 +256,9 @@ def _drive(u, du, G0, G1):
     return jnp.einsum("lbm,bim...->lbi...", ud, G)
 
 
-def normal_equations(mats, tangents, outputs, u, y, w, *, chunk: int | None = None, t=None):
+def normal_equations(
+    mats, tangents, outputs, u, y, w, *, chunk: int | None = None, t=None, gain=None
+):
     """Cost, gradient and Gram matrix of weighted output residuals for a batch of models.
 
     For each batch member the outputs are states (``y_k = x_k[outputs]``, the node temperatures
@@ -316,22 +318,30 @@ def normal_equations(mats, tangents, outputs, u, y, w, *, chunk: int | None = No
         uc, duc, yc, wc, fc, ic = data
 
         def primal(x, a):
-            d, f, i = a
+            d, f, i, yk, wk = a
             x = restart(x, f, i, X0s if segmented else None)
-            return _matvec(Phi, x) + d, x
+            xc = x
+            if gain is not None:  # the measured states pulled towards their measurements
+                pull = gain[:, None] * (wk > 0)
+                xc = x.at[:, outputs].add(-pull * (x[:, outputs] - yk))
+            return _matvec(Phi, xc) + d, (x, xc)
 
-        # xs[k]: state at sample k
-        x_next, xs = lax.scan(primal, x, (_drive(uc, duc, G0, G1), fc, ic))
+        # xs[k]: state at sample k (the prediction); xcs[k]: after the observer's correction
+        x_next, (xs, xcs) = lax.scan(primal, x, (_drive(uc, duc, G0, G1), fc, ic, yc, wc))
 
         def tangent(X, a):
             # X_{k+1} = Φ X_k + ∂Φ x_k + ∂Γ0 u_k + ∂Γ1 Δu_k; only the measured rows leave
-            xk, e, f, i = a
+            xk, e, f, i, wk = a
             X = restart(X, f, i, dX0s if segmented else None)
+            out = X[:, outputs, :]
+            if gain is not None:
+                keep = 1.0 - gain[:, None] * (wk > 0)
+                X = X.at[:, outputs, :].multiply(keep[..., None])
             for j in range(n):
                 e = e + dPhi[:, :, j, :] * xk[:, None, j, None]
-            return _matvec(Phi, X) + e, X[:, outputs, :]
+            return _matvec(Phi, X) + e, out
 
-        X_next, Js = lax.scan(tangent, X, (xs, _drive(uc, duc, dG0, dG1), fc, ic))
+        X_next, Js = lax.scan(tangent, X, (xcs, _drive(uc, duc, dG0, dG1), fc, ic, wc))
         r = wc * (xs[:, :, outputs] - yc)  # [L, B, p]
         Jw = wc[..., None] * Js  # [L, B, p, q]
         Jb = jnp.transpose(Jw, (1, 0, 2, 3)).reshape(batch, -1, q)  # member-major for the products

@@ -1,0 +1,149 @@
+"""The observer-gain continuation of the fit: the fused normal equations with an observer gain
+against autodiff of an independent recursion, the stages of the batched multistart, and the
+checks of the ``homotopy`` argument."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from _reference import synthetic_building, van_loan_outputs
+
+import jaxbox
+from jaxbox.fit import DEFAULT_HOMOTOPY, fit_model
+from jaxbox.models import get_model
+from jaxbox.simulate._exact import normal_equations
+
+TRUTH = {
+    "C_zon": 3.0e6,
+    "C_wal": 4.0e7,
+    "C_int": 1.5e7,
+    "R_wal": 0.012,
+    "R_int": 0.002,
+    "R_inf": 0.02,
+    "gA": 2.5,
+    "T_zon0": 26.0,
+    "T_wal0": 19.0,
+    "T_int0": 24.0,
+}
+
+N_STATES, N_INPUTS, N_SAMPLES = 3, 2, 23
+OUTPUTS = (0, 2)
+
+
+def _matrices(v):
+    """A small stable discrete system whose matrices depend smoothly on ``v`` [4]."""
+    a = jnp.asarray([[0.80, 0.10, 0.00], [0.05, 0.90, 0.03], [0.00, 0.10, 0.70]])
+    Phi = a * (1.0 + 0.1 * jnp.tanh(v[0])) + 0.02 * v[1] * jnp.eye(N_STATES)
+    G0 = jnp.asarray([[0.10, 0.02], [0.00, 0.05], [0.03, 0.00]]) * jnp.exp(0.2 * v[2])
+    G1 = 0.3 * G0 * v[1]
+    x0 = jnp.asarray([20.0, 15.0, 18.0]) + v[3] * jnp.asarray([1.0, -2.0, 0.5])
+    return Phi, G0, G1, x0
+
+
+def _reference_residuals(v, gain, u, y, w):
+    """The observer recursion written out sample by sample: the residual at sample k is the
+    prediction's, then the measured states are pulled towards their measurements."""
+    Phi, G0, G1, x = _matrices(v)
+    out = jnp.asarray(OUTPUTS)
+    res = []
+    for k in range(u.shape[0]):
+        pred = x[out]
+        res.append(w[k] * (pred - y[k]))
+        if k + 1 < u.shape[0]:
+            corr = x.at[out].add(-gain * (w[k] > 0) * (pred - y[k]))
+            x = Phi @ corr + G0 @ u[k] + G1 @ (u[k + 1] - u[k])
+    return jnp.concatenate(res)
+
+
+@pytest.fixture(scope="module")
+def series():
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(N_SAMPLES, N_INPUTS))
+    y = 18.0 + rng.normal(size=(N_SAMPLES, len(OUTPUTS)))
+    w = np.ones_like(y)
+    w[5, 0] = 0.0  # a masked sample: no residual and no correction there
+    w[11:14, 1] = 0.0
+    return u, y, w
+
+
+@pytest.mark.parametrize("gains", [(0.0, 0.0), (0.9, 0.3), (1.0, 0.05)])
+def test_normal_equations_with_an_observer_gain(series, gains):
+    """Cost, Jᵀr and JᵀJ of the fused pass with a per-member gain equal those of autodiff
+    through the written-out recursion (chunks of 4 samples, so a chunk is padded)."""
+    u, y, w = series
+    V = jnp.asarray([[0.1, 0.2, -0.3, 0.4], [-0.2, 0.1, 0.2, -0.1]])
+    prim = jax.vmap(_matrices)(V)
+    tang = jax.vmap(jax.jacfwd(_matrices))(V)
+    args = tuple(jnp.asarray(a)[:, None] for a in (u, y, w))
+    cost, g, H = jax.jit(
+        lambda p, t, gain: normal_equations(p, t, OUTPUTS, *args, chunk=4, gain=gain)
+    )(prim, tang, jnp.asarray(gains))
+    for b in range(2):
+        ref = lambda v: _reference_residuals(v, gains[b], u, y, w)  # noqa: B023, E731
+        r = np.asarray(ref(V[b]))
+        J = np.asarray(jax.jacfwd(ref)(V[b]))
+        np.testing.assert_allclose(cost[b], r @ r, rtol=1e-12)
+        np.testing.assert_allclose(g[b], J.T @ r, rtol=1e-10, atol=1e-12 * np.abs(J.T @ r).max())
+        np.testing.assert_allclose(H[b], J.T @ J, rtol=1e-10, atol=1e-12 * np.abs(J.T @ J).max())
+    # a zero gain is the output error itself
+    if gains == (0.0, 0.0):
+        plain = normal_equations(prim, tang, OUTPUTS, *args, chunk=4)
+        for a, b in zip(plain, (cost, g, H), strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-13)
+
+
+@pytest.fixture(scope="module")
+def building():
+    return synthetic_building(get_model("ZonWalIntInf"), TRUTH, n=120, noise=0.05)
+
+
+@pytest.fixture(scope="module")
+def fits(building):
+    """ZonWalIntInf from the same 12 starts, with and without the continuation."""
+    common = dict(starts=12, seed=1, max_steps=200)
+    return (
+        fit_model("ZonWalIntInf", building, **common),
+        fit_model("ZonWalIntInf", building, homotopy=(), **common),
+    )
+
+
+def test_the_reported_cost_is_the_output_error(building, fits):
+    """Whatever stages a start went through, its cost is the output error (no observer) of its
+    parameters, against the independent Van Loan simulation."""
+    cont, _ = fits
+    assert cont.settings["homotopy"] == DEFAULT_HOMOTOPY
+    model = get_model("ZonWalIntInf")
+    for i in np.argsort(cont.starts.cost)[:3]:
+        theta = dict(zip(cont.free, cont.starts.params[i], strict=True))
+        sim = van_loan_outputs(model, theta, building)[:, 0]
+        cost = np.mean((sim - building.array(["T_zon"])[:, 0]) ** 2)
+        np.testing.assert_allclose(cont.starts.cost[i], cost, rtol=1e-9)
+
+
+def test_stages_count_in_the_steps_and_reach_the_optimum(fits):
+    """Each start takes at least one step per stage; the continuation reaches the best cost of
+    plain output error from at least as many starts, and its best is no worse."""
+    cont, plain = fits
+    assert np.all(cont.starts.steps >= len(DEFAULT_HOMOTOPY) + 1)
+    best = min(cont.cost, plain.cost)
+    assert cont.cost <= plain.cost * (1 + 1e-6)
+
+    def at(r):
+        return int(np.sum(r.starts.cost <= best * (1 + 1e-4)))
+
+    assert at(cont) >= at(plain)
+    assert at(cont) >= 6
+
+
+@pytest.mark.parametrize(
+    "homotopy, match",
+    [
+        ((1.5,), "in \\(0, 1\\]"),
+        ((0.2, 0.5), "decrease"),
+        ((0.5, 0.0), "in \\(0, 1\\]"),
+        ("0.5", "sequence"),
+    ],
+)
+def test_bad_homotopy_is_refused(building, homotopy, match):
+    with pytest.raises(jaxbox.FitError, match=match):
+        fit_model("Zon", building, homotopy=homotopy)

@@ -1,15 +1,20 @@
 """Do the starts reach the optimum? Every model of the ``exp1`` and ``bacher-madsen`` families.
 
 For each model on twin house N2 (experiment 1, identification half, hourly): jaxbox from 64
-starts (the default guess, then Latin-hypercube samples, seed 0), and CasADi/IPOPT direct
+starts (the default guess, then Latin-hypercube samples, seed 0), with its defaults (each start
+along the output-error route and the observer-gain continuation, bound-trapped routes released)
+and, in the same run, plain output-error Levenberg–Marquardt from the same starts
+(``homotopy=(), release=False``: the fit before the continuation); and CasADi/IPOPT direct
 collocation from the first ``--casadi-starts`` of the same starts (re-scored by jaxbox's exact
-simulation). A start *reached the best cost* when its cost is within 1e-4 (relative) of the best
-cost found by either route. And the speed of the 14-parameter benchmark (64 starts) against a
-baseline commit of jaxbox, measured in the same run (the baseline is checked out with
-``git archive`` into a temporary folder and run in a subprocess, alternating with the current
-code).
+simulation), or their costs from an earlier run's JSON (``--casadi-from``: the same starts, since
+the sampler and its seed are the same). A start *reached the best cost* when its cost is
+within 1e-4 (relative) of the best cost found by any route. And the speed of the 14-parameter
+benchmark (64 starts) against a baseline commit of jaxbox, measured in the same run (the
+baseline is checked out with ``git archive`` into a temporary folder and run in a subprocess,
+alternating with the current code).
 
-    python benchmarks/convergence.py [--casadi-starts 8] [--baseline 0bad291] [--out FILE]
+    python benchmarks/convergence.py [--casadi-starts 8 | --casadi-from OLD.json]
+        [--baseline 0bad291] [--out FILE]
     python benchmarks/convergence.py --report-only
 
 Writes ``benchmarks/convergence.json`` and the Markdown tables to ``--out`` (default
@@ -60,7 +65,9 @@ for _ in range(int(sys.argv[2])):
     r = fit(sys.argv[1], ident, starts=starts)
     fits.append(r.timing["fit_s"])
 c = np.asarray(r.starts.cost)
+at = int(np.sum(np.isfinite(c) & (c <= np.nanmin(c) * (1 + 1e-4))))
 print(json.dumps({"compile_s": compile_s, "fit_s": min(fits), "best": float(np.nanmin(c)),
+                  "at_best": at,
                   "median_steps": float(np.median(r.starts.steps)),
                   "total_steps": int(np.sum(r.starts.steps))}))
 """
@@ -75,26 +82,34 @@ def _at_best(costs, best) -> np.ndarray:
     return np.isfinite(costs) & (costs <= best * (1 + REL))
 
 
-def model_row(name: str, ident, n_casadi: int, budget: float) -> dict:
+def _jaxbox_run(model, ident, starts, **options) -> dict:
+    jaxbox.fit.clear_compile_cache()
+    first = jaxbox.fit_model(model, ident, starts=starts, **options)
+    r = jaxbox.fit_model(model, ident, starts=starts, **options)
+    return {
+        "costs": r.starts.cost.tolist(),
+        "steps": np.asarray(r.starts.steps).tolist(),
+        "status": list(r.starts.status),
+        "compile_s": first.timing["compile_s"],
+        "fit_s": r.timing["fit_s"],
+    }
+
+
+def model_row(name: str, ident, n_casadi: int, budget: float, casadi_from=None) -> dict:
     import _peers
 
     model = jaxbox.get_model(name)
     problem = make_problem(model, ident)
     starts = sample_starts(problem, ident, 64, 0, 4.0)
-    jaxbox.fit.clear_compile_cache()
-    first = jaxbox.fit_model(model, ident, starts=starts)
-    r = jaxbox.fit_model(model, ident, starts=starts)
     row = {
         "free": len(problem.free),
-        "jaxbox": {
-            "costs": r.starts.cost.tolist(),
-            "steps": np.asarray(r.starts.steps).tolist(),
-            "status": list(r.starts.status),
-            "compile_s": first.timing["compile_s"],
-            "fit_s": r.timing["fit_s"],
-        },
+        "jaxbox": _jaxbox_run(model, ident, starts),
+        "plain": _jaxbox_run(model, ident, starts, homotopy=(), release=False),
     }
-    if n_casadi:
+    if casadi_from is not None:
+        if "casadi" in casadi_from:
+            row["casadi"] = casadi_from["casadi"]
+    elif n_casadi:
         try:
             peer = _peers.casadi_collocation(
                 problem,
@@ -110,7 +125,11 @@ def model_row(name: str, ident, n_casadi: int, budget: float) -> dict:
             }
         except ImportError:
             log("casadi not installed (pip install -e '.[bench]'): skipped")
-    best = min(np.nanmin(row["jaxbox"]["costs"]), *row.get("casadi", {}).get("costs", [np.inf]))
+    best = min(
+        np.nanmin(row["jaxbox"]["costs"]),
+        np.nanmin(row["plain"]["costs"]),
+        *row.get("casadi", {}).get("costs", [np.inf]),
+    )
     row["best"] = float(best)
     return row
 
@@ -151,15 +170,26 @@ def speed(baseline: str, repeats: int, rounds: int) -> dict:
 
 
 def report(res: dict) -> str:
+    casadi_src = (
+        f"their costs from the run of {res['casadi_from']} (the same starts)"
+        if res.get("casadi_from")
+        else "run now"
+    )
     lines = [
         "## Do the starts reach the optimum? (benchmarks/convergence.py)",
         "",
         f"Written by `python benchmarks/convergence.py` on {res['date']}; raw numbers in "
         "`benchmarks/convergence.json`. Twin house N2, experiment 1, identification half (492 "
         "hourly samples). 64 starts per model: the default guess, then Latin-hypercube samples "
-        f"(seed 0); CasADi/IPOPT collocation from the first {res['n_casadi']} of the same starts. "
-        f"*At best*: cost within {REL:g} (relative) of the best cost of either route. IPOPT "
-        "stops a start after 60 s (`max_wall_time`)."
+        "(seed 0). *jaxbox*: the defaults (each start solved along the output-error route and "
+        "the observer-gain continuation 0.9 → 0.5 → 0.2 → 0.05 → 0, a route that ends on a "
+        "bound retried with those parameters released; the better route counts). *Plain*: "
+        "output-error Levenberg–Marquardt alone from the same starts, in the same run "
+        "(`homotopy=(), release=False`, the fit before the continuation). CasADi/IPOPT "
+        f"collocation from the first {res['n_casadi']} of the same starts ({casadi_src}). "
+        f"*At best*: cost within {REL:g} (relative) of the best cost of any route. IPOPT "
+        "stops a start after 60 s (`max_wall_time`). *Steps*: Levenberg–Marquardt steps per "
+        "start, every stage of every route counted."
         + (
             f" The run was resumed: the first models were measured by the run of "
             f"{res['resumed_from']}."
@@ -168,13 +198,19 @@ def report(res: dict) -> str:
         ),
         "",
         "| family | model | free | best cost [K²] | jaxbox at best | guess at best "
-        "| median LM steps | median steps of the starts at best | per start [ms] | compile [s] "
-        "| CasADi at best | CasADi per start [s] |",
-        "|---|---|---:|---:|---:|:-:|---:|---:|---:|---:|---:|---:|",
+        "| median steps | per start [ms] | per start at best [ms] | compile [s] "
+        "| plain at best | plain guess | plain median steps | plain per start [ms] "
+        "| plain per start at best [ms] | CasADi at best | CasADi per start [s] |",
+        "|---|---|---:|---:|---:|:-:|---:|---:|---:|---:|---:|:-:|---:|---:|---:|---:|---:|",
     ]
-    totals = {"half": 0, "guess": 0, "steps": 0, "casadi": 0, "n": 0}
+    keys = ("half", "guess", "steps", "casadi", "plain_half", "plain_guess", "plain_steps")
+    totals = dict.fromkeys(keys, 0) | {"n": 0, "plain_casadi": 0}
+
+    def per_best(run, at):
+        return f"{1000 * run['fit_s'] / at.sum():.1f}" if at.any() else "–"
+
     for fam, name, row in res["rows"]:
-        jx = row["jaxbox"]
+        jx, pl = row["jaxbox"], row.get("plain")
         best = row["best"]
         at = _at_best(jx["costs"], best)
         steps = np.asarray(jx["steps"])
@@ -188,26 +224,44 @@ def report(res: dict) -> str:
             totals["casadi"] += int(at.mean() >= cat.mean())
         else:
             cas_txt, cas_t, jx_first = "–", "–", None
-        med_at = f"{np.median(steps[at]):.0f}" if at.any() else "–"
+        if pl:
+            pat = _at_best(pl["costs"], best)
+            psteps = np.asarray(pl["steps"])
+            plain_txt = (
+                f"{pat.sum()} / {n} | {'yes' if pat[0] else 'no'} | {np.median(psteps):.0f} | "
+                f"{1000 * pl['fit_s'] / n:.1f} | {per_best(pl, pat)}"
+            )
+            totals["plain_half"] += int(pat.mean() >= 0.5)
+            totals["plain_guess"] += int(pat[0])
+            totals["plain_steps"] += int(np.median(psteps) <= 30)
+            if cas:
+                totals["plain_casadi"] += int(pat.mean() >= cat.mean())
+        else:
+            plain_txt = "– | – | – | – | –"
         lines.append(
             f"| {fam} | {name} | {row['free']} | {best:.9g} | {at.sum()} / {n}"
             + (f" ({jx_first} of the first {len(cas['costs'])})" if cas else "")
-            + f" | {'yes' if at[0] else 'no'} | {np.median(steps):.0f} | {med_at} | "
-            f"{1000 * jx['fit_s'] / n:.1f} | {jx['compile_s']:.1f} | {cas_txt} | {cas_t} |"
+            + f" | {'yes' if at[0] else 'no'} | {np.median(steps):.0f} | "
+            f"{1000 * jx['fit_s'] / n:.1f} | {per_best(jx, at)} | {jx['compile_s']:.1f} | "
+            f"{plain_txt} | {cas_txt} | {cas_t} |"
         )
         totals["n"] += 1
         totals["half"] += int(at.mean() >= 0.5)
         totals["guess"] += int(at[0])
         totals["steps"] += int(np.median(steps) <= 30)
+    n = totals["n"]
     lines += [
         "",
-        "| target (issue) | models meeting it |",
-        "|---|---:|",
-        f"| at least half of the starts reach the best cost | {totals['half']} / {totals['n']} |",
-        f"| the default-guess start reaches the best | {totals['guess']} / {totals['n']} |",
-        f"| median start needs ≤ 30 LM steps | {totals['steps']} / {totals['n']} |",
+        "| target (issue) | jaxbox | plain |",
+        "|---|---:|---:|",
+        f"| at least half of the starts reach the best cost | {totals['half']} / {n} "
+        f"| {totals['plain_half']} / {n} |",
+        f"| the default-guess start reaches the best | {totals['guess']} / {n} "
+        f"| {totals['plain_guess']} / {n} |",
+        f"| median start needs ≤ 30 LM steps | {totals['steps']} / {n} "
+        f"| {totals['plain_steps']} / {n} |",
         f"| never fewer (proportionally) at best than CasADi on the same starts "
-        f"| {totals['casadi']} / {totals['n']} |",
+        f"| {totals['casadi']} / {n} | {totals['plain_casadi']} / {n} |",
     ]
     sp = res.get("speed")
     if sp:
@@ -219,26 +273,38 @@ def report(res: dict) -> str:
             "",
             f"### Speed against `{sp['baseline']}` (same run, alternating processes)",
             "",
-            f"`{SPEED_MODEL}` (14 free parameters), the same 64 starts for both; minimum over "
-            "the runs.",
+            f"`{SPEED_MODEL}` (14 free parameters), the same 64 starts for both, each code with "
+            "its defaults; minimum over the runs. *At best*: starts within 1e-4 of that "
+            "code's best cost.",
             "",
             "| code | fit 64 starts [s] | per start [ms] | per LM step and start [ms] "
-            "| compile [s] | best cost | median steps |",
-            "|---|---:|---:|---:|---:|---:|---:|",
+            "| starts at best | per start at best [ms] | compile [s] | best cost "
+            "| median steps |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
         ]
+        per = {}
         for which in ("baseline", "current"):
             runs = sp["runs"][which]
             f = min(r["fit_s"] for r in runs)
             c = min(r["compile_s"] for r in runs)
             per_step = 1000 * f / max(runs[0].get("total_steps", 0), 1)
+            at = runs[0].get("at_best")
+            per[which] = (per_step, 1000 * f / at if at else None)
+            at_txt = "–" if at is None else str(at)
+            per_best_txt = "–" if per[which][1] is None else f"{per[which][1]:.1f}"
             lines.append(
-                f"| {which} | {f:.3f} | {1000 * f / 64:.2f} | {per_step:.3f} | {c:.2f} | "
-                f"{runs[0]['best']:.9g} | {runs[0]['median_steps']:.0f} |"
+                f"| {which} | {f:.3f} | {1000 * f / 64:.2f} | {per_step:.3f} | {at_txt} | "
+                f"{per_best_txt} | {c:.2f} | {runs[0]['best']:.9g} | "
+                f"{runs[0]['median_steps']:.0f} |"
             )
-        lines += [
-            "",
-            f"Ratio current / baseline: fit {cur / base:.2f}×, compile {cc / bc:.2f}×.",
+        ratio = [
+            f"fit {cur / base:.2f}×",
+            f"per LM step {per['current'][0] / per['baseline'][0]:.2f}×",
+            f"compile {cc / bc:.2f}×",
         ]
+        if per["current"][1] and per["baseline"][1]:
+            ratio.insert(2, f"per start at best {per['current'][1] / per['baseline'][1]:.2f}×")
+        lines += ["", "Ratio current / baseline: " + ", ".join(ratio) + "."]
     lines += ["", f"Machine: {res['machine']}", ""]
     return "\n".join(lines)
 
@@ -246,6 +312,9 @@ def report(res: dict) -> str:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--casadi-starts", type=int, default=8)
+    ap.add_argument(
+        "--casadi-from", default="", help="take the CasADi costs from an earlier convergence.json"
+    )
     ap.add_argument("--budget", type=float, default=120.0, help="CasADi seconds per model")
     ap.add_argument("--families", default="exp1,bacher-madsen")
     ap.add_argument("--baseline", default="", help="commit to hold the speed against")
@@ -272,6 +341,12 @@ def main(argv=None) -> None:
         f"jax {jaxbox.__version__ and __import__('jax').__version__}",
         "rows": [],
     }
+    peers = {}
+    if args.casadi_from:
+        earlier = json.loads(Path(args.casadi_from).read_text())
+        peers = {(f, n): row for f, n, row in earlier["rows"]}
+        res["casadi_from"] = earlier["date"]
+        res["n_casadi"] = earlier["n_casadi"]
     done, old = {}, {}
     if args.resume and (HERE / "convergence.json").exists():
         old = json.loads((HERE / "convergence.json").read_text())
@@ -283,7 +358,14 @@ def main(argv=None) -> None:
                 res["rows"].append((fam, name, done[(fam, name)]))
                 continue
             log(f"{fam} {name}")
-            res["rows"].append((fam, name, model_row(name, ident, args.casadi_starts, args.budget)))
+            row = model_row(
+                name,
+                ident,
+                args.casadi_starts,
+                args.budget,
+                peers.get((fam, name), {}) if args.casadi_from else None,
+            )
+            res["rows"].append((fam, name, row))
             (HERE / "convergence.json").write_text(json.dumps(res))
     if args.baseline:
         res["speed"] = speed(args.baseline, args.repeats, args.rounds)

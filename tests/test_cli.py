@@ -70,6 +70,8 @@ def test_fit_json_shape(csv_file, capsys, tmp_path):
             "Zon",
             "--starts",
             "4",
+            "--homotopy",
+            "0.8,0.1",
             "--json",
             *MAP,
             "--plots",
@@ -96,6 +98,7 @@ def test_fit_json_shape(csv_file, capsys, tmp_path):
     assert doc["rmse_cross"]["T_zon"] < 0.01
     assert doc["se_auto"] >= 0 and doc["se_cross"] >= 0
     assert doc["starts"]["n"] == 4
+    assert doc["starts"]["homotopy"] == [0.8, 0.1]
     assert doc["starts"]["converged"] + doc["starts"]["failed"] + doc["starts"]["max_steps"] == 4
     assert {"compile_s", "fit_s"} <= set(doc["timing"])
     assert doc["data"]["n_train"] == 120 and doc["data"]["n_validate"] == 120

@@ -147,3 +147,41 @@ def test_stages_count_in_the_steps_and_reach_the_optimum(fits):
 def test_bad_homotopy_is_refused(building, homotopy, match):
     with pytest.raises(jaxbox.FitError, match=match):
         fit_model("Zon", building, homotopy=homotopy)
+
+
+@pytest.fixture(scope="module")
+def released(building):
+    """Plain output error from the same 12 starts, without and with the release."""
+    common = dict(starts=12, seed=2, max_steps=200, homotopy=())
+    return (
+        fit_model("ZonWalIntInf", building, release=False, **common),
+        fit_model("ZonWalIntInf", building, release=True, **common),
+    )
+
+
+def _on_a_bound(result) -> np.ndarray:
+    """Starts that ended with a two-sided parameter within 0.1 % of its bounds."""
+    from jaxbox.fit._fit import EDGE
+    from jaxbox.fit._transforms import position_in_bounds, two_sided
+
+    tr = result.problem.transform
+    z = tr.to_internal(result.starts.params)
+    pos = np.asarray(position_in_bounds(tr.style, jnp.asarray(z)))
+    return np.any(two_sided(tr.kinds) & ((pos < EDGE) | (pos > 1 - EDGE)), axis=1)
+
+
+def test_release_frees_starts_trapped_on_a_bound(released):
+    """Starts that end with a parameter frozen on its bound are solved again with it released
+    and reach the optimum; the other starts are untouched (same cost, same steps)."""
+    trapped_fit, freed = released
+    on_bound = _on_a_bound(trapped_fit)
+    assert on_bound.sum() >= 3
+    best = min(trapped_fit.cost, freed.cost)
+    at = freed.starts.cost <= best * (1 + 1e-4)
+    assert np.all(at[on_bound])
+    assert np.sum(at) > np.sum(trapped_fit.starts.cost <= best * (1 + 1e-4))
+    np.testing.assert_array_equal(freed.starts.cost[~on_bound], trapped_fit.starts.cost[~on_bound])
+    np.testing.assert_array_equal(
+        freed.starts.steps[~on_bound], trapped_fit.starts.steps[~on_bound]
+    )
+    assert np.all(freed.starts.steps[on_bound] > trapped_fit.starts.steps[on_bound])

@@ -72,6 +72,13 @@ def add_fit_arguments(p) -> None:
         default=None,
         help=f"LM iterations per start (default {fit_default('max_steps')})",
     )
+    p.add_argument(
+        "--homotopy",
+        metavar="GAINS",
+        default=None,
+        help="observer gains of the continuation each start also follows, e.g. "
+        f"{','.join(f'{g:g}' for g in fit_default('homotopy'))} (the default), or none",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--plots", metavar="DIR", help="write the validation plots (PNG) into DIR")
 
@@ -150,6 +157,7 @@ def fit_command(args) -> int:
         "seed": args.seed,
         "simulator": args.simulator,
         "max_steps": args.max_steps,
+        "homotopy": args.homotopy,
         "max_gap": opts.max_gap,
     }
     with Outputs() as outputs:

@@ -377,6 +377,27 @@ MAX_STARTS = 100_000
 MAX_STEPS = 1_000_000
 
 
+def homotopy_option(text: str | None) -> tuple[float, ...]:
+    """``--homotopy``: observer gains ``0.9,0.5,0.2,0.05`` (the default when absent) or
+    ``none``, checked as the fit checks them."""
+    from ..fit import DEFAULT_HOMOTOPY, FitError
+    from ..fit._fit import check_homotopy
+
+    if text is None:
+        return DEFAULT_HOMOTOPY
+    if text.strip().lower() == "none":
+        return ()
+    example = ",".join(f"{g:g}" for g in DEFAULT_HOMOTOPY)
+    gains = [number(item, "--homotopy") for item in text.split(",")]
+    try:
+        return check_homotopy(gains)
+    except FitError:
+        raise UsageError(
+            f"--homotopy takes observer gains in (0, 1] that strictly decrease, e.g. {example}, "
+            f"or none; got {text!r}"
+        ) from None
+
+
 def check_run_options(args) -> None:
     """``--starts``, ``--seed``, ``--max-steps`` (and ``--margin``, ``--patience``, ``--beam``
     where the command has them) in range."""
@@ -385,6 +406,8 @@ def check_run_options(args) -> None:
     if args.max_steps is None:
         args.max_steps = fit_default("max_steps")
     integer(args.max_steps, "--max-steps", 1, MAX_STEPS)
+    if hasattr(args, "homotopy"):
+        args.homotopy = homotopy_option(args.homotopy)
     if getattr(args, "patience", None) is not None:
         integer(args.patience, "--patience", 1)
     if getattr(args, "beam", None) is not None:
@@ -436,6 +459,7 @@ def fit_json(result, validation, *, timing, data_info, valid=None) -> dict:
             "failed": sum(s not in ("converged", "max_steps") for s in status),
             "at_best": starts.n_at_best(),
             "best": result.best,
+            "homotopy": list(result.settings.get("homotopy", ())),
         },
         simulator=result.problem.simulator,
         timing=timing,

@@ -153,8 +153,9 @@ def _multistart(
     the next stage starts where it ended (``solver.init``). With ``release = (bounded [S, p],
     position)``, a route that ends with bounded coordinates (``bounded``) within
     :data:`EDGE` of a bound (``position(Z) -> [B, p]``, 0 … 1 in the bounds) gets one more
-    output-error stage from that point with those coordinates back at their start values: the
-    logistic transform freezes a coordinate near its bound, and the data may want it elsewhere.
+    output-error stage from that point with those coordinates back at their start values (the
+    middle of their bounds if the start was on a bound too): the logistic transform freezes a
+    coordinate near its bound, and the data may want it elsewhere.
     The route ends at the better of the two.
 
     A slot whose route has ended takes the next (start, route) of its group (``slot_counts``
@@ -288,7 +289,9 @@ def _multistart(
         load = finished & (new_idx < end[group])
         nxt = jnp.minimum(c["nxt"] + jnp.sum(onehot, axis=0), end).astype(jnp.int32)
         new_idx = jnp.where(load, new_idx, 0)
-        released = jnp.where(edge, z0[start], y)
+        # trapped coordinates go back to their start values (the middle of their bounds where
+        # the start itself was on a bound)
+        released = jnp.where(edge, jnp.where(trapped(z0[start], start), 0.0, z0[start]), y)
         y_new = jnp.where(
             load[:, None], z0[new_idx // n_routes], jnp.where(go_release[:, None], released, y)
         )

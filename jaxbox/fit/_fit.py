@@ -195,19 +195,20 @@ def _multistart(
     tags = frozenset()
 
     # the stages before a route's last end at a looser tolerance: their optimum is a waypoint
-    waypoint = solver
-    if continued and hasattr(solver, "rtol"):
-        waypoint = eqx.tree_at(lambda s: s.rtol, solver, max(solver.rtol, STAGE_RTOL))
+    loose = continued and hasattr(solver, "rtol")
+    rtol_of = (
+        jnp.where(gain_of > 0, max(solver.rtol, STAGE_RTOL), solver.rtol).astype(dtype)
+        if loose
+        else None
+    )
 
     def init(z):
         return solver.init(None, z, None, _FROM_BATCH, None, None, tags)
 
-    def step(y, state, evaluation, final):
-        new = solver.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
-        if waypoint is solver:
-            return new
-        other = waypoint.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
-        return jax.tree_util.tree_map(lambda a, b: jnp.where(final, a, b), new, other)
+    def step(y, state, evaluation, stage):
+        # the tolerance is a leaf of the solver: each slot steps with its stage's
+        own = eqx.tree_at(lambda s: s.rtol, solver, rtol_of[stage]) if loose else solver
+        return own.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
 
     def terminate(y, state):
         return solver.terminate(None, y, None, _FROM_BATCH, state, tags)
@@ -256,7 +257,7 @@ def _multistart(
         start, route = idx // n_routes, idx % n_routes
         gain = gain_of[stage] if continued else None
         cost, g, H = lin(c["state"].y_eval, start, gain)
-        y, state = jax.vmap(step)(c["y"], c["state"], (0.5 * cost, g, H), gain_of[stage] == 0)
+        y, state = jax.vmap(step)(c["y"], c["state"], (0.5 * cost, g, H), stage)
         done, result = jax.vmap(terminate)(y, state)
         steps = c["before"] + state.num_steps
         diverged = done & (result == optx.RESULTS.nonlinear_divergence)

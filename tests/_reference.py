@@ -13,6 +13,20 @@ import scipy.linalg
 from jaxbox.data import Dataset
 from jaxbox.simulate import simulate_arrays
 
+#: parameters of a ZonWalIntInf building for the synthetic tests (SI, °C)
+ZONWALINTINF_TRUTH = {
+    "C_zon": 3.0e6,
+    "C_wal": 4.0e7,
+    "C_int": 1.5e7,
+    "R_wal": 0.012,
+    "R_int": 0.002,
+    "R_inf": 0.02,
+    "gA": 2.5,
+    "T_zon0": 26.0,
+    "T_wal0": 19.0,
+    "T_int0": 24.0,
+}
+
 
 def van_loan_states(model, theta, data) -> np.ndarray:
     """Exact states at the samples [N, n] of ``model`` with parameters ``theta`` over ``data``."""

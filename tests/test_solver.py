@@ -6,24 +6,13 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 import pytest
-from _reference import synthetic_building
+from _reference import ZONWALINTINF_TRUTH, synthetic_building
 
 import jaxbox
 from jaxbox.fit import LevenbergMarquardt, LMState, fit_model
 from jaxbox.models import get_model
 
-TRUTH = {
-    "C_zon": 3.0e6,
-    "C_wal": 4.0e7,
-    "C_int": 1.5e7,
-    "R_wal": 0.012,
-    "R_int": 0.002,
-    "R_inf": 0.02,
-    "gA": 2.5,
-    "T_zon0": 26.0,
-    "T_wal0": 19.0,
-    "T_int0": 24.0,
-}
+TRUTH = ZONWALINTINF_TRUTH
 
 
 def _rosenbrock(y, args):

@@ -195,19 +195,14 @@ def _multistart(
     tags = frozenset()
 
     # the stages before a route's last end at a looser tolerance: their optimum is a waypoint
-    loose = continued and hasattr(solver, "rtol")
-    rtol_of = (
-        jnp.where(gain_of > 0, max(solver.rtol, STAGE_RTOL), solver.rtol).astype(dtype)
-        if loose
-        else None
-    )
+    rtol_of = jnp.where(gain_of > 0, max(solver.rtol, STAGE_RTOL), solver.rtol).astype(dtype)
 
     def init(z):
         return solver.init(None, z, None, _FROM_BATCH, None, None, tags)
 
     def step(y, state, evaluation, stage):
         # the tolerance is a leaf of the solver: each slot steps with its stage's
-        own = eqx.tree_at(lambda s: s.rtol, solver, rtol_of[stage]) if loose else solver
+        own = eqx.tree_at(lambda s: s.rtol, solver, rtol_of[stage]) if continued else solver
         return own.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
 
     def terminate(y, state):

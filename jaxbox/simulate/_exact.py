@@ -278,6 +278,10 @@ def normal_equations(
         t: sample times [N, Bt] (``Bt`` 1 or B), needed when ``x0`` holds the initial states of
             several segments, ``[B, S, n]``: the state and its sensitivities restart from those
             of segment ``s`` at its first sample (see :func:`segment_index`).
+        gain: observer gain per member [B] (``None``: none, the plain simulation). After each
+            sample with a measurement the measured states are pulled towards it,
+            ``x[outputs] ← x[outputs] − gain (x[outputs] − y)``, before the next step; the
+            residual is that of the state before the pull (the one-step prediction at gain 1).
 
     Returns:
         ``(cost [B], g [B, q], H [B, q, q])``: ``Σ r²``, ``Jᵀr`` and ``JᵀJ``.
@@ -320,14 +324,16 @@ def normal_equations(
         def primal(x, a):
             d, f, i, yk, wk = a
             x = restart(x, f, i, X0s if segmented else None)
-            xc = x
-            if gain is not None:  # the measured states pulled towards their measurements
-                pull = gain[:, None] * (wk > 0)
-                xc = x.at[:, outputs].add(-pull * (x[:, outputs] - yk))
+            if gain is None:
+                return _matvec(Phi, x) + d, x
+            # the measured states pulled towards their measurements
+            pull = gain[:, None] * (wk > 0)
+            xc = x.at[:, outputs].add(-pull * (x[:, outputs] - yk))
             return _matvec(Phi, xc) + d, (x, xc)
 
         # xs[k]: state at sample k (the prediction); xcs[k]: after the observer's correction
-        x_next, (xs, xcs) = lax.scan(primal, x, (_drive(uc, duc, G0, G1), fc, ic, yc, wc))
+        x_next, xs = lax.scan(primal, x, (_drive(uc, duc, G0, G1), fc, ic, yc, wc))
+        xs, xcs = (xs, xs) if gain is None else xs
 
         def tangent(X, a):
             # X_{k+1} = Φ X_k + ∂Φ x_k + ∂Γ0 u_k + ∂Γ1 Δu_k; only the measured rows leave

@@ -339,19 +339,29 @@ def test_a_resistance_on_its_upper_bound_is_cut(building):
     assert "R_wal" in low.verdict.flagged("at_bound") and _resistances_at_their_top(low) == []
 
 
+def _heater_case(c_hea: float, noise: float, name: str):
+    """A two-week hourly ``Zon+Hea`` building with a heater of capacity ``c_hea`` [J/K] and
+    sensor noise ``noise`` [K], and its ``Zon+Hea`` case run: invalid through the interval of
+    ``C_hea`` alone. Returns ``(truth, greybox, case)``."""
+    from jaxbox.select._cases import run_cases
+
+    truth = {"C_zon": 4e6, "C_hea": c_hea, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
+    truth.update(T_zon0=20.0, T_hea0=25.0)
+    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=noise)
+    gb = GreyBox(data, name=name)
+    case = gb.add_case("Zon+Hea", starts=4)
+    run_cases([case])
+    assert not case.is_valid and "C_hea" in case.verdict.flagged("wide_interval")
+    return truth, gb, case
+
+
 def test_a_fast_capacity_the_data_cannot_see_is_settled():
     """Hourly data see a 20-minute heater's lag, not its capacity: the capacity's interval
     invalidates the fit, and the retry with it fixed at its estimate is valid and as good."""
     from jaxbox.select._cases import run_cases
     from jaxbox.select._search import _fast_capacities, _settled_retry
 
-    truth = {"C_zon": 4e6, "C_hea": 2e5, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
-    truth.update(T_zon0=20.0, T_hea0=25.0)
-    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=0.05)
-    gb = GreyBox(data, name="heater")
-    case = gb.add_case("Zon+Hea", starts=4)
-    run_cases([case])
-    assert not case.is_valid and "C_hea" in case.verdict.flagged("wide_interval")
+    truth, gb, case = _heater_case(2e5, 0.05, "heater")
     assert _fast_capacities(case) == ["C_hea"]
     retry = _settled_retry(gb, case, ["C_hea"], lambda _: None)
     run_cases([retry])
@@ -379,13 +389,7 @@ def test_a_capacity_seen_only_through_its_lag_is_settled():
     )
     from jaxbox.validate import uncertainty
 
-    truth = {"C_zon": 4e6, "C_hea": 1e6, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
-    truth.update(T_zon0=20.0, T_hea0=25.0)
-    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=0.3)
-    gb = GreyBox(data, name="slow heater")
-    case = gb.add_case("Zon+Hea", starts=4)
-    run_cases([case])
-    assert not case.is_valid and "C_hea" in case.verdict.flagged("wide_interval")
+    truth, gb, case = _heater_case(1e6, 0.3, "slow heater")
     params = {k: float(v) for k, v in case.result.params.items()}
     hea = [n.C for n in case.model.network.nodes].index("C_hea")
     tau = _own_time_constants(case.model, params)[hea]

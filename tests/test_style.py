@@ -1,4 +1,4 @@
-"""The code base passes ruff (lint) with the project's configuration."""
+"""The code base, notebooks included, passes ruff (lint) with the project's configuration."""
 
 import shutil
 import subprocess
@@ -18,7 +18,7 @@ def _ruff():
 @pytest.mark.skipif(_ruff() is None, reason="ruff is not installed (pip install -e '.[test]')")
 def test_ruff_check():
     proc = subprocess.run(
-        [_ruff(), "check", "jaxbox", "tests", "benchmarks", "tools"],
+        [_ruff(), "check", "jaxbox", "tests", "benchmarks", "tools", "notebooks"],
         cwd=ROOT,
         capture_output=True,
         text=True,

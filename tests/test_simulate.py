@@ -106,3 +106,24 @@ def test_simulate_errors(inputs):
         simulate_model(m, m.defaults() | {"R_x": 1.0}, ds)
     with pytest.raises(ValueError, match="unknown simulation method"):
         simulate_model(m, None, ds, method="euler")
+
+
+@pytest.mark.parametrize("name", ["Zon", "ZonWalIntInfWinBouC"])
+def test_numpy_post_simulation_equals_the_jax_exact_route(inputs, name):
+    """The compilation-free NumPy route of the post-simulation (``method="exact"`` of
+    ``validate``) equals :func:`simulate_arrays` (JAX, exact) for several runs at once."""
+    from jaxbox.validate._postsim import exact_runs_numpy
+
+    t, u = inputs
+    m = get_model(name)
+    u = dict(u, T_bou=8 + 0.5 * u["T_amb"], I_e=0.5 * u["I_glo_hor"], I_w=0.3 * u["I_glo_hor"])
+    th = m.defaults() | {"T_zon0": 24.0}
+    U = _u(m, u)
+    A, B, C, D = m.state_space_numpy(th)
+    x0 = np.stack([np.asarray(m.initial_state(th)), np.asarray(m.initial_state(th)) + 1.5])
+    runs = np.stack([U, U[::-1]])
+    y, x = exact_runs_numpy(A, B, C, D, DT, runs, x0)
+    for k in range(2):
+        yj, xj = simulate_arrays(m, th, t, runs[k], method="exact", x0=x0[k])
+        np.testing.assert_allclose(x[k], np.asarray(xj), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(y[k], np.asarray(yj), rtol=0, atol=1e-9)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import jax
 import numpy as np
 
 from .._x64 import require_x64
@@ -328,32 +327,58 @@ def _across_gap(model, params, x, u0, u1, gap):
     """The state ``x`` [°C] carried across a gap of ``gap`` seconds: one exact first-order-hold
     step, the inputs interpolated linearly from ``u0`` (before) to ``u1`` (after); ``None`` when
     an input is missing at either edge."""
-    import jax.numpy as jnp
-
-    from ..simulate._exact import discretize_foh
-
     if not (np.all(np.isfinite(u0)) and np.all(np.isfinite(u1)) and np.all(np.isfinite(x))):
         return None
     A, B, _, _ = model.state_space_numpy({k: float(v) for k, v in params.items()})
-    Phi, G0, G1 = (np.asarray(m) for m in discretize_foh(jnp.asarray(A), jnp.asarray(B), gap))
+    Phi, G0, G1 = discretize_foh_numpy(A, B, gap)
     return Phi @ np.asarray(x) + G0 @ u0 + G1 @ (u1 - u0)
+
+
+def discretize_foh_numpy(A, B, dt):
+    """First-order-hold discretisation in NumPy/SciPy (Van Loan's augmented exponential):
+    ``(Φ, Γ0, Γ1)`` for the step ``dt`` [s], as :func:`jaxbox.simulate._exact.discretize_foh`
+    without a compilation per matrix size."""
+    import scipy.linalg
+
+    A, B = np.asarray(A, float), np.asarray(B, float)
+    n, m = B.shape
+    M = np.zeros((n + 2 * m, n + 2 * m))
+    M[:n, :n] = A * dt
+    M[:n, n : n + m] = B * dt
+    M[n : n + m, n + m :] = np.eye(m)
+    E = scipy.linalg.expm(M)
+    return E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
+
+
+def exact_runs_numpy(A, B, C, D, dt, u, x0):
+    """Outputs [S, N, p] and states [S, N, n] of S runs of the exact first-order-hold recursion
+    from ``x0`` [S, n] with inputs ``u`` [S, N, m] at the step ``dt`` [s] (NumPy: post-simulating
+    a structure costs no compilation; the recursion is a loop over the samples)."""
+    Phi, G0, G1 = discretize_foh_numpy(A, B, dt)
+    u = np.asarray(u, float)
+    drive = u[:, :-1] @ G0.T + (u[:, 1:] - u[:, :-1]) @ G1.T  # [S, N-1, n]
+    S, N = u.shape[:2]
+    xs = np.empty((S, N, Phi.shape[0]))
+    x = np.asarray(x0, float)
+    xs[:, 0] = x
+    PhiT = Phi.T
+    for k in range(N - 1):
+        x = x @ PhiT + drive[:, k]
+        xs[:, k + 1] = x
+    return xs @ np.asarray(C, float).T + u @ np.asarray(D, float).T, xs
 
 
 def _simulate(model, params, t, u, x0, method, options):
     """Outputs [S, N, p] and states [S, N, n] of S runs: inputs u [S, N, m] from x0 [S, n].
 
-    The exact route evaluates (A, B, C, D) outside the compiled function, which then depends
-    on the array shapes only: one compilation serves every structure of the same size."""
+    The exact route runs in NumPy (:func:`exact_runs_numpy`): no compilation per structure or
+    data size, which a structure search that post-simulates dozens of candidates would pay."""
     import jax
     import jax.numpy as jnp
 
     if method == "exact":
-        A, B, C, D = (
-            jnp.asarray(m, dtype=float)
-            for m in model.state_space_numpy({k: float(v) for k, v in params.items()})
-        )
-        y, x = _exact_runs(A, B, C, D, jnp.asarray(t), jnp.asarray(u), jnp.asarray(x0, float))
-        return np.asarray(y), np.asarray(x)
+        A, B, C, D = model.state_space_numpy({k: float(v) for k, v in params.items()})
+        return exact_runs_numpy(A, B, C, D, float(t[1] - t[0]), u, x0)
     fn = _JIT.get((model, method, options))
     if fn is None:
 
@@ -367,13 +392,3 @@ def _simulate(model, params, t, u, x0, method, options):
 
 
 _JIT: dict = {}
-
-
-def _exact_runs_impl(A, B, C, D, t, u, x0):
-    from ..simulate._exact import simulate_exact
-
-    run = lambda uu, xx: simulate_exact(A, B, C, D, xx, uu, t[1] - t[0])  # noqa: E731
-    return jax.vmap(run)(u, x0)
-
-
-_exact_runs = jax.jit(_exact_runs_impl)

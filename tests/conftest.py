@@ -1,12 +1,35 @@
-"""Test configuration: float64 everywhere, headless matplotlib, no persistent cache."""
+"""Test configuration: float64 everywhere, headless matplotlib, one compilation cache per run.
+
+The command line keeps a persistent compilation cache in the user's folder; the tests never
+touch it (``JAXBOX_CACHE=0``; one test turns it on in a folder of its own). Instead, the
+processes of one test run (``pytest -n``: the xdist workers) share a persistent cache in a fresh
+temporary folder, so that a program compiled by one worker is loaded, not compiled again, by
+the others; the folder starts empty and is removed at the end of the run, so every run is
+hermetic. ``JAXBOX_TEST_CACHE=0`` turns the shared cache off.
+"""
 
 import os
+import shutil
+import tempfile
+from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")
-# the command line keeps a persistent compilation cache; tests stay hermetic (one test turns
-# it on in a folder of its own)
 os.environ["JAXBOX_CACHE"] = "0"
 
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
+
+# one folder per run: named after the controlling process (an xdist worker's parent)
+_RUN = os.getppid() if os.environ.get("PYTEST_XDIST_WORKER") else os.getpid()
+_SHARED = Path(tempfile.gettempdir()) / f"jaxbox-tests-{_RUN}" / "jax"
+if os.environ.get("JAXBOX_TEST_CACHE", "1").strip().lower() not in ("0", "no", "off", "false"):
+    from jaxbox import enable_compilation_cache  # noqa: E402
+
+    enable_compilation_cache(_SHARED)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """The controlling process (not an xdist worker) removes the run's cache folder."""
+    if not hasattr(session.config, "workerinput"):
+        shutil.rmtree(_SHARED.parent, ignore_errors=True)

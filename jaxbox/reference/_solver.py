@@ -27,6 +27,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
+from ..simulate._exact import discretize_foh_numpy
 from ._grid import _assemble, _Sparsity
 from ._radau import radau_iia
 from ._transcription import _jargs, _Transcription
@@ -69,18 +70,13 @@ def _initial_point(tx: _Transcription) -> np.ndarray:
 
 def _simulate_elements(A, B, x0, ue, h) -> np.ndarray:
     """Exact first-order-hold simulation on the element grid (numpy): states at the starts."""
-    n, m = B.shape
-    out = np.empty((len(h) + 1, n))
+    out = np.empty((len(h) + 1, B.shape[0]))
     out[0] = x = x0
     cache = {}
     with np.errstate(all="ignore"):
         for k, hk in enumerate(h):
             if hk not in cache:
-                M = np.zeros((n + 2 * m, n + 2 * m))
-                M[:n, :n], M[:n, n : n + m] = A * hk, B * hk
-                M[n : n + m, n + m :] = np.eye(m)
-                E = scipy.linalg.expm(M) if np.all(np.isfinite(M)) else np.full(M.shape, np.nan)
-                cache[hk] = (E[:n, :n], E[:n, n : n + m], E[:n, n + m :])
+                cache[hk] = discretize_foh_numpy(A, B, hk)
             Phi, G0, G1 = cache[hk]
             x = Phi @ x + G0 @ ue[k] + G1 @ (ue[k + 1] - ue[k])
             out[k + 1] = x

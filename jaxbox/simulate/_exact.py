@@ -60,6 +60,22 @@ def discretize_foh(A, B, dt):
     return E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
 
 
+def discretize_foh_numpy(A, B, dt):
+    """:func:`discretize_foh` in NumPy/SciPy (Van Loan's augmented exponential), without a
+    compilation per matrix size: ``(Φ, Γ0, Γ1)`` for the step ``dt`` [s], NaN where ``A·dt`` or
+    ``B·dt`` is not finite."""
+    import numpy as np
+    import scipy.linalg
+
+    A, B = np.asarray(A, float), np.asarray(B, float)
+    n, m = B.shape
+    M = np.zeros((n + 2 * m, n + 2 * m))
+    M[:n, :n], M[:n, n : n + m] = A * dt, B * dt
+    M[n : n + m, n + m :] = np.eye(m)
+    E = scipy.linalg.expm(M) if np.all(np.isfinite(M)) else np.full(M.shape, np.nan)
+    return E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
+
+
 def phi_functions(x):
     """``(φ0, φ1, φ2, φ3)`` of ``x`` elementwise: ``φ0 = eˣ``, ``φ_{k+1}(x) = (φ_k(x) − 1/k!)/x``.
 

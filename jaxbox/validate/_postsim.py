@@ -16,6 +16,7 @@ import numpy as np
 
 from .._x64 import require_x64
 from ..simulate import simulate_arrays
+from ..simulate._exact import discretize_foh_numpy
 from ._metrics import rmse, simulation_error
 
 __all__ = ["Validation", "validate", "ValidationError"]
@@ -332,22 +333,6 @@ def _across_gap(model, params, x, u0, u1, gap):
     A, B, _, _ = model.state_space_numpy({k: float(v) for k, v in params.items()})
     Phi, G0, G1 = discretize_foh_numpy(A, B, gap)
     return Phi @ np.asarray(x) + G0 @ u0 + G1 @ (u1 - u0)
-
-
-def discretize_foh_numpy(A, B, dt):
-    """First-order-hold discretisation in NumPy/SciPy (Van Loan's augmented exponential):
-    ``(Φ, Γ0, Γ1)`` for the step ``dt`` [s], as :func:`jaxbox.simulate._exact.discretize_foh`
-    without a compilation per matrix size."""
-    import scipy.linalg
-
-    A, B = np.asarray(A, float), np.asarray(B, float)
-    n, m = B.shape
-    M = np.zeros((n + 2 * m, n + 2 * m))
-    M[:n, :n] = A * dt
-    M[:n, n : n + m] = B * dt
-    M[n : n + m, n + m :] = np.eye(m)
-    E = scipy.linalg.expm(M)
-    return E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
 
 
 def exact_runs_numpy(A, B, C, D, dt, u, x0):

@@ -131,6 +131,15 @@ def test_slot_refilling_batch_equals_one_start_at_a_time(building):
         np.testing.assert_allclose(alone.starts.params[0], batched.starts.params[i], rtol=1e-6)
 
 
+def test_default_slots_fill_a_cpu_in_groups_and_an_accelerator_at_once():
+    from jaxbox.fit._fit import default_slots
+
+    assert [default_slots(n, "cpu") for n in (1, 8, 64, 1024, 8192)] == [1, 8, 16, 128, 128]
+    assert [default_slots(n, "gpu") for n in (1, 64, 8192)] == [1, 64, 8192]
+    assert default_slots(10**6, "gpu") == 16384  # bounded by memory
+    assert default_slots(64) == default_slots(64, jax.default_backend())
+
+
 def test_fit_and_a_selection_case_draw_the_same_starts(building):
     """One start sampler: fit_model(starts=8) and a selection case with 8 starts."""
     from jaxbox.select import lhs_starts, naming_guess

@@ -116,9 +116,25 @@ def check_homotopy(gains) -> tuple[float, ...]:
     return out
 
 
-def default_slots(n_starts: int) -> int:
-    """Starts iterated together: enough to use the vector units, few enough that a start that
-    has terminated soon hands its slot to the next one instead of idling."""
+#: most starts iterated together on an accelerator (memory: a slot holds its normal equations)
+_ACCELERATOR_SLOTS = 16384
+
+
+def default_slots(n_starts: int, platform: str | None = None) -> int:
+    """Starts iterated together.
+
+    On a CPU: enough to use the vector units, few enough that a start that has terminated soon
+    hands its slot to the next one instead of idling (16 to 128). On a GPU or TPU an iteration
+    costs about the same for 1 or 10⁴ slots (it is bound by the sequential scan over time, not
+    by arithmetic), so every start runs at once, up to 16384 slots.
+
+    Args:
+        n_starts: starts in the batch.
+        platform: ``"cpu"``, ``"gpu"``, ``"tpu"``; default: JAX's default backend.
+    """
+    platform = jax.default_backend() if platform is None else platform
+    if platform != "cpu":
+        return int(max(1, min(n_starts, _ACCELERATOR_SLOTS)))
     return int(min(n_starts, max(16, min(128, n_starts // 8))))
 
 

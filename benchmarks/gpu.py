@@ -241,8 +241,13 @@ def _markdown(doc: dict) -> str:
         "# jaxbox on a GPU",
         "",
         f"Written by `python benchmarks/gpu.py` on {doc['date']} (raw numbers: "
-        "`benchmarks/gpu.json`). One run on one machine: the GPU, that machine's CPU and the "
-        "plain scipy loop measured together.",
+        "`benchmarks/gpu.json`)."
+        + (
+            ""
+            if doc.get("incomplete")
+            else " One run on one machine: the GPU, that machine's CPU and the plain scipy loop "
+            "measured together."
+        ),
         "",
         f"- GPU: {m.get('gpu_name') or '?'}; JAX devices: {', '.join(m['devices'])}",
         f"- CPU: {m['cpu']}, {m['cores']} cores, memory {m['memory']}",
@@ -289,8 +294,7 @@ def _markdown(doc: dict) -> str:
             "*slots*: starts iterated together (a finished start hands its slot to the next); "
             "the default runs every start at once on a GPU (up to 16384) and at most 128 together "
             "on a CPU; the rows with 128 slots show the CPU grouping on the GPU. "
-            "*CPU*: the same call on the same machine with `JAX_PLATFORMS=cpu` "
-            "(default slots).",
+            "*CPU*: the same call with `JAX_PLATFORMS=cpu` (default slots).",
             "",
         ]
     scipy = doc.get("scipy") or cpu.get("scipy")
@@ -324,6 +328,8 @@ def _markdown(doc: dict) -> str:
                 f"building ({1 / per_fit_scipy:.1f} fits/s).",
                 "",
             ]
+    for note in doc.get("notes", []):
+        lines += [note, ""]
     return "\n".join(lines)
 
 

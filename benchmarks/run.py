@@ -601,10 +601,24 @@ def targets(res, best_all):
                 "reported",
             )
         )
-    rows.append(
-        ("GPU run of the batched benchmark", "no GPU machine available to this run", "not run")
-    )
+    rows.append(_gpu_target())
     return rows
+
+
+def _gpu_target() -> tuple[str, str, str]:
+    """The GPU row of the targets, from ``benchmarks/gpu.json`` (its own run) when there is one."""
+    path = HERE / "gpu.json"
+    if not path.exists():
+        return ("GPU run of the batched benchmark", "no GPU machine available", "not run")
+    doc = json.loads(path.read_text())
+    best = min(doc.get("multistart", []), key=lambda r: r["per_start_ms"], default=None)
+    fleet = max(doc.get("fleet", []), key=lambda r: r["fits_per_s"], default=None)
+    parts = [f"{doc['machine'].get('gpu_name') or 'GPU'}, {doc['date']} (GPU.md)"]
+    if best:
+        parts.append(f"{best['starts']} starts at {best['per_start_ms']:.2f} ms a start")
+    if fleet:
+        parts.append(f"fleet batch {fleet['fits_per_s']:.0f} fits/s in the solver")
+    return ("GPU run of the batched benchmark", "; ".join(parts), "run")
 
 
 def report(res: dict) -> str:
@@ -634,8 +648,11 @@ def report(res: dict) -> str:
     )
     w(f"- {m['os']}; JAX devices: {', '.join(m['devices'])}")
     w(
-        "- GPU: none. No GPU machine was available to this run, so the batched benchmark has not "
-        "been run on a GPU; the code is the same (`jax.devices()` picks the device)."
+        "- GPU: none in this run; the batched benchmarks ran on a GPU in their own run "
+        "(`benchmarks/gpu.py`, the section *jaxbox on a GPU* below) where one was lent."
+        if (HERE / "gpu.json").exists() and not m.get("gpu")
+        else "- GPU: none. No GPU machine was available to this run, so the batched benchmark "
+        "has not been run on a GPU; the code is the same (`jax.devices()` picks the device)."
     )
     w("- versions: " + ", ".join(f"{k} {v}" for k, v in m["versions"].items()))
     w(
@@ -930,7 +947,7 @@ def report(res: dict) -> str:
 
 
 #: section files of the topic benchmarks, appended to RESULTS.md in this order
-_TOPICS = ("CONVERGENCE", "ZOO", "GAPS", "STOCHASTIC", "FLEET", "DESIGN")
+_TOPICS = ("CONVERGENCE", "ZOO", "GAPS", "STOCHASTIC", "FLEET", "DESIGN", "GPU")
 
 _SECTIONS = (
     "jaxbox",

@@ -86,7 +86,22 @@ def test_uncertainty_compiles_once(result) -> None:
     _, J2 = sensitivities(result)
     assert _compiles() == 1 and _compiled.info()["hits"] == 1
     np.testing.assert_array_equal(J1, J2)
-    assert _uncertainty(result)._cache_size() == 1
+    # the shared program of the network in array form, traced and compiled once
+    assert _compiled.entries("uncertainty")[0]._cache_size() == 1
+
+
+def test_uncertainty_shares_one_program_between_structures(result) -> None:
+    """Structures of the same padded size (here Zon and ZonWal) share the compiled
+    sensitivities: a structure search compiles per size, not per candidate."""
+    sensitivities(result)
+    data = synthetic_building(get_model("ZonWal"), {**TRUTH, "C_wal": 2e7, "T_wal0": 15.0}, n=N)
+    other = types.SimpleNamespace(
+        problem=make_problem(get_model("ZonWal"), data),
+        params={**TRUTH, "C_wal": 2e7, "T_wal0": 15.0},
+        data=data,
+    )
+    sensitivities(other)
+    assert _compiles() == 1 and _entries("uncertainty") == 1
 
 
 def test_collocation_compiles_once(result) -> None:

@@ -1,5 +1,7 @@
 """Parameter uncertainty: exact sensitivities, covariance, interval coverage, identifiability."""
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -214,3 +216,37 @@ def test_poorly_identifiable_direction_is_flagged(zon_fit):
     assert np.all(np.isfinite(unc.std))
     assert unc.flagged
     assert unc.collinearity == pytest.approx(1 / unc.singular_values[-1])
+
+
+@pytest.mark.parametrize("name", ["ZonWalIntInf", "BM_TiTeThRia", "Zon+Wal+Int+Hea"])
+def test_shared_program_equals_the_per_structure_derivatives(name):
+    """The sensitivities come from one program per padded network size (the network as
+    arrays, the eigendecomposition discretisation); they equal forward-mode autodiff through the
+    model's own simulator (the Van Loan matrix exponential), also for data in segments."""
+    from _reference import synthetic_building
+
+    from jaxbox.models import get_model
+    from jaxbox.validate._uncertainty import _jacobian_fn, _rc_jacobian
+
+    model = get_model(name)
+    theta = {p.name: p.default for p in model.parameters}
+    data = synthetic_building(model, theta, n=96, seed=3, noise=0.05)
+    sets = [data]
+    if name == "ZonWalIntInf":  # a 12-hour hole in the inputs: two segments
+        frame = data.frame
+        frame.iloc[40:52, [frame.columns.get_loc(c) for c in model.inputs]] = np.nan
+        sets.append(Dataset(frame))
+    for d in sets:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = fit_model(model, d, starts=1, max_steps=3)
+        assert res.problem.model.segments == (2 if d is not data else 1)
+        t, u, _, _ = problem_arrays(res.problem, res.data)
+        p = jnp.asarray([res.params[n] for n in res.free])
+        fv = jnp.asarray([v for _, v in res.problem.fixed], dtype=float)
+        shared = _rc_jacobian(res.problem, t, u, p, fv)
+        assert shared is not None
+        own = _jacobian_fn(res.problem, len(t))(p, fv, jnp.asarray(t), jnp.asarray(u))
+        np.testing.assert_allclose(shared[0], own[0], rtol=0, atol=1e-9)
+        scale = np.max(np.abs(np.asarray(own[1])), axis=(0, 1))
+        np.testing.assert_allclose(shared[1] / scale, np.asarray(own[1]) / scale, atol=1e-8)

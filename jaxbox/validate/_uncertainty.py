@@ -229,6 +229,76 @@ def _pair_or_none(pair):
     return [lo, hi] if np.isfinite(lo) and np.isfinite(hi) else None
 
 
+def _round_up(n: int, step: int) -> int:
+    return step * max(1, -(-n // step))
+
+
+def _rc_jacobian(problem, t, u, p, fixed_values):
+    """``(ŷ, ∂ŷ/∂θ)`` through one compiled program shared by every structure of the same padded
+    size (the network as arrays, :meth:`~jaxbox.models.RCModel.rc_arrays`), so that a structure
+    search compiles a handful of programs instead of one per candidate; ``None`` where the
+    problem has no such form (the diffrax simulator, a node held at a constant temperature).
+
+    Sizes are rounded up (states and free parameters to multiples of 4 and 8…) so that
+    neighbouring structures share a program; padding states are inert and padding parameters
+    are referenced by nothing, so their Jacobian columns are zero and dropped.
+    """
+    from ..fit._fit import _RC_KEYS
+    from ..models._network import ModelError
+
+    model = problem.model
+    if problem.simulator != "exact" or any(node.constant for node in model.network.nodes):
+        return None
+    sizes = model.array_sizes()
+    sizes = {
+        "states": _round_up(sizes["states"], 4),
+        "edges": _round_up(sizes["edges"], 8),
+        "sources": _round_up(sizes["sources"], 4),
+        "factors": _round_up(sizes["factors"], 2),
+    }
+    n_free, n_fixed, m = len(problem.free), len(problem.fixed), len(model.inputs)
+    width, fixed_width, m_pad = _round_up(n_free, 8), _round_up(n_fixed, 8), _round_up(m, 4)
+    slots = list(problem.free) + [f"\0p{i}" for i in range(width - n_free)]
+    slots += [n for n, _ in problem.fixed] + [f"\0q{i}" for i in range(fixed_width - n_fixed)]
+    inputs = list(model.inputs) + [f"\0u{i}" for i in range(m_pad - m)]
+    try:
+        arrays = model.rc_arrays([*slots, "1", "0"], inputs=inputs, **sizes)
+    except ModelError:
+        return None
+    arrays = tuple(jnp.asarray(arrays[k]) for k in _RC_KEYS)
+    segmented = model.segments > 1
+    key = ("uncertainty", "rc", segmented, len(t), width, fixed_width, m_pad, *sizes.values())
+    key += (len(problem.output_states), model.segments)
+    fn = cached(key, lambda: _build_rc_jacobian(segmented))[0]
+    p_pad = jnp.concatenate([p, jnp.ones(width - n_free, dtype=p.dtype)])
+    q_pad = jnp.concatenate([fixed_values, jnp.ones(fixed_width - n_fixed, dtype=p.dtype)])
+    u_pad = jnp.pad(jnp.asarray(u, dtype=float), ((0, 0), (0, m_pad - m)))
+    out_idx = jnp.asarray(problem.output_states)
+    ysim, J = fn(p_pad, q_pad, jnp.asarray(t, dtype=float), u_pad, arrays, out_idx)
+    return ysim, J[..., :n_free]
+
+
+def _build_rc_jacobian(segmented: bool):
+    from ..fit._fit import _RC_KEYS
+    from ..models._network import rc_from_arrays
+    from ..simulate._exact import discretize_foh_rc, simulate_foh, simulate_foh_segments
+
+    def f(p, fixed_values, t, u, arrays, out_idx):
+        v = jnp.concatenate([p, fixed_values, jnp.asarray([1.0, 0.0], dtype=p.dtype)])
+        A, B, caps, x0 = rc_from_arrays(v, dict(zip(_RC_KEYS, arrays, strict=True)))
+        Phi, G0, G1 = discretize_foh_rc(A, B, caps, t[1] - t[0])
+        C = jax.nn.one_hot(out_idx, A.shape[0], dtype=A.dtype)
+        D = jnp.zeros((C.shape[0], u.shape[1]), dtype=A.dtype)
+        if segmented:
+            return simulate_foh_segments(Phi, G0, G1, C, D, x0, u, t)[0]
+        return simulate_foh(Phi, G0, G1, C, D, x0, u)[0]
+
+    def both(p, *args):
+        return f(p, *args), jax.jacfwd(f)(p, *args)
+
+    return jax.jit(both)
+
+
 def _jacobian_fn(problem, n_samples: int):
     """Jitted (p_free, fixed, t, u) -> (ŷ [N, p_out], ∂ŷ/∂θ [N, p_out, n_free]) for N =
     ``n_samples``, kept in the ``"uncertainty"`` room of :mod:`jaxbox._compiled`."""
@@ -270,7 +340,11 @@ def sensitivities(
         params = [result.params[n] for n in problem.free]
     p = jnp.asarray(np.asarray(params, dtype=float))
     fixed_values = jnp.asarray([v for _, v in problem.fixed], dtype=float)
-    ysim, J = _jacobian_fn(problem, len(t))(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
+    shared = _rc_jacobian(problem, t, u, p, fixed_values)
+    if shared is not None:
+        ysim, J = shared
+    else:
+        ysim, J = _jacobian_fn(problem, len(t))(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
     return np.asarray(ysim), np.asarray(J)
 
 

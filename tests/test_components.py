@@ -190,6 +190,38 @@ def test_sensor_is_measured_instead_of_the_air():
         c.sensor(c.sensor(c.wall(_net(), capacity=False)))
 
 
+def test_sensor_offset_is_a_constant_offset_of_the_outputs():
+    """A constant heat input Q_off into the zone, with the initial states shifted by its
+    steady-state response s = (−A)⁻¹ b, gives the outputs of the model without it plus the
+    constant s_zone: a sensor offset of s_zone kelvin (s_zone = Q_off / UA for one state)."""
+    base = c.heating(c.wall(_net())).build()
+    shifted = c.sensor_offset(c.heating(c.wall(_net()))).build()
+    assert shifted.inputs == (*base.inputs, "one") and "Q_off" in shifted.param_names
+    theta = base.defaults() | {"T_zon0": 19.0, "T_wal0": 14.0}
+    (A, B, _, _), _ = _matrices(shifted, **theta, Q_off=120.0)
+    s = np.linalg.solve(-A, B[:, _col(shifted, "one")])
+    rng = np.random.default_rng(0)
+    n = 200
+    t = np.arange(n) * 900.0
+    u = np.column_stack([10 + rng.normal(0, 2, n), 500.0 * (rng.random(n) > 0.5)])
+    y0 = np.asarray(simulate_arrays(base, theta, t, u)[0])
+    moved = theta | {"Q_off": 120.0, "T_zon0": 19.0 + s[0], "T_wal0": 14.0 + s[1]}
+    y1 = np.asarray(simulate_arrays(shifted, moved, t, np.column_stack([u, np.ones(n)]))[0])
+    np.testing.assert_allclose(y1, y0 + s[0], rtol=0, atol=1e-10)
+    # one state: the offset is Q_off / UA
+    one = c.sensor_offset(c.wall(_net(), capacity=False)).build()
+    (A1, B1, _, _), th = _matrices(one, Q_off=50.0)
+    off = np.linalg.solve(-A1, B1[:, _col(one, "one")])[0]
+    np.testing.assert_allclose(off, 50.0 * th["R_wal"], rtol=1e-12)
+    from jaxbox.validate import sensor_offsets
+
+    assert sensor_offsets(base, theta) == {}
+    np.testing.assert_allclose(sensor_offsets(one, th)["T_zon"], off, rtol=1e-12)
+    np.testing.assert_allclose(sensor_offsets(shifted, moved)["T_zon"], s[0], rtol=1e-12)
+    with pytest.raises(ModelError, match="unknown node"):
+        c.sensor_offset(_net(), zone="zon2")
+
+
 def test_multizone_numbering_and_coupling():
     net = RCNetwork("two")
     for z in ("zon1", "zon2"):

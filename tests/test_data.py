@@ -387,6 +387,23 @@ def test_require_message() -> None:
         ds.require("T_zon1")
 
 
+def test_the_constant_one_is_a_virtual_column() -> None:
+    """Every dataset has the input ``"one"`` (1 at every sample) for constant heat inputs; it
+    is not a column of the frame, of the files written, or of the plausibility checks."""
+    from jaxbox.data import CONSTANT, check_plausibility, prepare_window
+
+    ds = synthetic()
+    assert CONSTANT == "one" and "one" in ds and "one" not in ds.columns
+    ds.require(["T_zon", "one"])
+    a = ds.array(["Q_hea", "one", "T_zon"])
+    assert a.shape == (len(ds), 3) and a.flags.c_contiguous
+    np.testing.assert_array_equal(a[:, 1], 1.0)
+    np.testing.assert_array_equal(a[:, [0, 2]], ds.array(["Q_hea", "T_zon"]))
+    np.testing.assert_array_equal(ds["one"], np.ones(len(ds)))
+    assert prepare_window(ds, ["Q_hea", "one"], ["T_zon"]) is ds
+    check_plausibility(ds, columns=["T_zon", "one"])
+
+
 def test_array_is_a_contiguous_copy() -> None:
     ds = synthetic()
     a = ds.array(["Q_hea", "T_zon"])

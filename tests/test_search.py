@@ -33,7 +33,15 @@ def test_grammar_reads_what_the_data_drive():
     assert g.boundaries == ("T_bou", "T_cel")
     assert g.facades == ("I_s", "I_e", "I_w")
     grown = [s.name for _, s in extensions(roots(g)[0], g)]
-    assert grown == ["Zon+Wal", "Zon+Int", "Zon+Bou", "Zon+Cel", "Zon+Hea", "Zon+WinSEW"]
+    assert grown == [
+        "Zon+Wal",
+        "Zon+Int",
+        "Zon+Bou",
+        "Zon+Cel",
+        "Zon+Hea",
+        "Zon+WinSEW",
+        "Zon+Off",
+    ]
     # infiltration needs the envelope capacity; a boundary grows a capacity once present
     wal = parse_structure("Zon+Wal+Bou")
     names = [s.name for _, s in extensions(wal, g)]
@@ -44,7 +52,7 @@ def test_grammar_reads_what_the_data_drive():
 def test_grammar_without_columns_grows_nothing_they_lack():
     g = Grammar.from_columns(["T_zon", "T_amb", "Q_hea"])
     names = {s.name for _, s in extensions(parse_structure("Zon+Wal+Int"), g)}
-    assert names == {"Zon+Wal+Int+Inf", "Zon+Wal+Int+Hea", "Zon+Wal+Int+Rad"}
+    assert names == {"Zon+Wal+Int+Inf", "Zon+Wal+Int+Hea", "Zon+Wal+Int+Rad", "Zon+Wal+Int+Off"}
     m = parse_structure("Zon+Wal").build(g)
     assert set(m.inputs) == {"T_amb", "Q_hea"}  # no solar input without irradiance
 
@@ -58,6 +66,24 @@ def test_structure_names_round_trip_and_build():
         m = s.build(g)
         assert set(m.inputs) <= set(N2_COLUMNS + ["P_ele"])
         assert m.outputs == ("T_zon",)
+
+
+def test_sensor_offsets_grow_once_per_zone_and_are_never_drawn():
+    g = Grammar.from_columns(["T_zon1", "T_zon2", "T_amb", "Q_hea1", "Q_hea2", "I_glo_hor"])
+    grown = [s.name for _, s in extensions(parse_structure("Zon1+Zon2+Off2+Cpl"), g)]
+    assert "Zon1+Zon2+Off1+Off2+Cpl" in grown
+    assert not any(n.count("Off2") > 1 for n in grown)
+    m = parse_structure("Zon1+Zon2+Off2+Cpl").build(g)
+    assert "one" in m.inputs and "Q_off2" in m.param_names and "Q_off1" not in m.param_names
+    rng = np.random.default_rng(0)
+    assert not any("Off" in random_structure(g, rng).name for _ in range(200))
+    plain = Grammar.from_columns(["T_zon", "T_amb", "Q_hea"])
+    off = {s.name for _, s in extensions(parse_structure("Zon"), plain)}
+    assert "Zon+Off" in off
+    import dataclasses
+
+    none = dataclasses.replace(plain, offsets=False)
+    assert "Zon+Off" not in {s.name for _, s in extensions(parse_structure("Zon"), none)}
 
 
 def test_a_structure_name_equals_its_library_twin():
@@ -131,6 +157,20 @@ def test_search_finds_the_true_structure(search):
     case = s.case
     np.testing.assert_allclose(case.result.params["R_wal"], TRUTH["R_wal"], rtol=0.05)
     assert case.se_cross < 0.1  # twice the noise
+
+
+def test_a_sensor_offset_is_found_and_measured_in_kelvin():
+    """A two-state building whose zone sensor reads 0.3 K too high: the search adds the
+    sensor offset to the true structure, and the offset comes back in kelvin."""
+    from jaxbox.validate import sensor_offsets
+
+    data = synthetic_building(get_model("ZonWal"), TRUTH, n=240, seed=3, noise=0.05)
+    data = data.with_columns(T_zon=data["T_zon"] + 0.3)
+    s = structure_search(GreyBox(data, name="offset"), starts=4, max_depth=2)
+    assert s.accepted == "Zon+Wal+Off"
+    offset = sensor_offsets(s.case.model, s.case.result.params)["T_zon"]
+    assert abs(offset - 0.3) < 0.05
+    np.testing.assert_allclose(s.case.result.params["R_wal"], TRUTH["R_wal"], rtol=0.05)
 
 
 def test_search_tree_is_a_tree_with_reasons(search):

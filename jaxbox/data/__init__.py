@@ -30,5 +30,6 @@ from ._plausible import Finding as Finding
 from ._plausible import check_plausibility as check_plausibility
 from ._plausible import find_implausible as find_implausible
 from ._plausible import plausible_range as plausible_range
+from ._signals import CONSTANT as CONSTANT
 from ._signals import SIGNALS as SIGNALS
 from ._signals import signal_unit as signal_unit

@@ -26,6 +26,7 @@ from ._checks import (
 from ._errors import DataError, list_names
 from ._plausible import check_plausibility
 from ._resample import resample_mean
+from ._signals import CONSTANT
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -228,11 +229,14 @@ class Dataset:
         return len(self._frame)
 
     def __contains__(self, name: object) -> bool:
-        return name in self._frame.columns
+        return name == CONSTANT or name in self._frame.columns
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """One column as a new 1-D float64 array."""
+        """One column as a new 1-D float64 array (``"one"``: the constant 1, see
+        :data:`~jaxbox.data.CONSTANT`)."""
         self.require([name])
+        if name == CONSTANT and name not in self._frame.columns:
+            return np.ones(len(self._frame))
         return self._frame[name].to_numpy(dtype=np.float64, copy=True)
 
     @property
@@ -277,7 +281,7 @@ class Dataset:
         ``what`` completes the message, e.g. ``what="model 'TiTe'"`` gives "required by model
         'TiTe'".
         """
-        missing = [name for name in _names(names) if name not in self._frame.columns]
+        missing = [n for n in _names(names) if n != CONSTANT and n not in self._frame.columns]
         if not missing:
             return
         plural = "s" if len(missing) > 1 else ""
@@ -297,9 +301,16 @@ class Dataset:
         )
 
     def array(self, names: str | Iterable[str]) -> np.ndarray:
-        """Columns ``names`` as a new C-contiguous float64 array of shape (N, len(names))."""
+        """Columns ``names`` as a new C-contiguous float64 array of shape (N, len(names)); the
+        name ``"one"`` (:data:`~jaxbox.data.CONSTANT`) gives a column of ones."""
         names = _names(names)
         self.require(names)
+        if CONSTANT in names and CONSTANT not in self._frame.columns:
+            out = np.ones((len(self._frame), len(names)), dtype=np.float64)
+            real = [i for i, n in enumerate(names) if n != CONSTANT]
+            if real:
+                out[:, real] = self._frame[[names[i] for i in real]].to_numpy(dtype=np.float64)
+            return out
         return np.array(self._frame[names].to_numpy(dtype=np.float64), dtype=np.float64, order="C")
 
     # -- new datasets ---------------------------------------------------------------------------

@@ -134,6 +134,7 @@ def prepare_window(
 
     limit = duration_seconds(max_gap)
     data.require(list(inputs) + list(outputs))
+    inputs = [name for name in inputs if name in data.columns]  # not the virtual constant
     step = data.step
     frame = data._frame
     keep = np.ones(len(frame), dtype=bool)

@@ -50,7 +50,7 @@ import pandas as pd
 from ._args import check_mapping
 from ._checks import ABSURD, ABSURD_OTHER, rows_text
 from ._errors import DataError, DataWarning, list_names
-from ._signals import signal_base, signal_unit
+from ._signals import CONSTANT, signal_base, signal_unit
 
 __all__ = [
     "PLAUSIBLE_RANGES",
@@ -493,6 +493,7 @@ def find_implausible(
         chosen = [n for n in names if signal_base(n) is not None]
     else:
         chosen = [columns] if isinstance(columns, str) else [str(n) for n in columns]
+        chosen = [n for n in chosen if n != CONSTANT or n in names]  # the virtual constant
         missing = [n for n in chosen if n not in names]
         if missing:
             raise DataError(

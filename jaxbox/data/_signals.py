@@ -10,7 +10,12 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["SIGNALS", "signal_unit", "signal_base", "is_temperature"]
+__all__ = ["SIGNALS", "CONSTANT", "signal_unit", "signal_base", "is_temperature"]
+
+#: The input that is 1 at every sample: a virtual column of every dataset (no file holds it),
+#: through which a model takes a constant heat input, such as the one that stands for a constant
+#: offset of a temperature sensor (:func:`jaxbox.models.components.sensor_offset`).
+CONSTANT = "one"
 
 #: Canonical name -> (unit, description).
 SIGNALS: dict[str, tuple[str, str]] = {

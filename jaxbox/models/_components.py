@@ -29,6 +29,7 @@ component              parameters [unit]                      physical meaning
 :func:`heating`        (+ ``fra_rad`` [-])                    heating power ``Q_hea`` [W]
 :func:`electric_gains` ``fra_ele`` [-]                        internal gains ``fra_ele · P_ele`` [W]
 :func:`sensor`         ``C_sen`` [J/K], ``R_sen`` [K/W]       a sensor with its own time constant
+:func:`sensor_offset`  ``Q_off`` [W]                          constant sensor offset (or base load)
 :func:`zone_coupling`  ``R_bou`` [K/W] (+ ``C_bou`` [J/K])    two zones sharing a wall or floor
 ====================== ====================================== ======================================
 
@@ -44,6 +45,7 @@ from __future__ import annotations
 import dataclasses
 import re
 
+from ..data._signals import CONSTANT
 from ._network import RCNetwork
 from ._parameters import ModelError, Parameter, parameter_for
 
@@ -59,6 +61,7 @@ __all__ = [
     "heating",
     "electric_gains",
     "sensor",
+    "sensor_offset",
     "zone_coupling",
 ]
 
@@ -488,3 +491,24 @@ def sensor(
     net = net.node(node, output=output).resistance(zone, node, f"R_{node}")
     net = _declare(net, f"C_{node}", f"heat capacity of the sensor measuring {output}")
     return _declare(net, f"R_{node}", f"resistance between the air of {zone} and its sensor")
+
+
+def sensor_offset(net: RCNetwork, zone: str = "zon", *, suffix: str | None = None) -> RCNetwork:
+    """A constant offset of the zone's temperature sensor, as a constant heat input ``Q_off``
+    [W] (signed, bounds ±1e4 W) into the zone air, through the virtual input ``"one"``
+    (:data:`jaxbox.data.CONSTANT`, 1 at every sample).
+
+    Physical meaning: a sensor that reads ``d`` kelvin too high or too low at every sample. A
+    constant heat input ``Q`` into the zone shifts every state of the network by its steady-state
+    response, and the zone's temperature by ``d = G·Q`` with ``G`` [K/W] the zone's temperature
+    rise per watt; with the initial states free, the model with ``Q_off`` gives exactly the
+    outputs of the model without it plus the offset ``d``. The same input also stands for a
+    constant internal gain: the data cannot tell a base load from an offset.
+    """
+    s = _suffix(zone, suffix)
+    _require_zone(net, zone, "sensor offset")
+    name = f"Q_off{s}"
+    net = net.heat(zone, CONSTANT, gain=name)
+    return _declare(
+        net, name, f"constant heat input into {zone}: a sensor offset, or a constant base load"
+    )

@@ -23,6 +23,8 @@ token      component                                     needs
 ``Cpl``    two zones coupled by ``R_bou``                two zones as states
 ``CplC``   the coupling split around ``C_bou``           ``Cpl`` (it replaces it)
 ``Bz2``    zone 2's measured temperature as a boundary   a column ``T_zon2``
+``Off``    a constant sensor offset, as the constant
+           heat input ``Q_off`` into the zone
 ========== ============================================= =========================================
 
 Boundaries are named after their column: ``T_cel`` gives ``Cel``/``CelC`` (``R_cel``,
@@ -66,8 +68,8 @@ _FACADE_OF = {v: k for k, v in FACADES.items()}
 #: temperature columns that are never boundaries
 _NOT_BOUNDARY = re.compile(r"T_(amb|zon\d*|wal|int|inf|hea|rad|sol|ae|ele|cpl|win\w*|bz)$")
 #: per-zone tokens in canonical order (boundaries come after Inf, in column order)
-_ORDER = ("Wal", "Int", "Inf", "<bou>", "Hea", "Rad", "Win", "Sol", "Ae", "Ele")
-_ZONE_TOKEN = re.compile(r"(Zon|Wal|Int|Inf|Hea|Rad|Sol|Ae|Ele|Win[SEWN]+|[A-Z][a-z]+C?)(\d?)")
+_ORDER = ("Wal", "Int", "Inf", "<bou>", "Hea", "Rad", "Win", "Sol", "Ae", "Ele", "Off")
+_ZONE_TOKEN = re.compile(r"(Zon|Wal|Int|Inf|Hea|Rad|Sol|Ae|Ele|Off|Win[SEWN]+|[A-Z][a-z]+C?)(\d?)")
 
 
 def _boundary_token(column: str) -> str:
@@ -86,6 +88,7 @@ class Grammar:
         horizontal: the data have ``I_glo_hor``.
         heating: zone number -> its heating column (``Q_hea``, ``Q_hea1``…).
         electric: the data have ``P_ele``.
+        offsets: a measured zone may have a constant sensor offset (``Off``).
     """
 
     zones: tuple[int, ...]
@@ -94,6 +97,7 @@ class Grammar:
     horizontal: bool = True
     heating: tuple[tuple[int, str], ...] = ()
     electric: bool = False
+    offsets: bool = True
 
     @classmethod
     def from_columns(cls, columns: Iterable[str]) -> Grammar:
@@ -218,6 +222,8 @@ class Structure:
                 net = c.window(net, "I_glo_hor", f"wal{'' if z == 0 else z}", name="wal")
             if "Ele" in tok:
                 net = c.electric_gains(net, zone=zn)
+            if "Off" in tok:
+                net = c.sensor_offset(net, zn)
         cpl = [t for z, t in self.tokens if z == -1]
         if len(self.states) == 2 and cpl:
             a, b = (zone_names[z] for z in self.states)
@@ -257,6 +263,7 @@ _WORDS = {
     "Sol": "solar share to the mass",
     "Ae": "solar gains on the envelope",
     "Ele": "electric gains",
+    "Off": "sensor offset",
 }
 
 
@@ -366,6 +373,8 @@ def _zone_extensions(s: Structure, z: int, g: Grammar) -> list[tuple[str, frozen
         add("solar gains on the envelope", "Ae")
     if g.electric and "Ele" not in tok:
         add("electric gains", "Ele")
+    if g.offsets and "Off" not in tok:
+        add("sensor offset", "Off")
     return out
 
 
@@ -388,7 +397,9 @@ def random_structure(
     grammar: Grammar, rng: np.random.Generator, size: int | None = None
 ) -> Structure:
     """A random structure of the grammar: a root grown by ``size`` random extensions (drawn
-    from 0 to 4 when not given)."""
+    from 0 to 4 when not given). A sensor offset is not a component of the building: it is
+    never drawn (the test-building generator adds offsets to the measurements)."""
+    grammar = dataclasses.replace(grammar, offsets=False)
     options = roots(grammar)
     s = options[int(rng.integers(len(options)))] if grammar.zones != (0,) else options[0]
     n = int(rng.integers(0, 5)) if size is None else int(size)

@@ -11,7 +11,11 @@ prefix     unit    default guess                 default bounds
 ``gA*``    m²      2                             [0, 50]
 ``fra_*``  –       0.5                           [0, 1] (``fra_ele``: [0, 3])
 ``T_*0``   °C      20                            [-3, 37]
+``Q_*``    W       0                             [-1e4, 1e4]
 ========== ======= ============================= =================================
+
+``Q_*`` is a constant heat input (signed): a steady base load, or the heat that stands for a
+constant offset of a temperature sensor (:func:`~jaxbox.models.components.sensor_offset`).
 """
 
 from __future__ import annotations
@@ -104,6 +108,7 @@ NAMING: tuple[tuple[str, str, float, float, float, str], ...] = (
     (r"gA(_\w+)?", "m²", 2.0, 0.0, 50.0, "solar aperture {}"),
     (r"fra_ele", "-", 1.0, 0.0, 3.0, "fraction of electricity use released as internal gains"),
     (r"fra_\w+", "-", 0.5, 0.0, 1.0, "fraction {}"),
+    (r"Q_\w+", "W", 0.0, -1e4, 1e4, "constant heat input {}"),
 )
 
 
@@ -112,7 +117,7 @@ def parameter_for(name: str, description: str | None = None) -> Parameter:
 
     Raises:
         ModelError: when ``name`` follows none of the prefixes ``R_``, ``C_``, ``gA``, ``fra_``,
-            ``T_*0``.
+            ``T_*0``, ``Q_``.
     """
     for pattern, unit, default, lower, upper, text in NAMING:
         if re.fullmatch(pattern, name):
@@ -124,5 +129,5 @@ def parameter_for(name: str, description: str | None = None) -> Parameter:
             return Parameter(name, unit, default, lower, upper, description or text)
     raise ModelError(
         f"parameter name {name!r} follows no naming convention (R_* K/W, C_* J/K, gA* m², "
-        "fra_* -, T_*0 °C); rename it or pass an explicit Parameter for it"
+        "fra_* -, T_*0 °C, Q_* W); rename it or pass an explicit Parameter for it"
     )

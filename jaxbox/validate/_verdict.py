@@ -58,6 +58,7 @@ __all__ = [
     "Verdict",
     "check_validity",
     "heat_loss_coefficients",
+    "sensor_offsets",
     "time_constants",
 ]
 
@@ -273,6 +274,32 @@ def heat_loss_coefficients(model, params: Mapping[str, float]) -> dict[str, tupl
         gain = float(G[k, j])
         out[u] = (1.0 / gain if gain != 0 else math.inf, model.outputs[k])
     return out
+
+
+def sensor_offsets(model, params: Mapping[str, float]) -> dict[str, float]:
+    """The constant sensor offset [K] that each output's constant heat input stands for.
+
+    A model with :func:`~jaxbox.models.components.sensor_offset` (``Off`` in a structure name)
+    takes the constant heat ``Q_off`` [W] through the input ``"one"``; at steady state it moves
+    the outputs by ``G = C (−A)⁻¹ b`` [K], ``b`` the column of that input: the offset of each
+    measured temperature (``Q_off / UA`` for one state).
+
+    Returns:
+        ``{output: offset [K]}``; empty when the model has no constant input or its state matrix
+        is singular.
+    """
+    from ..data import CONSTANT
+
+    if CONSTANT not in model.inputs:
+        return {}
+    A, B, C, D = _state_space(model, params)
+    dyn = [i for i, n in enumerate(model.network.nodes) if not getattr(n, "constant", False)]
+    j = model.inputs.index(CONSTANT)
+    try:
+        g = C[:, dyn] @ np.linalg.solve(-A[np.ix_(dyn, dyn)], B[dyn, j]) + D[:, j]
+    except np.linalg.LinAlgError:
+        return {}
+    return {o: float(v) for o, v in zip(model.outputs, g, strict=True) if np.isfinite(v)}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -120,9 +120,12 @@ def markdown(doc: dict) -> str:
     lines = [
         "## Structure search on the zoo (benchmarks/zoo.py)",
         "",
-        f"Written by `python benchmarks/zoo.py` on {doc['date']}; {doc['machine']}; raw numbers "
-        "in `benchmarks/zoo.json`. Default `select` (structure search, criterion cv, "
-        f"{doc['starts']} starts per candidate, data split in halves).{partial}",
+        f"Written by `python benchmarks/zoo.py{' --only …' if doc.get('only') else ''}"
+        f"{'' if doc.get('offsets', True) else ' --no-offsets'}` on {doc['date']}"
+        f"{'' if 'offsets' in doc else ' (before the sensor-offset token `Off`)'}; "
+        f"{doc['machine']}; raw numbers in `benchmarks/zoo.json`. Default `select` (structure "
+        f"search, criterion cv, {doc['starts']} starts per candidate, data split in halves)."
+        f"{partial}",
         "",
         "| buildings | accepted a valid model | exact structure | equivalent | "
         "RMSE ≤ 1.5× noise | median search [s] |",
@@ -147,6 +150,17 @@ def markdown(doc: dict) -> str:
             f"| {step} | {len(rs)} | {sum(r['equivalent'] for r in oks)}/{len(rs)} | "
             f"{sum(r['rmse_over_noise'] <= 1.5 for r in oks)}/{len(rs)} |"
         )
+    if any("offset_modelled" in r for r in ok):
+        with_off = [r for r in ok if r.get("offset")]
+        without = [r for r in ok if not r.get("offset")]
+        lines += [
+            "",
+            "Sensor offsets (structures are compared without `Off`): modelled on "
+            f"{sum(r['offset_modelled'] for r in with_off)} of the {len(with_off)} buildings "
+            f"whose sensor has an offset, and on {sum(r['offset_modelled'] for r in without)} "
+            f"of the {len(without)} without."
+            + ("" if doc.get("offsets", True) else " (This run searched without `Off`.)"),
+        ]
     cov = [r for r in ok if r.get("intervals")]
     if cov:
         hit = sum(r["covered"] for r in cov)

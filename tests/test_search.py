@@ -170,6 +170,7 @@ def test_a_sensor_offset_is_found_and_measured_in_kelvin():
     assert s.accepted == "Zon+Wal+Off"
     offset = sensor_offsets(s.case.model, s.case.result.params)["T_zon"]
     assert abs(offset - 0.3) < 0.05
+    assert f"sensor offset of T_zon: {offset:+.3f} K" in s.case.result.summary()
     np.testing.assert_allclose(s.case.result.params["R_wal"], TRUTH["R_wal"], rtol=0.05)
 
 

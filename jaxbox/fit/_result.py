@@ -178,6 +178,8 @@ class FitResult:
                 f"{n:<10} {row['value']:>12.5g} {row['unit']:<4} {row['lower']:>10.3g} "
                 f"{row['upper']:>10.3g}  {note}"
             )
+        for output, kelvin in self.model.sensor_offsets(self.params).items():
+            lines.append(f"sensor offset of {output}: {kelvin:+.3f} K (the constant heat input)")
         return "\n".join(lines)
 
     def __repr__(self) -> str:

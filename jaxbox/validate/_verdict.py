@@ -282,24 +282,13 @@ def sensor_offsets(model, params: Mapping[str, float]) -> dict[str, float]:
     A model with :func:`~jaxbox.models.components.sensor_offset` (``Off`` in a structure name)
     takes the constant heat ``Q_off`` [W] through the input ``"one"``; at steady state it moves
     the outputs by ``G = C (−A)⁻¹ b`` [K], ``b`` the column of that input: the offset of each
-    measured temperature (``Q_off / UA`` for one state).
+    measured temperature (``Q_off / UA`` for one state). See :meth:`RCModel.sensor_offsets`.
 
     Returns:
         ``{output: offset [K]}``; empty when the model has no constant input or its state matrix
         is singular.
     """
-    from ..data import CONSTANT
-
-    if CONSTANT not in model.inputs:
-        return {}
-    A, B, C, D = _state_space(model, params)
-    dyn = [i for i, n in enumerate(model.network.nodes) if not getattr(n, "constant", False)]
-    j = model.inputs.index(CONSTANT)
-    try:
-        g = C[:, dyn] @ np.linalg.solve(-A[np.ix_(dyn, dyn)], B[dyn, j]) + D[:, j]
-    except np.linalg.LinAlgError:
-        return {}
-    return {o: float(v) for o, v in zip(model.outputs, g, strict=True) if np.isfinite(v)}
+    return model.sensor_offsets(params)
 
 
 @dataclasses.dataclass(frozen=True)

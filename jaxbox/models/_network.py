@@ -727,22 +727,30 @@ class RCModel:
         C[np.arange(len(out_nodes)), out_nodes] = 1.0
         return A, B, C, np.zeros((len(out_nodes), len(self.inputs)))
 
+    def steady_state_gains(self, theta: Mapping) -> np.ndarray | None:
+        """``G = C (−A)⁻¹ B + D`` [outputs, inputs] over the nodes that are not held at a constant
+        temperature: how far each output moves per unit of each input at steady state (K/K,
+        K/W, K per W/m²), evaluated in numpy; ``None`` when the state matrix is singular."""
+        A, B, C, D = self.state_space_numpy({k: float(np.asarray(v)) for k, v in theta.items()})
+        dyn = [i for i, n in enumerate(self.network.nodes) if not n.constant]
+        try:
+            return C[:, dyn] @ np.linalg.solve(-A[np.ix_(dyn, dyn)], B[dyn]) + D
+        except np.linalg.LinAlgError:
+            return None
+
     def sensor_offsets(self, theta: Mapping) -> dict[str, float]:
         """The constant offset [K] of each output that the constant heat input (the input
-        ``"one"``, :func:`~jaxbox.models.components.sensor_offset`) stands for: its steady-state
-        response ``C (−A)⁻¹ b``; empty without such an input or with a singular state matrix.
-        Also :func:`jaxbox.validate.sensor_offsets`."""
+        ``"one"``, :func:`~jaxbox.models.components.sensor_offset`) stands for: its column of
+        :meth:`steady_state_gains`; empty without such an input or with a singular state
+        matrix. Also :func:`jaxbox.validate.sensor_offsets`."""
         from ..data._signals import CONSTANT
 
         if CONSTANT not in self.inputs:
             return {}
-        A, B, C, D = self.state_space_numpy({k: float(np.asarray(v)) for k, v in theta.items()})
-        dyn = [i for i, n in enumerate(self.network.nodes) if not n.constant]
-        j = self.inputs.index(CONSTANT)
-        try:
-            g = C[:, dyn] @ np.linalg.solve(-A[np.ix_(dyn, dyn)], B[dyn, j]) + D[:, j]
-        except np.linalg.LinAlgError:
+        G = self.steady_state_gains(theta)
+        if G is None:
             return {}
+        g = G[:, self.inputs.index(CONSTANT)]
         return {o: float(v) for o, v in zip(self.outputs, g, strict=True) if np.isfinite(v)}
 
     def state_space(self, theta: Mapping) -> tuple:

@@ -258,14 +258,8 @@ def heat_loss_coefficients(model, params: Mapping[str, float]) -> dict[str, tupl
     inputs = _heat_inputs(model)
     if not inputs:
         return {}
-    A, B, C, D = _state_space(model, params)
-    dyn = [i for i, n in enumerate(model.network.nodes) if not getattr(n, "constant", False)]
-    A, B, C = A[np.ix_(dyn, dyn)], B[dyn], C[:, dyn]
-    try:
-        G = C @ np.linalg.solve(-A, B) + D
-    except np.linalg.LinAlgError:
-        return {}
-    if not np.all(np.isfinite(G)):
+    G = model.steady_state_gains(params)
+    if G is None or not np.all(np.isfinite(G)):
         return {}
     out = {}
     for u in inputs:

@@ -344,6 +344,50 @@ def test_greybox_cases_on_gappy_data(two_segments, tmp_path):
     assert back[MODEL].se_auto == pytest.approx(case.se_auto, rel=1e-9)
 
 
+def test_validation_estimates_the_state_after_a_long_outage():
+    """A two-day outage of every signal inside the validation window, the envelope driven far
+    from where the interpolated inputs would leave it (no sun and the heating on full during the
+    outage): the slow wall state at the first sample after it is estimated from the segment's
+    outputs, close to the true one, so the validation error stays at the noise level; carried
+    across the gap instead, it would be off by kelvins."""
+    from jaxbox.validate import CARRY_GAP
+
+    theta = {"C_zon": 2e6, "C_wal": 8e7, "R_wal": 0.005, "gA": 3.0, "T_zon0": 20.0, "T_wal0": 14.0}
+    n, cut, back = 288, 170, 218  # 48 h missing
+    assert (back - cut) * STEP > CARRY_GAP
+    u = inputs(n, seed=3)
+    u["Q_hea"][cut:back] = 6000.0
+    u["I_glo_hor"][cut:back] = 0.0
+    full = Dataset.from_arrays(np.arange(n) * STEP, {**u, "T_zon": np.zeros(n)}, start="2024-01-01")
+    model = jaxbox.get_model("ZonWal")
+    sim = jaxbox.simulate_model(model, theta, full)
+    noise = np.random.default_rng(4).normal(0, 0.02, n)
+    frame = full.with_columns(T_zon=sim.y[:, 0] + noise).frame
+    frame = frame.drop(frame.index[cut:back])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        data = Dataset(frame)
+        ident, valid = data.windows(("2024-01-01", "2024-01-07 03:00"), None)
+        result = jaxbox.fit_model("ZonWal", ident, starts=4, seed=0)
+        v = validate(result, valid, method="exact")
+    after = len(v.index_cross) - (n - back)  # the first validation sample after the outage
+    assert v.index_cross[after] == frame.index[cut]  # (the row after the dropped ones)
+    true_wall = sim.x[back, 1]
+    assert abs(v.x_cross[after, 1] - true_wall) < 0.1
+    # the carried state (interpolated inputs: half the heating, some sun) is far off
+    carried_from = v.x_cross[after - 1]
+    A, B, _, _ = result.model.state_space_numpy(result.params)
+    from jaxbox.simulate._exact import discretize_foh_numpy
+
+    names = list(result.model.inputs)
+    u0 = np.array([u[k][cut - 1] for k in names])
+    u1 = np.array([u[k][back] for k in names])
+    Phi, G0, G1 = discretize_foh_numpy(A, B, (back - cut + 1) * STEP)
+    carried = Phi @ carried_from + G0 @ u0 + G1 @ (u1 - u0)
+    assert abs(carried[1] - true_wall) > 1.0
+    assert v.rmse_cross["T_zon"] < 0.04
+
+
 def test_validation_carries_the_state_across_an_outage():
     """A six-hour outage of every signal inside the validation window: the slow envelope state
     is carried across it (one exact step with the inputs interpolated linearly), so the

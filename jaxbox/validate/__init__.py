@@ -17,6 +17,7 @@ from ._plots import plot_multistart as plot_multistart
 from ._plots import plot_prediction as plot_prediction
 from ._plots import plot_residuals as plot_residuals
 from ._plots import plot_residuals_vs_inputs as plot_residuals_vs_inputs
+from ._postsim import CARRY_GAP as CARRY_GAP
 from ._postsim import Validation as Validation
 from ._postsim import ValidationError as ValidationError
 from ._postsim import validate as validate

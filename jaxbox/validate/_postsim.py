@@ -5,7 +5,8 @@ with diffrax (Kvaerno5, PID step control, steps clipped to the samples) so that 
 discretisation error of the estimation shows up in the validation error. The run covers the
 identification data (auto-validation) and continues over the validation data (cross-validation),
 which therefore starts from the model state at the end of the identification period. Data in
-segments are simulated segment by segment, and output gaps are left out of the metrics.
+segments are simulated segment by segment (a validation segment after a long gap from initial
+states estimated on it), and output gaps are left out of the metrics.
 """
 
 from __future__ import annotations
@@ -19,7 +20,15 @@ from ..simulate import simulate_arrays
 from ..simulate._exact import discretize_foh_numpy
 from ._metrics import rmse, simulation_error
 
-__all__ = ["Validation", "validate", "ValidationError"]
+__all__ = ["Validation", "validate", "ValidationError", "CARRY_GAP"]
+
+#: The longest gap [s] (missing time) before a validation segment across which the model state
+#: is carried
+#: (one exact step, the inputs interpolated linearly). After a longer gap the interpolated
+#: inputs miss what drove the building (a day's sun, the heating), so the segment's unmeasured
+#: initial states are estimated from its own outputs instead (a linear least-squares fit, as
+#: MATLAB's ``compare`` does by default).
+CARRY_GAP = 6 * 3600.0
 
 
 class ValidationError(ValueError):
@@ -229,12 +238,15 @@ def validate(
 
     Data in segments are simulated segment by segment: each segment of the identification data
     from its estimated initial states; the validation data from the model state at the end of
-    the identification data when they follow it directly, and any later segment of theirs (after
-    a long gap) from the model state carried across the gap (one exact step with the inputs
-    interpolated linearly over it), measured states restarting at their measurement; where an
-    input is missing at the gap's edges, from the data rule of :func:`jaxbox.fit.state_guess`
-    (measured states at their measurement, unmeasured ones between their neighbours). Output
-    gaps are left out of the RMSE and SE.
+    the identification data when they follow it directly. A segment of theirs after a gap of at
+    most :data:`CARRY_GAP` (missing time) starts from the model state carried across the gap
+    (one exact step with the inputs interpolated linearly over it), measured states restarting at
+    their measurement. After a longer gap, or one with an input missing at its edges, the
+    measured states start at their measurement and the unmeasured ones are estimated from the
+    segment's outputs (linear least squares; the data rule of :func:`jaxbox.fit.state_guess`
+    where the segment does not observe them): interpolated inputs over a day miss what drove
+    the building, and a slow envelope state guessed wrong would dominate the validation error.
+    Output gaps are left out of the RMSE and SE.
 
     Returns:
         :class:`Validation` with RMSE per output and SE on both periods.
@@ -271,21 +283,36 @@ def validate(
     X0 = np.stack(starts)
     key = tuple(sorted(opts.items()))
     Y, X = _simulate(base, theta, t, U, X0, method, key)
-    if any(carried):  # validation segments after a long gap: the state carried across it
+    if any(carried):  # validation segments after a gap: the state carried across a short one
         index = ident.index if valid is None else ident.index.append(valid.index)
         measured = result.problem.output_states
+        estimated = []
         for k, (a, _) in enumerate(pieces):
             if not carried[k]:
                 continue
             pa, pb = pieces[k - 1]
             gap = float((index[a] - index[a - 1]).total_seconds())
-            x = _across_gap(base, theta, X[k - 1, pb - pa - 1], u[a - 1], u[a], gap)
-            if x is None:
-                continue  # inputs missing at the edges: the data rule stays
+            x = None
+            if gap - float(ident.step) <= CARRY_GAP * (1 + 1e-9):  # its missing time
+                x = _across_gap(base, theta, X[k - 1, pb - pa - 1], u[a - 1], u[a], gap)
+            if x is None:  # a long gap, or inputs missing at its edges: estimated below
+                estimated.append(k)
+                continue
             for j, i in enumerate(measured):  # a measured state restarts at its measurement
                 x[i] = y[a, j] if np.isfinite(y[a, j]) else x[i]
             X0[k] = x
+        if estimated:  # the unmeasured states from the segment's own outputs
             Y, X = _simulate(base, theta, t, U, X0, method, key)
+            free = [
+                i for i, m in enumerate(base.network.nodes) if i not in measured and not m.constant
+            ]
+            sqrt_q = np.sqrt(np.asarray(result.problem.weights, dtype=float))
+            for k in estimated:
+                a, b = pieces[k]
+                X0[k] = _estimated_start(
+                    base, theta, float(ident.step), X0[k], free, Y[k, : b - a], y[a:b], sqrt_q
+                )
+        Y, X = _simulate(base, theta, t, U, X0, method, key)
     ysim = np.concatenate([Y[k, : b - a] for k, (a, b) in enumerate(pieces)])
     xs = np.concatenate([X[k, : b - a] for k, (a, b) in enumerate(pieces)])
     if not (np.all(np.isfinite(ysim)) and np.all(np.isfinite(xs))):
@@ -322,6 +349,35 @@ def validate(
             u_cross=u[n_id:],
         )
     return Validation(**out)
+
+
+def _estimated_start(model, params, dt, x0, free, sim, meas, sqrt_q):
+    """The initial state ``x0`` [°C] of a validation segment after a long gap, its unmeasured
+    states ``free`` (indices) estimated from the segment's outputs, as MATLAB's ``compare`` does
+    by default: the weighted linear least-squares fit of the run ``sim`` [N, p] from ``x0`` to
+    the measured ``meas`` [N, p] (output gaps left out), through the zero-input responses of the
+    exact recursion at the step ``dt`` [s] (the outputs are linear in the initial state).
+    Directions the segment hardly observes keep their value in ``x0``, and so does every state
+    when the fit is not finite."""
+    x0 = np.asarray(x0, dtype=float).copy()
+    if not free or len(sim) < 2:
+        return x0
+    A, B, C, D = model.state_space_numpy({k: float(v) for k, v in params.items()})
+    n = len(free)
+    unit = np.zeros((n, A.shape[0]))
+    unit[np.arange(n), free] = 1.0
+    zeros = np.zeros((n, len(sim), B.shape[1]))
+    resp, _ = exact_runs_numpy(A, B, C, D, dt, zeros, unit)  # [n, N, p]
+    ok = np.isfinite(meas) & np.isfinite(sim)
+    S = (resp * sqrt_q)[:, ok].T  # [measured samples, n]
+    r = ((np.asarray(meas) - sim) * sqrt_q)[ok]
+    if len(r) < n:
+        return x0
+    delta, *_ = np.linalg.lstsq(S, r, rcond=1e-9)
+    if not np.all(np.isfinite(delta)):
+        return x0
+    x0[free] += delta
+    return x0
 
 
 def _across_gap(model, params, x, u0, u1, gap):

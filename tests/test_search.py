@@ -336,6 +336,12 @@ def test_between_lineages_the_shared_zone_decides():
     better = _fake("Zon1+Zon2+Wal1+Cpl", ["T_zon1", "T_zon2"], se=0.2, rel=[0.05, 0.05])
     assert _accept([both, better, held], judge) is better
     assert _accept([], judge) is None
+    # as many zones, none shared: the one predicting its zone better relative to its spread,
+    # not the lower SE (a zone held at its setpoint has a small SE and little to predict)
+    free = _fake("Zon1+Wal1+Bz2", ["T_zon1"], se=0.3, rel=[0.1])
+    steady = _fake("Zon2+Wal2+Bz1", ["T_zon2"], se=0.1, rel=[0.4])
+    assert _accept([steady, free], judge) is free
+    assert _accept([free, steady], judge) is free
 
 
 def test_stepping_stones_are_the_best_relative_fits_per_lineage():

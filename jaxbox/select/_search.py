@@ -239,7 +239,7 @@ def _accept(valid: list[Case], judge: _Judge) -> Case | None:
     lineages (models predicting different zones), the one predicting more zones unless another
     predicts the zones they share far better (relative RMSE lower by :data:`LINEAGE_MARGIN`: a
     model fed the other zone's measured temperature has an edge it does not owe to its
-    structure)."""
+    structure). Between lineages of as many zones, the lower relative RMSE leads."""
     best: dict[tuple, Case] = {}
     for c in valid:
         k = _lineage(c)
@@ -247,7 +247,13 @@ def _accept(valid: list[Case], judge: _Judge) -> Case | None:
             best[k] = c
     if not best:
         return None
-    order = sorted(best.values(), key=lambda c: (-len(_lineage(c)), _rank(c, judge)))
+    # more zones first; between lineages of as many zones, the error relative to the spread of
+    # the zones each predicts (the SE of a zone held by its thermostat is small for want of
+    # anything to predict, not for a better model)
+    order = sorted(
+        best.values(),
+        key=lambda c: (-len(_lineage(c)), _relative_rmse(c, set(_lineage(c))), _rank(c, judge)),
+    )
     champion = order[0]
     for other in order[1:]:
         common = set(_lineage(champion)) & set(_lineage(other))

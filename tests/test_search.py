@@ -55,6 +55,10 @@ def test_grammar_without_columns_grows_nothing_they_lack():
     assert names == {"Zon+Wal+Int+Inf", "Zon+Wal+Int+Hea", "Zon+Wal+Int+Rad", "Zon+Wal+Int+Off"}
     m = parse_structure("Zon+Wal").build(g)
     assert set(m.inputs) == {"T_amb", "Q_hea"}  # no solar input without irradiance
+    # a heater capacity and a radiative share are two accounts of the heating's lag: a
+    # structure with an internal mass and a heater capacity offers the share in its place
+    swap = dict((s.name, what) for what, s in extensions(parse_structure("Zon+Int+Hea"), g))
+    assert "Zon+Int+Rad" in swap and "instead of the heater capacity" in swap["Zon+Int+Rad"]
 
 
 def test_structure_names_round_trip_and_build():
@@ -420,6 +424,29 @@ def test_a_fast_capacity_the_data_cannot_see_is_settled():
     assert tau == pytest.approx(truth["R_hea"] * truth["C_hea"], rel=0.3)
     # a case not judged yet has nothing to settle
     assert _fast_capacities(gb.add_case("Zon", starts=1)) == []
+
+
+def test_a_fast_node_on_its_capacity_floor_is_settled():
+    """Zone air of a few seconds' time constant in hourly data, against a heavy internal mass:
+    the fit puts C_zon on its lower bound (the data see the node as instantaneous), which is
+    settled like an undetermined capacity; the retry is valid and as good."""
+    from jaxbox.select._cases import run_cases
+    from jaxbox.select._search import _fast_capacities, _settled_retry
+
+    truth = {"C_zon": 2e3, "C_int": 2e7, "R_wal": 0.005, "R_int": 0.002, "gA": 2.0}
+    truth.update(T_zon0=20.0, T_int0=19.0)
+    data = synthetic_building(get_model("Zon+Int"), truth, n=240, seed=4, noise=0.05)
+    gb = GreyBox(data, name="floor")
+    case = gb.add_case("Zon+Int", starts=4)
+    run_cases([case])
+    assert "C_zon" in case.verdict.flagged("at_bound")
+    assert case.result.bound_position()["C_zon"] < 0.01
+    assert _fast_capacities(case) == ["C_zon"]
+    retry = _settled_retry(gb, case, ["C_zon"], lambda _: None)
+    run_cases([retry])
+    assert retry.is_valid, retry.reasons
+    assert retry.score == pytest.approx(case.score, rel=0.02)
+    assert retry.result.params["R_int"] == pytest.approx(truth["R_int"], rel=0.3)
 
 
 def test_a_capacity_seen_only_through_its_lag_is_settled():

@@ -336,7 +336,9 @@ def roots(grammar: Grammar) -> list[Structure]:
     ]
 
 
-def _zone_extensions(s: Structure, z: int, g: Grammar) -> list[tuple[str, frozenset]]:
+def _zone_extensions(
+    s: Structure, z: int, g: Grammar, swaps: bool = True
+) -> list[tuple[str, frozenset]]:
     tok = set(s.zone_tokens(z))
     heat = g.heat_column(z) is not None
     solar = g.horizontal or bool(g.facades)
@@ -365,6 +367,8 @@ def _zone_extensions(s: Structure, z: int, g: Grammar) -> list[tuple[str, frozen
         add("heater capacity", "Hea")
     if heat and "Int" in tok and "Hea" not in tok and "Rad" not in tok:
         add("radiative heating share", "Rad")
+    if swaps and heat and "Int" in tok and "Hea" in tok:  # two accounts of a heating's lag
+        add("radiative heating share instead of the heater capacity", "Rad", drop="Hea")
     if g.facades and s.window(z) is None:
         add("facade windows", "Win" + "".join(FACADES[f] for f in g.facades))
     if solar and ("Int" in tok or "Wal" in tok) and "Sol" not in tok:
@@ -378,13 +382,17 @@ def _zone_extensions(s: Structure, z: int, g: Grammar) -> list[tuple[str, frozen
     return out
 
 
-def extensions(structure: Structure, grammar: Grammar) -> list[tuple[str, Structure]]:
+def extensions(
+    structure: Structure, grammar: Grammar, *, swaps: bool = True
+) -> list[tuple[str, Structure]]:
     """The one-component extensions of ``structure`` that the data can drive, as
-    ``(what was added, new structure)``, in a fixed order."""
+    ``(what was added, new structure)``, in a fixed order. With ``swaps``, also the moves that
+    trade one component for another of the same role (a radiative heating share in place of a
+    heater capacity: two accounts of the heating's lag)."""
     out = []
     for z in structure.states:
         where = "" if z == 0 else f" (zone {z})"
-        for label, tokens in _zone_extensions(structure, z, grammar):
+        for label, tokens in _zone_extensions(structure, z, grammar, swaps):
             out.append((label + where, dataclasses.replace(structure, tokens=tokens)))
     if structure.has(-1, "Cpl"):
         t = (set(structure.tokens) - {(-1, "Cpl")}) | {(-1, "CplC")}
@@ -404,7 +412,7 @@ def random_structure(
     s = options[int(rng.integers(len(options)))] if grammar.zones != (0,) else options[0]
     n = int(rng.integers(0, 5)) if size is None else int(size)
     for _ in range(n):
-        ext = extensions(s, grammar)
+        ext = extensions(s, grammar, swaps=False)  # (the zoo's structures stay as drawn)
         if not ext:
             break
         s = ext[int(rng.integers(len(ext)))][1]

@@ -23,8 +23,8 @@ temperature ended on its bound, with that bound narrowed to the temperatures aro
 (as the forward selection does); so is a child made invalid only by resistances on their
 upper bound, with those heat paths cut (the resistances fixed at that bound: the data do not
 use them), and a child made invalid only by the interval of a fast node's capacity (own time
-constant under two sampling steps), with that capacity fixed at its estimate (the data see the
-node's lag, not its capacity).
+constant under two sampling steps) or by that capacity on its lower bound, with that capacity
+fixed at its estimate (the data see the node's lag, or no lag at all, not its capacity).
 
 When no child of a beam improves, the search looks one component further before it stops: the
 ``lookahead`` children that fit the identification data best (relative to their parent, at
@@ -36,12 +36,13 @@ search stops when neither step improves.
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
 the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
 one). Each set of predicted zones is a *lineage* with its own beam: candidates are compared by
-the criterion within a lineage only. The two-state root is grown even when it is not valid (a
-coupled model too simple to be valid may become so with a component more), as is the best root
-when none is valid. The accepted model is the best valid candidate of its lineage; between
-lineages, the one predicting more zones, unless another predicts the zones they share far better
-(mean RMSE relative to each zone's measured spread, lower by a third: a zone fed the other
-zone's measured temperature has an edge it does not owe to its structure).
+the criterion within a lineage only. Every root is grown, valid or not (the simplest model of a
+set of zones is often too simple to be valid, and a component more may make it so). The accepted
+model is the best valid candidate of its lineage; between lineages, the one predicting more
+zones, unless another predicts the zones they share far better (mean RMSE relative to each
+zone's measured spread, lower by a third: a zone fed the other zone's measured temperature has
+an edge it does not owe to its structure); between lineages of as many zones, the lower such
+relative RMSE.
 
 Validity is judged lazily: a candidate's intervals and verdict are computed only when its
 criterion value could make it improve, which keeps the cost of a step close to the cost of its
@@ -397,22 +398,16 @@ def structure_search(
     )
     run(first, 0)
     beam_cases = settle([(c, None) for c in first])
-    if not beam_cases:  # nothing valid among the roots: grow the best one all the same
-        best = min(first, key=lambda c: _rank(c, judge))
-        if best.done:
-            beam_cases = [best]
-            nodes[best.name]["status"] = "grown"
-            nodes[best.name]["why"] = "no valid root: the best one is grown all the same"
-    else:  # a root that models more zones as states than any valid one is grown all the same
-        most = max(len(c.model.outputs) for c in beam_cases)
-        for c in first:
-            if c.done and c not in beam_cases and len(c.model.outputs) > most:
-                beam_cases.append(c)
-                nodes[c.name]["status"] = "grown"
-                nodes[c.name]["why"] = (
-                    "not valid, but it models more zones as states than any valid root: "
-                    "grown all the same"
-                )
+    # every lineage is grown from its root, valid or not: the simplest structure of a set of
+    # zones is often too simple to be valid (a solar aperture at zero where the envelope is
+    # missing), and a component more may make it so
+    for c in first:
+        if c.done and c not in beam_cases and np.isfinite(judge.value(c)):
+            beam_cases.append(c)
+            nodes[c.name]["status"] = "grown"
+            nodes[c.name]["why"] = (
+                f"{nodes[c.name].get('why') or 'not valid'}; a root: grown all the same"
+            )
     stopped = "no root could be fitted" if not beam_cases else ""
 
     def grow(pairs: list[tuple[Case, Case]], depth: int) -> tuple[list[Case], list]:
@@ -566,21 +561,31 @@ _BLURRED = ("wide_interval", "poorly_identifiable", "not_identifiable")
 
 
 def _fast_capacities(case: Case) -> list[str]:
-    """Capacities that only their intervals make ``case`` invalid for, of nodes whose lag the
-    data see but not the capacity: a fast node (own time constant ``τ = C/ΣG`` below two
-    sampling steps), or a node whose ``τ`` is determined (its 95 % interval within
-    :data:`~jaxbox.validate.MAX_REL_CI`) while ``C`` is not — a heater seen only through the
-    zone it warms shows ``R·C``, not how it splits."""
+    """Capacities that only their intervals (or, for a fast node, its lower bound) make
+    ``case`` invalid for, of nodes whose lag the data see but not the capacity: a fast node
+    (own time constant ``τ = C/ΣG`` below two sampling steps), or a node whose ``τ`` is
+    determined (its 95 % interval within :data:`~jaxbox.validate.MAX_REL_CI`) while ``C`` is
+    not — a heater seen only through the zone it warms shows ``R·C``, not how it splits."""
     if case.verdict is None or case.is_valid or not case.done:
         return []
     blurred = {n for kind in _BLURRED for n in case.verdict.flagged(kind)}
-    if set(case.verdict.flagged()) - blurred:
+    pos = case.result.bound_position()
+    floored = {  # capacities on their lower bound: a node the data see as instantaneous
+        n for n in case.verdict.flagged("at_bound") if n.startswith("C_") and pos.get(n, 1.0) < 0.5
+    }
+    if set(case.verdict.flagged()) - blurred - floored:
         return []
     params = {k: float(v) for k, v in case.result.params.items()}
     tau = _own_time_constants(case.model, params)
     dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
     nodes = case.model.network.nodes
-    fast = [n.C for n, t in zip(nodes, tau, strict=True) if n.C in blurred and t < 2.0 * dt]
+    fast = [
+        n.C
+        for n, t in zip(nodes, tau, strict=True)
+        if (n.C in blurred or n.C in floored) and t < 2.0 * dt
+    ]
+    if floored - set(fast):  # a slow capacity on its lower bound: not a matter of lag
+        return []
     rest = [i for i, n in enumerate(nodes) if n.C in blurred and n.C not in fast]
     if rest:
         rel = _time_constant_intervals(case, params, rest)

@@ -303,20 +303,29 @@ def test_the_report_draws_the_search_tree(search):
 # ---- lineages and stepping stones (the rules, on stand-in cases) ---------------------------------
 
 
-def _fake(name, outputs, se, rel, cost=1.0, parent_cost=None):
-    """A stand-in case: ``se`` its validation SE, ``rel`` its RMSE / spread per output."""
+def _fake(name, outputs, se, rel, cost=1.0, parent_cost=None, inputs=(), fixed=None):
+    """A stand-in case: ``se`` its validation SE, ``rel`` its RMSE / spread per output;
+    ``inputs`` its model's inputs, ``fixed`` its fixed parameters (``R_bou`` bounded by 10)."""
     from types import SimpleNamespace
 
     y = np.stack([np.linspace(0.0, 1.0, 50) for _ in outputs], axis=1)
     spread = float(np.std(y[:, 0]))
     return SimpleNamespace(
         name=name,
-        model=SimpleNamespace(outputs=tuple(outputs), name=name),
+        model=SimpleNamespace(
+            outputs=tuple(outputs),
+            name=name,
+            inputs=tuple(inputs),
+            param_names=("R_bou",) if fixed else (),
+            parameter=lambda n: SimpleNamespace(upper=10.0),
+        ),
         done=True,
         score=se,
         valid=object(),
         n_params=3,
-        result=SimpleNamespace(cost=cost),
+        fixed=dict(fixed or {}),
+        bounds={},
+        result=SimpleNamespace(cost=cost, bound_position=dict),
         validation=SimpleNamespace(
             outputs=tuple(outputs),
             rmse_cross={o: r * spread for o, r in zip(outputs, rel, strict=True)},
@@ -346,6 +355,29 @@ def test_between_lineages_the_shared_zone_decides():
     steady = _fake("Zon2+Wal2+Bz1", ["T_zon2"], se=0.1, rel=[0.4])
     assert _accept([steady, free], judge) is free
     assert _accept([free, steady], judge) is free
+
+
+def test_a_zone_that_cuts_its_link_to_the_other_is_its_input():
+    """Both zones as states predict as well as each zone alone; but the best model of zone 2
+    alone cuts its resistance to zone 1 (zone 2 does not depend on it: held by its own
+    thermostat): zone 2 is then an input of zone 1, whose one-zone model is accepted."""
+    from jaxbox.select._search import _accept, _Judge
+
+    judge = _Judge("cv", 0.02, 0.05)
+    both = _fake("Zon1+Zon2+Wal1+Cpl", ["T_zon1", "T_zon2"], se=0.2, rel=[0.10, 0.30])
+    first = _fake("Zon1+Wal1+Bz2", ["T_zon1"], se=0.2, rel=[0.09])
+    second = _fake("Zon2+Wal2+Bz1", ["T_zon2"], se=0.1, rel=[0.3], inputs=["T_amb", "T_zon1"])
+    assert _accept([both, first, second], judge) is both
+    cut = _fake(
+        "Zon2+Wal2+Bz1",
+        ["T_zon2"],
+        se=0.1,
+        rel=[0.3],
+        inputs=["T_amb", "T_zon1"],
+        fixed={"R_bou": 10.0},
+    )
+    assert _accept([both, first, cut], judge) is first
+    assert _accept([both, cut], judge) is both  # no valid model of zone 1 alone
 
 
 def test_stepping_stones_are_the_best_relative_fits_per_lineage():

@@ -240,7 +240,10 @@ def _accept(valid: list[Case], judge: _Judge) -> Case | None:
     lineages (models predicting different zones), the one predicting more zones unless another
     predicts the zones they share far better (relative RMSE lower by :data:`LINEAGE_MARGIN`: a
     model fed the other zone's measured temperature has an edge it does not owe to its
-    structure). Between lineages of as many zones, the lower relative RMSE leads."""
+    structure). Between lineages of as many zones, the lower relative RMSE leads. A model of
+    both zones gives way to the model of one zone fed the other's measured temperature when the
+    best model of that other zone alone cuts its link back (:func:`_coupling_cut`): that zone
+    does not depend on the first, it is an input."""
     best: dict[tuple, Case] = {}
     for c in valid:
         k = _lineage(c)
@@ -265,7 +268,28 @@ def _accept(valid: list[Case], judge: _Judge) -> Case | None:
         a, b = _relative_rmse(champion, common_c), _relative_rmse(other, common_o)
         if b < (1.0 - LINEAGE_MARGIN) * a:
             champion = other
+    if len(_lineage(champion)) > 1:
+        # a zone whose best model cuts its link to the other zone does not depend on it (held
+        # by its own thermostat, say): it is a measured input of the other zone, not a state
+        for lineage, case in best.items():
+            if len(lineage) == 1 and _coupling_cut(case):
+                rest = [o for o in champion.model.outputs if o not in lineage]
+                if len(rest) == 1 and (rest[0],) in best:
+                    return best[(rest[0],)]
     return champion
+
+
+def _coupling_cut(case: Case) -> bool:
+    """Whether a one-zone model fed the other zone's measured temperature has its resistance
+    to it (``R_bou``) cut: fixed at, or estimated on, its upper bound."""
+    if "R_bou" not in case.model.param_names or not any(
+        i.startswith("T_zon") for i in case.model.inputs
+    ):
+        return False
+    if "R_bou" in case.fixed:
+        upper = case.bounds.get("R_bou", (None, case.model.parameter("R_bou").upper))[1]
+        return case.fixed["R_bou"] >= upper * (1.0 - 1e-9)
+    return case.result.bound_position().get("R_bou", 0.0) > 0.99
 
 
 # ---- the search ---------------------------------------------------------------------------------

@@ -61,6 +61,30 @@ def test_grammar_without_columns_grows_nothing_they_lack():
     assert "Zon+Int+Rad" in swap and "instead of the heater capacity" in swap["Zon+Int+Rad"]
 
 
+def test_reductions_remove_what_nothing_else_needs():
+    from jaxbox.models import reductions
+
+    g = Grammar.from_columns(N2_COLUMNS)
+    smaller = {s.name for _, s in reductions(parse_structure("Zon+Wal+Int+WinE"), g)}
+    assert smaller == {"Zon+Wal+WinE", "Zon+Int+WinE", "Zon+Wal+Int"}
+    # infiltration needs the envelope, a solar share a mass: those stay while they are needed
+    smaller = {s.name for _, s in reductions(parse_structure("Zon+Wal+Inf+Hea+Sol"), g)}
+    assert smaller == {"Zon+Wal+Hea+Sol", "Zon+Wal+Inf+Sol", "Zon+Wal+Inf+Hea"}
+    # a capacity on a boundary or on the coupling goes first; zones and couplings stay
+    assert [s.name for _, s in reductions(parse_structure("Zon+BouC"), g)] == ["Zon+Bou"]
+    g2 = Grammar.from_columns(["T_zon1", "T_zon2", "T_amb", "Q_hea1"])
+    assert [s.name for _, s in reductions(parse_structure("Zon1+Zon2+CplC"), g2)] == [
+        "Zon1+Zon2+Cpl"
+    ]
+    assert reductions(parse_structure("Zon1+Bz2"), g2) == []
+    # every reduction grows back into the structure by one extension
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        s = random_structure(g, rng)
+        for _, r in reductions(s, g):
+            assert s in {x for _, x in extensions(r, g)}
+
+
 def test_structure_names_round_trip_and_build():
     g = Grammar.from_columns(N2_COLUMNS + ["P_ele"])
     rng = np.random.default_rng(1)

@@ -7,6 +7,7 @@ from ._grammar import Structure as Structure
 from ._grammar import extensions as extensions
 from ._grammar import parse_structure as parse_structure
 from ._grammar import random_structure as random_structure
+from ._grammar import reductions as reductions
 from ._grammar import roots as roots
 from ._library import describe_models as describe_models
 from ._library import families as families

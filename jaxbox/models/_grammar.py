@@ -55,6 +55,7 @@ __all__ = [
     "Structure",
     "Grammar",
     "extensions",
+    "reductions",
     "roots",
     "random_structure",
     "parse_structure",
@@ -399,6 +400,50 @@ def extensions(
         grown = dataclasses.replace(structure, tokens=frozenset(t))
         out.append(("capacity on the coupling", grown))
     return out
+
+
+def reductions(structure: Structure, grammar: Grammar) -> list[tuple[str, Structure]]:
+    """The structures one component smaller than ``structure``, as ``(what was removed, new
+    structure)``, in a fixed order: a component removed when no other one needs it
+    (infiltration and envelope solar gains need the envelope capacity, a radiative heating share
+    the internal mass, a solar share to the mass a mass), a capacity on a boundary or on the
+    coupling removed from it. The zones, their coupling and the boundaries of measured zones
+    stay."""
+    del grammar  # (the same for every grammar: a smaller structure drives no new column)
+    out = []
+    for z, token in sorted(structure.tokens):
+        if z == -1:
+            if token == "CplC":
+                t = (structure.tokens - {(z, token)}) | {(z, "Cpl")}
+                out.append(("without the capacity on the coupling", t))
+            continue
+        where = "" if z == 0 else f" (zone {z})"
+        if is_boundary_token(token) and token.endswith("C"):
+            t = (structure.tokens - {(z, token)}) | {(z, token[:-1])}
+            what = f"without the capacity on the boundary to T_{token[:-1].lower()}{where}"
+            out.append((what, t))
+            continue
+        rest = {t for zz, t in structure.tokens if zz == z} - {token}
+        if any(not _NEEDS.get(_kind(t), lambda _: True)(rest) for t in rest):
+            continue
+        label = "facade windows" if token.startswith("Win") else _WORDS.get(token)
+        label = label or f"boundary to T_{token.lower()}"
+        out.append((f"without the {label}{where}", structure.tokens - {(z, token)}))
+    return [(what, dataclasses.replace(structure, tokens=frozenset(t))) for what, t in out]
+
+
+def _kind(token: str) -> str:
+    """``Win`` for any facade windows, else the token."""
+    return "Win" if token.startswith("Win") else token
+
+
+#: what a zone's component needs among the zone's other components
+_NEEDS = {
+    "Inf": lambda tok: "Wal" in tok,
+    "Ae": lambda tok: "Wal" in tok,
+    "Rad": lambda tok: "Int" in tok and "Hea" not in tok,
+    "Sol": lambda tok: "Int" in tok or "Wal" in tok,
+}
 
 
 def random_structure(

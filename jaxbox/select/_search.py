@@ -30,8 +30,12 @@ When no child of a beam improves, the search looks one component further before 
 ``lookahead`` children that fit the identification data best (relative to their parent, at
 least 10 % better) are grown all the same as *stepping stones*, and their children are judged
 against the beam's case. Components that help only together (an envelope capacity and an
-internal mass: either alone can fit worse on validation than neither) are found that way. The
-search stops when neither step improves.
+internal mass: either alone can fit worse on validation than neither) are found that way. Then
+it looks one component back: the structures one component smaller than each beam case
+(:func:`jaxbox.models.reductions`) are identified, judged against it, and one that improves
+carries the search on (a component taken early, a facade's sun for what an envelope and a mass
+explain together, may be worse than none once they are in). The search stops when none of
+these steps improves.
 
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
 the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
@@ -59,7 +63,14 @@ import numpy as np
 from scipy import stats
 
 from ..fit import DEFAULT_STARTS
-from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
+from ..models._grammar import (
+    Grammar,
+    Structure,
+    extensions,
+    parse_structure,
+    reductions,
+    roots,
+)
 from ..validate import MAX_REL_CI
 from ._cases import Case, Progress, quiet, run_cases
 from ._forward import (
@@ -484,6 +495,22 @@ def structure_search(
             winners = settle(children + repairs)
         return winners, children + repairs
 
+    def shrink(cases: list[Case], depth: int) -> list[Case]:
+        """Identify every new structure one component smaller than each of ``cases`` in one
+        batched call, each starting from (and judged against) the case it comes from. Returns
+        the winners."""
+        children: list[tuple[Case, Case]] = []
+        for case in cases:
+            structure = parse_structure(nodes[case.name]["structure"])
+            for removed, smaller in reductions(structure, grammar):
+                if smaller.name not in seen:
+                    children.append((declare(smaller, case, removed, depth), case))
+        if not children:
+            return []
+        say(f"step {depth}: {len(children)} structure(s) one component smaller")
+        run([c for c, _ in children], depth)
+        return settle(children)
+
     depth = 0
     while beam_cases and not stopped:
         depth += 1
@@ -511,9 +538,17 @@ def structure_search(
             depth += 1
             further, _ = grow(stones, depth)
             winners += further
+        if not winners and depth < max_depth:
+            # before it stops, the search looks one component back: a component taken early (a
+            # facade's sun for what an envelope and a mass explain together) may be worse than
+            # none once the others are in
+            depth += 1
+            winners = shrink(beam_cases, depth)
         if not winners:
-            stopped = f"step {depth}: no extension improves significantly" + (
-                ", one or two components further" if stones else ""
+            stopped = (
+                f"step {depth}: no extension improves significantly"
+                + (", one or two components further" if stones else "")
+                + ", nor a removal"
             )
             break
         beam_cases = winners

@@ -344,6 +344,37 @@ def test_greybox_cases_on_gappy_data(two_segments, tmp_path):
     assert back[MODEL].se_auto == pytest.approx(case.se_auto, rel=1e-9)
 
 
+def test_validation_carries_the_state_across_two_outages_in_turn():
+    """Two six-hour outages in the validation window: the state after the second is carried from
+    the run that follows the first (itself carried): one exact step across the gap, the inputs
+    interpolated linearly, from the reported state before it."""
+    from jaxbox.simulate._exact import discretize_foh_numpy
+
+    theta = {"C_zon": 2e6, "C_wal": 8e7, "R_wal": 0.005, "gA": 3.0, "T_zon0": 20.0, "T_wal0": 14.0}
+    n, gaps = 260, ((170, 176), (210, 216))
+    u = inputs(n, seed=3)
+    full = Dataset.from_arrays(np.arange(n) * STEP, {**u, "T_zon": np.zeros(n)}, start="2024-01-01")
+    model = jaxbox.get_model("ZonWal")
+    sim = jaxbox.simulate_model(model, theta, full)
+    noise = np.random.default_rng(4).normal(0, 0.02, n)
+    frame = full.with_columns(T_zon=sim.y[:, 0] + noise).frame
+    frame = frame.drop(frame.index[np.r_[tuple(slice(a, b) for a, b in gaps)]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        ident, valid = Dataset(frame).windows(("2024-01-01", "2024-01-07 03:00"), None)
+        result = jaxbox.fit_model("ZonWal", ident, starts=4, seed=0)
+        v = validate(result, valid, method="exact")
+    A, B, _, _ = result.model.state_space_numpy(result.params)
+    names = list(result.model.inputs)
+    for a, b in gaps:
+        after = int(np.flatnonzero(v.index_cross == full.index[b])[0])
+        Phi, G0, G1 = discretize_foh_numpy(A, B, (b - a + 1) * STEP)
+        u0 = np.array([u[k][a - 1] for k in names])
+        u1 = np.array([u[k][b] for k in names])
+        carried = Phi @ v.x_cross[after - 1] + G0 @ u0 + G1 @ (u1 - u0)
+        np.testing.assert_allclose(v.x_cross[after, 1], carried[1], rtol=0, atol=1e-8)
+
+
 def test_validation_estimates_the_state_after_a_long_outage():
     """A two-day outage of every signal inside the validation window, the envelope driven far
     from where the interpolated inputs would leave it (no sun and the heating on full during the

@@ -23,11 +23,10 @@ from ._metrics import rmse, simulation_error
 __all__ = ["Validation", "validate", "ValidationError", "CARRY_GAP"]
 
 #: The longest gap [s] (missing time) before a validation segment across which the model state
-#: is carried
-#: (one exact step, the inputs interpolated linearly). After a longer gap the interpolated
-#: inputs miss what drove the building (a day's sun, the heating), so the segment's unmeasured
-#: initial states are estimated from its own outputs instead (a linear least-squares fit, as
-#: MATLAB's ``compare`` does by default).
+#: is carried (one exact step, the inputs interpolated linearly). After a longer gap the
+#: interpolated inputs miss what drove the building (a day's sun, the heating), so the segment's
+#: unmeasured initial states are estimated from its own outputs instead (a linear least-squares
+#: fit, as MATLAB's ``compare`` does by default).
 CARRY_GAP = 6 * 3600.0
 
 
@@ -283,11 +282,12 @@ def validate(
     X0 = np.stack(starts)
     key = tuple(sorted(opts.items()))
     Y, X = _simulate(base, theta, t, U, X0, method, key)
-    if any(carried):  # validation segments after a gap: the state carried across a short one
+    if any(carried):  # validation segments after a gap, in order: each from the one before
         index = ident.index if valid is None else ident.index.append(valid.index)
         measured = result.problem.output_states
-        estimated = []
-        for k, (a, _) in enumerate(pieces):
+        free = [i for i, m in enumerate(base.network.nodes) if i not in measured and not m.constant]
+        sqrt_q = np.sqrt(np.asarray(result.problem.weights, dtype=float))
+        for k, (a, b) in enumerate(pieces):
             if not carried[k]:
                 continue
             pa, pb = pieces[k - 1]
@@ -295,24 +295,15 @@ def validate(
             x = None
             if gap - float(ident.step) <= CARRY_GAP * (1 + 1e-9):  # its missing time
                 x = _across_gap(base, theta, X[k - 1, pb - pa - 1], u[a - 1], u[a], gap)
-            if x is None:  # a long gap, or inputs missing at its edges: estimated below
-                estimated.append(k)
-                continue
-            for j, i in enumerate(measured):  # a measured state restarts at its measurement
-                x[i] = y[a, j] if np.isfinite(y[a, j]) else x[i]
-            X0[k] = x
-        if estimated:  # the unmeasured states from the segment's own outputs
-            Y, X = _simulate(base, theta, t, U, X0, method, key)
-            free = [
-                i for i, m in enumerate(base.network.nodes) if i not in measured and not m.constant
-            ]
-            sqrt_q = np.sqrt(np.asarray(result.problem.weights, dtype=float))
-            for k in estimated:
-                a, b = pieces[k]
-                X0[k] = _estimated_start(
+            if x is None:  # a long gap, or inputs missing at its edges: from its own outputs
+                x = _estimated_start(
                     base, theta, float(ident.step), X0[k], free, Y[k, : b - a], y[a:b], sqrt_q
                 )
-        Y, X = _simulate(base, theta, t, U, X0, method, key)
+            else:
+                for j, i in enumerate(measured):  # a measured state restarts at its measurement
+                    x[i] = y[a, j] if np.isfinite(y[a, j]) else x[i]
+            X0[k] = x
+            Y, X = _simulate(base, theta, t, U, X0, method, key)
     ysim = np.concatenate([Y[k, : b - a] for k, (a, b) in enumerate(pieces)])
     xs = np.concatenate([X[k, : b - a] for k, (a, b) in enumerate(pieces)])
     if not (np.all(np.isfinite(ysim)) and np.all(np.isfinite(xs))):

@@ -337,6 +337,16 @@ def roots(grammar: Grammar) -> list[Structure]:
     ]
 
 
+#: what a zone's component needs among the zone's other components (to be added; to stay when
+#: another is removed)
+_NEEDS = {
+    "Inf": lambda tok: "Wal" in tok,
+    "Ae": lambda tok: "Wal" in tok,
+    "Rad": lambda tok: "Int" in tok and "Hea" not in tok,
+    "Sol": lambda tok: "Int" in tok or "Wal" in tok,
+}
+
+
 def _zone_extensions(
     s: Structure, z: int, g: Grammar, swaps: bool = True
 ) -> list[tuple[str, frozenset]]:
@@ -356,7 +366,7 @@ def _zone_extensions(
         add("envelope capacity", "Wal")
     if "Int" not in tok:
         add("internal mass", "Int")
-    if "Wal" in tok and "Inf" not in tok:
+    if "Inf" not in tok and _NEEDS["Inf"](tok):
         add("infiltration", "Inf")
     for col in g.boundaries:
         b = _boundary_token(col)
@@ -366,15 +376,15 @@ def _zone_extensions(
             add(f"capacity on the boundary to {col}", b + "C", drop=b)
     if heat and "Hea" not in tok and "Rad" not in tok:
         add("heater capacity", "Hea")
-    if heat and "Int" in tok and "Hea" not in tok and "Rad" not in tok:
+    if heat and "Rad" not in tok and _NEEDS["Rad"](tok):
         add("radiative heating share", "Rad")
     if swaps and heat and "Int" in tok and "Hea" in tok:  # two accounts of a heating's lag
         add("radiative heating share instead of the heater capacity", "Rad", drop="Hea")
     if g.facades and s.window(z) is None:
         add("facade windows", "Win" + "".join(FACADES[f] for f in g.facades))
-    if solar and ("Int" in tok or "Wal" in tok) and "Sol" not in tok:
+    if solar and "Sol" not in tok and _NEEDS["Sol"](tok):
         add("solar share to the mass", "Sol")
-    if g.horizontal and "Wal" in tok and "Ae" not in tok:
+    if g.horizontal and "Ae" not in tok and _NEEDS["Ae"](tok):
         add("solar gains on the envelope", "Ae")
     if g.electric and "Ele" not in tok:
         add("electric gains", "Ele")
@@ -424,26 +434,12 @@ def reductions(structure: Structure, grammar: Grammar) -> list[tuple[str, Struct
             out.append((what, t))
             continue
         rest = {t for zz, t in structure.tokens if zz == z} - {token}
-        if any(not _NEEDS.get(_kind(t), lambda _: True)(rest) for t in rest):
+        if any(not _NEEDS[t](rest) for t in rest if t in _NEEDS):
             continue
         label = "facade windows" if token.startswith("Win") else _WORDS.get(token)
         label = label or f"boundary to T_{token.lower()}"
         out.append((f"without the {label}{where}", structure.tokens - {(z, token)}))
     return [(what, dataclasses.replace(structure, tokens=frozenset(t))) for what, t in out]
-
-
-def _kind(token: str) -> str:
-    """``Win`` for any facade windows, else the token."""
-    return "Win" if token.startswith("Win") else token
-
-
-#: what a zone's component needs among the zone's other components
-_NEEDS = {
-    "Inf": lambda tok: "Wal" in tok,
-    "Ae": lambda tok: "Wal" in tok,
-    "Rad": lambda tok: "Int" in tok and "Hea" not in tok,
-    "Sol": lambda tok: "Int" in tok or "Wal" in tok,
-}
 
 
 def random_structure(

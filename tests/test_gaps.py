@@ -344,20 +344,29 @@ def test_greybox_cases_on_gappy_data(two_segments, tmp_path):
     assert back[MODEL].se_auto == pytest.approx(case.se_auto, rel=1e-9)
 
 
+#: an envelope building for the tests of validation across outages
+ENVELOPE = {"C_zon": 2e6, "C_wal": 8e7, "R_wal": 0.005, "gA": 3.0, "T_zon0": 20.0, "T_wal0": 14.0}
+
+
+def envelope_building(u: dict) -> tuple:
+    """The ``ZonWal`` building :data:`ENVELOPE` driven by ``u``, with 0.02 K sensor noise:
+    ``(full dataset, its simulation, the noisy data as a frame)``."""
+    n = len(next(iter(u.values())))
+    full = Dataset.from_arrays(np.arange(n) * STEP, {**u, "T_zon": np.zeros(n)}, start="2024-01-01")
+    sim = jaxbox.simulate_model(jaxbox.get_model("ZonWal"), ENVELOPE, full)
+    noise = np.random.default_rng(4).normal(0, 0.02, n)
+    return full, sim, full.with_columns(T_zon=sim.y[:, 0] + noise).frame
+
+
 def test_validation_carries_the_state_across_two_outages_in_turn():
     """Two six-hour outages in the validation window: the state after the second is carried from
     the run that follows the first (itself carried): one exact step across the gap, the inputs
     interpolated linearly, from the reported state before it."""
     from jaxbox.simulate._exact import discretize_foh_numpy
 
-    theta = {"C_zon": 2e6, "C_wal": 8e7, "R_wal": 0.005, "gA": 3.0, "T_zon0": 20.0, "T_wal0": 14.0}
     n, gaps = 260, ((170, 176), (210, 216))
     u = inputs(n, seed=3)
-    full = Dataset.from_arrays(np.arange(n) * STEP, {**u, "T_zon": np.zeros(n)}, start="2024-01-01")
-    model = jaxbox.get_model("ZonWal")
-    sim = jaxbox.simulate_model(model, theta, full)
-    noise = np.random.default_rng(4).normal(0, 0.02, n)
-    frame = full.with_columns(T_zon=sim.y[:, 0] + noise).frame
+    full, sim, frame = envelope_building(u)
     frame = frame.drop(frame.index[np.r_[tuple(slice(a, b) for a, b in gaps)]])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
@@ -383,17 +392,12 @@ def test_validation_estimates_the_state_after_a_long_outage():
     across the gap instead, it would be off by kelvins."""
     from jaxbox.validate import CARRY_GAP
 
-    theta = {"C_zon": 2e6, "C_wal": 8e7, "R_wal": 0.005, "gA": 3.0, "T_zon0": 20.0, "T_wal0": 14.0}
     n, cut, back = 288, 170, 218  # 48 h missing
     assert (back - cut) * STEP > CARRY_GAP
     u = inputs(n, seed=3)
     u["Q_hea"][cut:back] = 6000.0
     u["I_glo_hor"][cut:back] = 0.0
-    full = Dataset.from_arrays(np.arange(n) * STEP, {**u, "T_zon": np.zeros(n)}, start="2024-01-01")
-    model = jaxbox.get_model("ZonWal")
-    sim = jaxbox.simulate_model(model, theta, full)
-    noise = np.random.default_rng(4).normal(0, 0.02, n)
-    frame = full.with_columns(T_zon=sim.y[:, 0] + noise).frame
+    full, sim, frame = envelope_building(u)
     frame = frame.drop(frame.index[cut:back])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
@@ -424,14 +428,10 @@ def test_validation_carries_the_state_across_an_outage():
     is carried across it (one exact step with the inputs interpolated linearly), so the
     validation error stays at the noise level; the carried state equals a simulation through
     the gap with those interpolated inputs."""
-    theta = {"C_zon": 2e6, "C_wal": 8e7, "R_wal": 0.005, "gA": 3.0, "T_zon0": 20.0, "T_wal0": 14.0}
     n, cut, back = 240, 170, 176
     u = inputs(n, seed=3)
-    full = Dataset.from_arrays(np.arange(n) * STEP, {**u, "T_zon": np.zeros(n)}, start="2024-01-01")
+    full, sim, frame = envelope_building(u)
     model = jaxbox.get_model("ZonWal")
-    sim = jaxbox.simulate_model(model, theta, full)
-    noise = np.random.default_rng(4).normal(0, 0.02, n)
-    frame = full.with_columns(T_zon=sim.y[:, 0] + noise).frame
     frame = frame.drop(frame.index[cut:back])  # every signal missing for six hours
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)

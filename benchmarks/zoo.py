@@ -217,6 +217,7 @@ def _rows(zoo, starts: int, offsets: bool, jobs: int):
     import multiprocessing as mp
 
     os.environ["JAX_PLATFORMS"] = "cpu"  # the workers' searches run on the CPU
+    os.environ["JAXBOX_THREADS"] = "1"  # a process per core: no parts side by side within one
     ctx = mp.get_context("spawn")
     # two-zone buildings first: their searches are the longest, and the pool ends sooner
     zoo = sorted(zoo, key=lambda b: -len(b.data.columns))

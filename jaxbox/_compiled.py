@@ -15,7 +15,16 @@ from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from typing import Any
 
-__all__ = ["cached", "clear", "release", "entries", "info", "set_max_entries"]
+__all__ = [
+    "cached",
+    "clear",
+    "release",
+    "entries",
+    "info",
+    "set_max_entries",
+    "compiler_options",
+    "jit",
+]
 
 _LOCK = threading.Lock()
 _ENTRIES: OrderedDict[Hashable, Any] = OrderedDict()
@@ -43,6 +52,35 @@ def cached(key: Hashable, build: Callable[[], Any]) -> tuple[Any, bool]:
             _ENTRIES.popitem(last=False)
             _STATS["evictions"] += 1
     return value, True
+
+
+#: XLA options of jaxbox's large programs on a CPU: the classic loop emitters compile the
+#: batched fits about a third faster than the fusion emitters and run them as fast
+_CPU_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+def compiler_options() -> dict[str, Any] | None:
+    """XLA options for jaxbox's compiled programs on the default backend (``None``: XLA's own).
+
+    On a CPU the batched fit of a structure search compiles one program per step; with the
+    classic emitters each takes about a third less time, and runs as fast (measured on the
+    14-parameter fit: 2.8–3.1 s against 4.2–5.5 s, 0.47 s run either way).
+    ``JAXBOX_XLA_DEFAULTS=1`` keeps XLA's defaults.
+    """
+    import os
+
+    import jax
+
+    if os.environ.get("JAXBOX_XLA_DEFAULTS", "0").strip().lower() in ("1", "yes", "on", "true"):
+        return None
+    return dict(_CPU_OPTIONS) if jax.default_backend() == "cpu" else None
+
+
+def jit(fun: Callable, **kwargs) -> Callable:
+    """``jax.jit`` with :func:`compiler_options`."""
+    import jax
+
+    return jax.jit(fun, compiler_options=compiler_options(), **kwargs)
 
 
 def clear() -> None:

@@ -15,6 +15,8 @@ from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ["JAXBOX_CACHE"] = "0"
+if os.environ.get("PYTEST_XDIST_WORKER"):  # a worker per core: one thread each
+    os.environ.setdefault("JAXBOX_THREADS", "1")
 
 import jax  # noqa: E402
 

@@ -73,6 +73,84 @@ def _with_constant_ground(name):
     return c.window(c.heating(c.ground(net, to=None))).build()
 
 
+@pytest.fixture(scope="module")
+def bucketed(data):
+    """The variants in three bucketed calls: two structures of 1 and 2 states, then one of 2
+    states (``Zon+Hea``), then one of 3 (``Zon+Wal+Int``: the next bucket of states). Returns
+    the fits in the order of ``VARIANTS`` and the programs compiled after each call."""
+    g = Grammar.from_columns(data.columns)
+    models = [parse_structure(n).build(g) for n in VARIANTS]
+    widest = len({u for m in models for u in m.inputs})
+    before = _compiled.info("fit")["entries"]
+    out, compiled = {}, []
+    for part in ((0, 1), (3,), (2,)):
+        reqs = [dict(model=models[i], data=data, starts=4, seed=2) for i in part]
+        out.update(zip(part, fit_batch(reqs, bucket={"inputs": widest}), strict=True))
+        compiled.append(_compiled.info("fit")["entries"] - before)
+    return [out[i] for i in range(len(VARIANTS))], compiled
+
+
+def test_bucketed_calls_of_neighbouring_sizes_share_one_program(bucketed, together_and_alone):
+    """A structure search's steps: calls with other structures, sizes and numbers of starts
+    run one compiled program per bucket, and each fit is the one of the plain call."""
+    out, compiled = bucketed
+    assert compiled == [1, 1, 2]
+    together, _, _ = together_and_alone
+    for a, b in zip(out, together, strict=True):
+        assert a.problem.free == b.problem.free
+        done = a.starts.converged & b.starts.converged
+        assert done.sum() >= 1
+        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-7)
+        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-7)
+        np.testing.assert_allclose(a.starts.steps[done], b.starts.steps[done], rtol=0.02, atol=2)
+
+
+def test_parts_side_by_side_solve_each_start_as_alone(data, monkeypatch):
+    """A bucketed batch dealt to three parts run by threads (and its padding starts, never
+    solved) gives each start the result of one part alone."""
+    from jaxbox.fit._fit import parallel_parts
+
+    g = Grammar.from_columns(data.columns)
+    reqs = [
+        dict(model=parse_structure(n).build(g), data=data, starts=8, seed=3) for n in VARIANTS[1:]
+    ]
+    runs = {}
+    for threads in ("1", "3"):
+        monkeypatch.setenv("JAXBOX_THREADS", threads)
+        runs[threads] = fit_batch(reqs, bucket=True)
+    assert parallel_parts(24) == 3
+    monkeypatch.setenv("JAXBOX_THREADS", "one")
+    with pytest.raises(jaxbox.FitError, match="JAXBOX_THREADS"):
+        parallel_parts(24)
+    for a, b in zip(runs["1"], runs["3"], strict=True):
+        np.testing.assert_allclose(a.starts.cost, b.starts.cost, rtol=1e-9)
+        np.testing.assert_array_equal(a.starts.steps, b.starts.steps)
+        assert a.starts.status == b.starts.status
+
+
+def test_transform_in_numpy_equals_jax():
+    tr = make_transform(
+        ["R", "T", "lo", "free"],
+        np.asarray([1e-5, -3.0, 0.5, -np.inf]),
+        np.asarray([10.0, 37.0, np.inf, np.inf]),
+        guess=np.asarray([0.01, 20.0, 2.0, 0.3]),
+    )
+    z = np.random.default_rng(1).normal(scale=3.0, size=(5, 4))
+    got = tr.to_physical(z)
+    assert isinstance(got, np.ndarray)
+    np.testing.assert_allclose(got, np.asarray(tr.to_physical(jnp.asarray(z))), rtol=1e-14)
+
+
+def test_compiler_options_on_a_cpu(monkeypatch):
+    import jax
+
+    opts = _compiled.compiler_options()
+    if jax.default_backend() == "cpu":
+        assert opts == {"xla_cpu_use_fusion_emitters": False}
+    monkeypatch.setenv("JAXBOX_XLA_DEFAULTS", "1")
+    assert _compiled.compiler_options() is None
+
+
 def test_a_constant_node_in_a_batch_of_variants(data):
     """A network with a constant node has no array form: the batch pads each variant's own
     matrices instead, with the same results."""

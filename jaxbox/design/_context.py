@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
-from .._compiled import cached
+from .._compiled import cached, jit
 from ..data import DataError, Dataset
 from ..models import ModelError
 from ._fisher import CRITERIA, Setup
@@ -150,13 +150,13 @@ def _report_fn(setup: Setup):
             nominal = jax.tree_util.tree_map(lambda a: a[0], mats)
             return jnp.mean(losses, axis=0), F[0], setup.simulate(nominal, U)
 
-        return jax.jit(fn)
+        return jit(fn)
 
     return cached(("design", "report", setup.key), build)[0]
 
 
 def _linearise_fn(setup: Setup):
-    return cached(("design", "linearise", setup.key), lambda: jax.jit(setup.linearise))[0]
+    return cached(("design", "linearise", setup.key), lambda: jit(setup.linearise))[0]
 
 
 def _precondition_fn(setup: Setup):
@@ -173,7 +173,7 @@ def _precondition_fn(setup: Setup):
             q = (t_start - xa[s]) / gain[s]
             return xa + q * gain, q
 
-        return jax.jit(fn)
+        return jit(fn)
 
     return cached(("design", "precondition", setup.key), build)[0]
 

@@ -35,7 +35,7 @@ import numpy as np
 import optimistix as optx
 import pandas as pd
 
-from .._compiled import cached
+from .._compiled import cached, jit
 from .._x64 import require_x64
 from ..models import ModelError
 from ._context import Context, default_weather, make_context
@@ -183,7 +183,7 @@ def _solver_fn(setup: Setup, criterion: str, max_steps: int, Z, args):
 
             return jax.vmap(one)(Z0)
 
-        return jax.jit(solve).lower(Z, args).compile()
+        return jit(solve).lower(Z, args).compile()
 
     key = ("design", "solve", setup.key, criterion, int(max_steps), shapes)
     return cached(key, build)

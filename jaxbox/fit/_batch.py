@@ -280,7 +280,11 @@ def fit_many(
 
 
 def fit_batch(
-    requests: Sequence[Mapping], *, slots: int | None = None, errors: str = "raise"
+    requests: Sequence[Mapping],
+    *,
+    slots: int | None = None,
+    errors: str = "raise",
+    bucket: bool | Mapping[str, int] = False,
 ) -> list[FitResult | FitError]:
     """Several estimation problems solved together: one compiled call per compatible group.
 
@@ -300,6 +304,10 @@ def fit_batch(
         errors: ``"raise"`` (default) raises the first :class:`FitError` (a problem that cannot
             be set up, or every start of a request failed); ``"return"`` puts it in the
             request's place in the returned list and solves the others.
+        bucket: round each batch's sizes up (see :func:`~jaxbox.fit.solve_jobs`), so that
+            later calls with batches of neighbouring sizes reuse its compiled program (the steps
+            of a structure search). The results are the same, to rounding. A mapping sets
+            sizes to pad to at least (``{"inputs": 12}``).
 
     Returns:
         One :class:`FitResult` (or :class:`FitError`) per request, in order; ``timing`` is that
@@ -367,6 +375,7 @@ def fit_batch(
             solver=solver,
             homotopy=homotopy,
             release=release,
+            bucket=bucket,
         )
         timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(members)}
         first = 0

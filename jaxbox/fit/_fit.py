@@ -37,8 +37,9 @@ Termination (per start)
 
 from __future__ import annotations
 
+import os
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import equinox as eqx
 import jax
@@ -49,6 +50,7 @@ from jax import lax
 from jaxtyping import Float
 
 from .. import _compiled
+from .._compiled import jit
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS
 from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
@@ -152,6 +154,7 @@ def _multistart(
     slot_counts: Sequence[int] | None = None,
     routes: Sequence[Sequence[float]] = ((),),
     release=None,
+    count=None,
 ):
     """Every start of ``z0`` [S, p] through ``solver``, a fixed number of *slots* at a time.
 
@@ -173,6 +176,10 @@ def _multistart(
     middle of their bounds if the start was on a bound too): the logistic transform freezes a
     coordinate near its bound, and the data may want it elsewhere.
     The route ends at the better of the two.
+
+    ``count`` (a traced integer, with a single group): only the first ``count`` starts are
+    solved; the others are padding of a bucketed batch (see :func:`solve_jobs`), never loaded
+    into a slot, and their results are NaN.
 
     A slot whose route has ended takes the next (start, route) of its group (``slot_counts``
     slots for each group of ``start_counts`` consecutive starts), so the batch stays busy until
@@ -207,6 +214,10 @@ def _multistart(
     first = np.concatenate([[0], np.cumsum(member_counts)[:-1]])
     slot_first = np.concatenate([[0], np.cumsum(slot_counts)[:-1]])
     end = jnp.asarray(first + np.asarray(member_counts))
+    if count is not None:
+        if n_groups != 1:
+            raise ValueError("count needs a single group of starts")
+        end = jnp.minimum(end, count * n_routes)
     idx0 = np.asarray(first[group] + np.arange(batch) - slot_first[group])
     tags = frozenset()
 
@@ -251,7 +262,7 @@ def _multistart(
         saved_y=jnp.full((batch, p), jnp.nan, dtype),  # where a route stood before its release
         saved_cost=jnp.full((batch,), jnp.inf, dtype),
         saved_code=zeros,
-        live=jnp.ones((batch,), bool),
+        live=jnp.asarray(idx0) < end[group],
         nxt=jnp.asarray(first + np.asarray(slot_counts), jnp.int32),
         out_z=jnp.full((n_members, p), jnp.nan, dtype),
         out_cost=jnp.full((n_members,), jnp.nan, dtype),
@@ -392,11 +403,28 @@ def _same_data(datas) -> bool:
     )
 
 
-def _input_layout(problems, datas):
+#: a bucketed batch (``solve_jobs(bucket=True)``) rounds each size up to a multiple of these
+#: (free and fixed parameters, states, input columns, edges, heat sources, factors per
+#: product) and its starts up to a power of two of at least ``starts``
+BUCKETS = dict(free=8, fixed=4, states=2, inputs=4, edges=8, sources=8, factors=2, starts=128)
+
+
+def _round_up(n: int, step: int) -> int:
+    return step * max(1, -(-n // step))
+
+
+def _bucket_starts(n: int) -> int:
+    """Starts of a bucketed batch: a power of two, at least ``BUCKETS["starts"]``."""
+    return max(BUCKETS["starts"], 1 << max(0, int(n) - 1).bit_length())
+
+
+def _input_layout(problems, datas, bucket: bool = False, least: int = 0):
     """One input layout for variants with different inputs: the union of their inputs by name
     when they share the data (``t``, ``y``, ``w`` and every input of the same name), else each
-    job's own inputs padded with zero columns. Returns ``(layout, datas)``: ``layout`` maps a
-    problem to the columns of its inputs."""
+    job's own inputs padded with zero columns (``bucket``: their number, at least ``least``,
+    rounded up, see :data:`BUCKETS`). Returns ``(layout, datas)``: ``layout`` maps a problem to
+    the columns of its inputs."""
+    step = BUCKETS["inputs"] if bucket else 1
     shared = _same_data([(d[0], d[2], d[3]) for d in datas])
     columns: dict[str, np.ndarray] = {}
     for prob, d in zip(problems, datas, strict=True):
@@ -408,19 +436,24 @@ def _input_layout(problems, datas):
     if shared:
         names = list(columns)
         u = np.stack([columns[n] for n in names], axis=1) if names else datas[0][1]
-        layout = {"union": tuple(names), "inputs": len(names)}
+        m = _round_up(max(u.shape[1], least), step)
+        u = np.pad(u, ((0, 0), (0, m - u.shape[1])))
+        layout = {"union": tuple(names), "inputs": m}
         return layout, [(d[0], u, d[2], d[3]) for d in datas]
-    m = max(d[1].shape[1] for d in datas)
+    m = _round_up(max(least, *(d[1].shape[1] for d in datas)), step)
     padded = [(d[0], np.pad(d[1], ((0, 0), (0, m - d[1].shape[1]))), d[2], d[3]) for d in datas]
     return {"union": None, "inputs": m}, padded
 
 
-def _pad_members(problems, z0s, members):
-    """Starts and per-member arrays padded to the widest variant: inert coordinates (zero, in
-    bounds [0, 1], scale 1) that no residual depends on, so the solver leaves them where they
-    are (their column of J is zero: see :class:`~jaxbox.fit.LevenbergMarquardt`)."""
+def _pad_members(problems, z0s, members, bucket: bool = False):
+    """Starts and per-member arrays padded to the widest variant (``bucket``: to its width
+    rounded up, see :data:`BUCKETS`): inert coordinates (zero, in bounds [0, 1], scale 1) that
+    no residual depends on, so the solver leaves them where they are (their column of J is
+    zero: see :class:`~jaxbox.fit.LevenbergMarquardt`)."""
     p = max(z.shape[1] for z in z0s)
     q = max(m[0].shape[1] for m in members)
+    if bucket:
+        p, q = _round_up(p, BUCKETS["free"]), _round_up(q, BUCKETS["fixed"])
 
     def pad(a, width, value):
         return np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=value)
@@ -481,10 +514,11 @@ def _padded_matrices(prob: Problem, spec, args):
 _RC_KEYS = ("R", "scale", "fk", "fa", "fb", "KG", "KH", "sk", "sa", "sb", "KS", "C", "T0", "pad")
 
 
-def _rc_members(problems, counts, layout, width: int, fixed_width: int):
+def _rc_members(problems, counts, layout, width: int, fixed_width: int, bucket: bool = False):
     """Per member (start) ``(kinds [B, p], *arrays)`` of every variant's network in array form
-    (:meth:`~jaxbox.models.RCModel.rc_arrays`), padded to the batch's largest; ``None`` when a
-    network has no array form (a constant node)."""
+    (:meth:`~jaxbox.models.RCModel.rc_arrays`), padded to the batch's largest (``bucket``: its
+    sizes rounded up, see :data:`BUCKETS`); ``None`` when a network has no array form (a
+    constant node)."""
     from ..models._network import ModelError
 
     if any(node.constant for p in problems for node in p.model.network.nodes):
@@ -492,6 +526,8 @@ def _rc_members(problems, counts, layout, width: int, fixed_width: int):
     names = layout["union"]
     each = [p.model.array_sizes() for p in problems]
     sizes = {k: max(e[k] for e in each) for k in each[0]}
+    if bucket:
+        sizes = {k: _round_up(v, BUCKETS.get(k, 1)) for k, v in sizes.items()}
     sizes["states"] = layout["states"]
     parts = []
     for prob, c in zip(problems, counts, strict=True):
@@ -535,6 +571,7 @@ def _build(
     rc: bool = False,
     homotopy=(),
     release: bool = True,
+    bucketed: bool = False,
 ):
     if not isinstance(solver, LevenbergMarquardt):
         return _build_generic(groups, max_steps, solver)
@@ -549,6 +586,9 @@ def _build(
 
     def solve(z0, bounded, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
         per_member = u.shape[1] != 1
+        count = None
+        if bucketed:  # the number of real starts, then the networks
+            count, structure = structure[0], structure[1:]
 
         def lin(Z, idx, gain):
             members = tuple(a[idx] for a in (fixed, lo, hi, sc, dt))
@@ -589,14 +629,15 @@ def _build(
             lin,
             z0,
             max_steps=max_steps,
-            start_counts=tuple(c for _, c in groups),
+            start_counts=(len(z0),) if bucketed else tuple(c for _, c in groups),
             slot_counts=slot_counts,
+            count=count,
             # the continuation needs the observer of the exact route
             routes=((), homotopy) if homotopy and exact else ((),),
             release=(bounded, lambda Z: position_in_bounds(style, Z)) if release else None,
         )
 
-    return jax.jit(solve)
+    return jit(solve)
 
 
 def _build_generic(groups, max_steps: int, solver):
@@ -630,7 +671,35 @@ def _build_generic(groups, max_steps: int, solver):
         axes = (0, 0, 0, 0, 0, d_axis, d_axis, d_axis, d_axis)
         return jax.vmap(one, in_axes=axes)(z0, fixed, lo, hi, sc, t, u, y, w)
 
-    return jax.jit(solve)
+    return jit(solve)
+
+
+def parallel_parts(n_starts: int) -> int:
+    """Into how many parts a bucketed batch of ``n_starts`` is dealt, the parts run side by
+    side by threads: on a CPU one per core (``JAXBOX_THREADS`` sets the number; each part keeps
+    at least 8 starts), on an accelerator one."""
+    if jax.default_backend() != "cpu":
+        return 1
+    env = os.environ.get("JAXBOX_THREADS", "").strip()
+    if env:
+        try:
+            threads = max(1, int(env))
+        except ValueError:
+            raise FitError(f"JAXBOX_THREADS must be a whole number, got {env!r}") from None
+    else:
+        threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+    return max(1, min(threads, n_starts // 8))
+
+
+def _run_parts(compiled, calls):
+    """``compiled(*args)`` for each of ``calls``, side by side (the executable releases the
+    interpreter while it runs), in order."""
+    if len(calls) == 1:
+        return [jax.block_until_ready(compiled(*calls[0]))]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(len(calls)) as pool:
+        return list(pool.map(lambda a: jax.block_until_ready(compiled(*a)), calls))
 
 
 def solve_jobs(
@@ -643,6 +712,7 @@ def solve_jobs(
     solver: optx.AbstractLeastSquaresSolver | None = None,
     homotopy: Sequence[float] = DEFAULT_HOMOTOPY,
     release: bool = True,
+    bucket: bool | Mapping[str, int] = False,
 ) -> dict:
     """Run a least-squares solver for several jobs in one compiled, batched call.
 
@@ -655,6 +725,15 @@ def solve_jobs(
     continuation ``homotopy`` (observer gains, see :func:`check_homotopy`; ``()``: none), and a
     route that ends with coordinates on their bounds is retried with them released
     (``release``); the better route is the start's result (see :func:`_multistart`).
+
+    With ``bucket`` (jaxbox's solver on the exact simulator, networks in array form), every
+    size of the batch is rounded up (:data:`BUCKETS`: parameters, states, inputs, edges; the
+    starts to a power of two, the padding starts never solved) and the starts share one queue
+    of slots, so that calls of neighbouring sizes — the steps of a structure search, one job or
+    many — run one compiled program instead of one each. The results are those of the call
+    without ``bucket``, to rounding. A mapping instead of ``True`` sets sizes to pad to at
+    least (``{"inputs": 12}``: the input columns of the largest call to come). On a CPU the
+    starts are dealt to :func:`parallel_parts` that run side by side.
 
     Returns a dict with per member (all starts of all jobs, in order): ``job`` [B], ``z``, ``p``
     [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s] and
@@ -690,10 +769,19 @@ def solve_jobs(
         edges.append(np.broadcast_to(two_sided(tr.kinds), z0.shape))
         counts.append(s)
     variants = len({_problem_key(p) for p in problems}) > 1
-    if variants and _paddable(problems, solver):
-        layout, datas = _input_layout(problems, datas)
-        layout["states"] = max(len(p.model.states) for p in problems)
-        z0s, members = _pad_members(problems, z0s, members)
+    paddable = _paddable(problems, solver)
+    least = dict(bucket) if isinstance(bucket, Mapping) else {}
+    bucket = (
+        bool(bucket)
+        and paddable
+        and len({p.transform.style for p in problems}) == 1
+        and not any(node.constant for p in problems for node in p.model.network.nodes)
+    )
+    if (variants or bucket) and paddable:
+        layout, datas = _input_layout(problems, datas, bucket, least.get("inputs", 0))
+        n_states = max(len(p.model.states) for p in problems)
+        layout["states"] = _round_up(n_states, BUCKETS["states"]) if bucket else n_states
+        z0s, members = _pad_members(problems, z0s, members, bucket)
     else:
         layout = None
     shapes = {(np.shape(z)[1], *(np.shape(a) for a in d)) for z, d in zip(z0s, datas, strict=True)}
@@ -718,18 +806,51 @@ def solve_jobs(
             )
             for k in range(4)
         )
-    args = tuple(jnp.asarray(a, dtype=float) for a in (z0, *member_arrays, *data))
-    args = (args[0], jnp.asarray(bounded), *args[1:])
     groups = _groups(problems, counts)
     pads = None if layout is None else tuple(_pad_spec(p, layout) for p, _ in groups)
     rc = None
     if layout is not None and len({p.transform.style for p in problems}) == 1:
-        rc = _rc_members(problems, counts, layout, z0.shape[1], member_arrays[0].shape[1])
+        rc = _rc_members(problems, counts, layout, z0.shape[1], member_arrays[0].shape[1], bucket)
+    n_real = len(z0)
+    bucket = bucket and rc is not None
+    parts = [np.arange(n_real)]
+    if bucket:  # the starts dealt to parts that run side by side, each in one queue of slots
+        n_parts = parallel_parts(n_real)
+        parts = [np.arange(j, n_real, n_parts) for j in range(n_parts)]
+        size = _bucket_starts(len(parts[0]))
+        groups = ((groups[0][0], size),)
+    shared = tuple(jax.device_put(np.asarray(a, dtype=float)) for a in data if a.shape[1] == 1)
+
+    def arguments(rows):
+        """The compiled solve's arguments for the starts ``rows`` (bucketed: padded with
+        copies of the last, never solved)."""
+        if bucket:
+            rows = rows[np.minimum(np.arange(size), len(rows) - 1)]
+        own = (z0, bounded, *member_arrays)
+        own = tuple(np.asarray(a)[rows] for a in own) if bucket else own
+        put = [
+            jax.device_put(np.asarray(a, dtype=bool if k == 1 else float))
+            for k, a in enumerate(own)
+        ]
+        pool = iter(shared)
+        for a in data:
+            if a.shape[1] == 1:
+                put.append(next(pool))
+            else:
+                put.append(jax.device_put(np.asarray(a[:, rows] if bucket else a, dtype=float)))
+        if bucket:
+            put.append(jax.device_put(np.int32(len(set(rows.tolist())))))
+        if rc is not None:
+            put.extend(jax.device_put(np.asarray(a)[rows] if bucket else np.asarray(a)) for a in rc)
+        return tuple(put)
+
+    calls = [arguments(rows) for rows in parts]
+    args = calls[0]
     if rc is not None:  # one program for every variant: the key holds no structure
-        args = args + tuple(jnp.asarray(a) for a in rc)
         pads = ("rc", problems[0].transform.style, problems[0].output_states)
-    n_slots = default_slots(len(z0)) if slots is None else max(1, int(slots))
-    slot_counts = tuple(min(c, max(1, round(n_slots * c / len(z0)))) for _, c in groups)
+    n_total = len(args[0])
+    n_slots = default_slots(n_total) if slots is None else max(1, int(slots))
+    slot_counts = tuple(min(c, max(1, round(n_slots * c / n_total))) for _, c in groups)
     if solver is None:
         solver = LevenbergMarquardt(rtol=rtol, atol=atol)
     elif not isinstance(solver, optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser):
@@ -739,6 +860,7 @@ def solve_jobs(
         )
     key = (
         "fit",
+        "bucket" if bucket else None,
         tuple((_problem_key(p), c) if rc is None else c for p, c in groups),
         slot_counts,
         solver_key(solver),
@@ -752,7 +874,17 @@ def solve_jobs(
     compiled, built = _compiled.cached(
         key,
         lambda: (
-            _build(groups, slot_counts, max_steps, solver, pads, rc is not None, homotopy, release)
+            _build(
+                groups,
+                slot_counts,
+                max_steps,
+                solver,
+                pads,
+                rc is not None,
+                homotopy,
+                release,
+                bucket,
+            )
             .lower(*args)
             .compile()
         ),
@@ -764,15 +896,20 @@ def solve_jobs(
     except Exception:  # not every backend reports it
         memory = -1
     t0 = time.perf_counter()
-    z, cost, code, steps = jax.block_until_ready(compiled(*args))
+    outs = _run_parts(compiled, calls)
     fit_s = time.perf_counter() - t0
-    z = np.asarray(z)
+    z, cost, code, steps = (
+        np.empty((n_real, *np.shape(a)[1:]), dtype=np.asarray(a).dtype) for a in outs[0]
+    )
+    for rows, out in zip(parts, outs, strict=True):
+        for whole, part in zip((z, cost, code, steps), out, strict=True):
+            whole[rows] = np.asarray(part)[: len(rows)]
     p_parts, start = [], 0
     width = z.shape[1]
     for prob, c in zip(problems, counts, strict=True):
         sl, k = slice(start, start + c), len(prob.free)
         phys = prob.transform.to_physical(
-            jnp.asarray(z[sl, :k]),
+            np.asarray(z[sl, :k], dtype=float),
             member_arrays[1][sl, :k],
             member_arrays[2][sl, :k],
             member_arrays[3][sl, :k],

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike, Float
 
-from .._compiled import cached
+from .._compiled import cached, jit
 from .._x64 import require_x64
 from ._problem import FitError, Problem, problem_arrays
 from ._result import BOUND_TOLERANCE
@@ -197,7 +197,7 @@ def _build_functions(problem: Problem) -> dict:
         grad_u = jax.grad(cost, argnums=4)
         return jax.jacfwd(grad_u)(q, scale, fixed_values, t, u, y, sqrt_w)  # [N, m, n]
 
-    return {"derivatives": jax.jit(derivatives), "inputs": jax.jit(mixed_inputs)}
+    return {"derivatives": jit(derivatives), "inputs": jit(mixed_inputs)}
 
 
 def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> FitSensitivity:

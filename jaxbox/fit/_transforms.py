@@ -21,6 +21,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+import scipy.special
 
 __all__ = ["Transform", "make_transform", "position_in_bounds", "two_sided", "KINDS"]
 
@@ -47,27 +48,29 @@ class Transform:
         return [KINDS[k] for k in self.kinds]
 
     def to_physical(self, z, lower=None, upper=None, scale=None):
-        """Physical values p [SI] from internal coordinates z (jnp, any leading batch dims)."""
+        """Physical values p [SI] from internal coordinates z (any leading batch dims): jnp,
+        or NumPy for a NumPy ``z`` (no JAX dispatch, e.g. on a fit's results)."""
+        xp = np if isinstance(z, np.ndarray) else jnp
         lo = self.lower if lower is None else lower
         hi = self.upper if upper is None else upper
         s = self.scale if scale is None else scale
         kinds = np.asarray(self.kinds)
-        sig = _squash(self.style, z)
+        sig = _squash(self.style, z, xp)
         out = []
-        lo, hi, s = (jnp.asarray(a, dtype=z.dtype) for a in (lo, hi, s))
+        lo, hi, s = (xp.asarray(a, dtype=z.dtype) for a in (lo, hi, s))
         for i, k in enumerate(kinds):
             zi, si = z[..., i], sig[..., i]
             loi, hii, sci = lo[..., i], hi[..., i], s[..., i]
             if k == _LOG:
-                llo, lhi = jnp.log(loi), jnp.log(hii)
-                out.append(jnp.exp(llo + (lhi - llo) * si))
+                llo, lhi = xp.log(loi), xp.log(hii)
+                out.append(xp.exp(llo + (lhi - llo) * si))
             elif k == _LIN:
                 out.append(loi + (hii - loi) * si)
             elif k == _LOWER:
-                out.append(loi + sci * jnp.exp(zi))
+                out.append(loi + sci * xp.exp(zi))
             else:
                 out.append(sci * zi)
-        return jnp.stack(out, axis=-1)
+        return xp.stack(out, axis=-1)
 
     def to_internal(self, p):
         """Internal coordinates z from physical values p (numpy; bound values are nudged in)."""
@@ -131,15 +134,18 @@ def position_in_bounds(style: str, z):
     return _squash(style, z)
 
 
-def _squash(style, z):
-    """Position in the bounds, 0 … 1, from the internal coordinate (slope 1/4 at the centre)."""
+def _squash(style, z, xp=jnp):
+    """Position in the bounds, 0 … 1, from the internal coordinate (slope 1/4 at the centre);
+    ``xp``: ``jax.numpy`` or NumPy."""
     if style == "logistic":
+        if xp is np:
+            return scipy.special.expit(z)
         return jax.nn.sigmoid(z)  # stable value and derivative for any z
     if style == "algebraic":
         h = 0.5 * z
-        return 0.5 * (1.0 + h / jnp.sqrt(1.0 + h * h))
+        return 0.5 * (1.0 + h / xp.sqrt(1.0 + h * h))
     if style == "sine":
-        return 0.5 * (1.0 + jnp.sin(0.5 * z))
+        return 0.5 * (1.0 + xp.sin(0.5 * z))
     if style == "unbounded":
         return 0.5 + 0.25 * z
     raise ValueError(f"unknown transform style {style!r}; choose one of {STYLES}")

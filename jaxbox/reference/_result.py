@@ -129,7 +129,7 @@ def _result(
     V = w[:nx].reshape(grid.n_nodes, n)
     z = w[nx:]
     x_nodes = V * args["sx"]
-    p_free = np.asarray(problem.transform.to_physical(jnp.asarray(z)))
+    p_free = problem.transform.to_physical(np.asarray(z, dtype=float))
     params = dict(problem.fixed)
     params.update({k: float(v) for k, v in zip(problem.free, p_free, strict=True)})
     params = {k: float(params[k]) for k in problem.model.param_names}

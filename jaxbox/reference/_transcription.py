@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._compiled import cached
+from .._compiled import cached, jit
 from ..fit import Problem, problem_arrays
 from ._grid import _Grid, _grid, _Sparsity, _sparsity
 from ._radau import radau_iia
@@ -130,9 +130,9 @@ def _build_functions(problem: Problem, n_c: int) -> dict:
         return jax.vmap(lambda d: jax.jvp(grad, (w,), (d,))[1])(dirs)
 
     return {
-        "evaluate": jax.jit(evaluate),
-        "hvp": jax.jit(hvp),
-        "matrices": jax.jit(matrices),
+        "evaluate": jit(evaluate),
+        "hvp": jit(hvp),
+        "matrices": jit(matrices),
     }
 
 

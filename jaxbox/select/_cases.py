@@ -265,6 +265,7 @@ def run_cases(
     catch: bool = False,
     labels: Sequence[str] | None = None,
     judge: bool = True,
+    inputs: int = 0,
 ) -> list[Case]:
     """Run several cases together: every start of every case in as few compiled calls as the
     shapes allow (one, for cases of the same shape — e.g. one model on several buildings).
@@ -277,6 +278,8 @@ def run_cases(
         labels: a prefix per case for the progress lines (e.g. the building).
         judge: compute each case's intervals and verdict (``False``: post-simulate only;
             :meth:`Case.assess` judges later).
+        inputs: input columns to pad the batch to at least (the most of any call to come, so
+            that the calls share compiled programs; see :func:`jaxbox.fit.fit_batch`).
 
     Returns:
         The cases, run (a failed one, with ``catch``, has no result).
@@ -295,7 +298,9 @@ def run_cases(
         )
         requests.append(req)
     t0 = time.perf_counter()
-    outcomes = fit_batch(requests, errors="return")
+    # bucketed: the next call (a search's next step, a chain's next model) of neighbouring
+    # sizes reuses this one's compiled program
+    outcomes = fit_batch(requests, errors="return", bucket={"inputs": int(inputs)})
     fit_s = (time.perf_counter() - t0) / max(1, len(cases))
     for case, outcome, told in zip(cases, outcomes, tell, strict=True):
         try:

@@ -392,9 +392,12 @@ def structure_search(
         )
         return case
 
+    widest = [0]  # the most input columns of a step so far: later steps pad to it
+
     def run(cases: list[Case], step: int) -> None:
         say(f"step {step}: {len(cases)} candidate(s) in one batched call")
-        run_cases(cases, say, catch=True, judge=False)
+        widest[0] = max(widest[0], len({u for c in cases for u in c.model.inputs}))
+        run_cases(cases, say, catch=True, judge=False, inputs=widest[0])
 
     def settle(children: list[tuple[Case, Case | None]]) -> list[Case]:
         """Judge a step's children; the improving valid ones, best first."""
@@ -427,6 +430,16 @@ def structure_search(
         return winners
 
     first = [declare(s, None, "root", 0) for s in roots(grammar)]
+    # the roots are fitted with as many input columns as their children will have, so that the
+    # first two steps share one compiled program
+    widest[0] = len(
+        {
+            u
+            for s in roots(grammar)
+            for _, c in extensions(s, grammar)
+            for u in c.build(grammar).inputs
+        }
+    )
     say(
         f"structure search ({criterion}, beam {beam}) from "
         + ", ".join(s.name for s in roots(grammar))

@@ -23,6 +23,7 @@ import numpy as np
 import optimistix as optx
 
 from .. import _compiled
+from .._compiled import jit
 from .._x64 import require_x64
 from ..fit._problem import FitError
 from ..fit._result import StartReport
@@ -80,7 +81,7 @@ def _build(full, model, hold, max_steps: int, rtol: float, atol: float, per_memb
 
     d = 0 if per_member else None
     axes = (0,) * 11 + (d, d)
-    return jax.jit(jax.vmap(one, in_axes=axes))
+    return jit(jax.vmap(one, in_axes=axes))
 
 
 def solve_ml(
@@ -175,7 +176,7 @@ def solve_ml(
     t0 = time.perf_counter()
     z, val, code, steps = jax.block_until_ready(compiled(*args))
     fit_s = time.perf_counter() - t0
-    p_all = np.asarray(full0.to_physical(jnp.asarray(z), members[3], members[4], members[5]))
+    p_all = full0.to_physical(np.asarray(z, dtype=float), members[3], members[4], members[5])
     parts, start = [], 0
     for c, idx in zip(counts, free_idx, strict=True):
         parts.append(p_all[start : start + c][:, idx])
@@ -206,7 +207,7 @@ def _hessian_fn(sp: StochasticProblem, shapes):
             mats, C, D, r, m0, P0 = system(sp.model, theta, dt, sp.hold, x0_std)
             return kalman_scan(mats, C, D, r, m0, P0, u, y)
 
-        return jax.jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)))
+        return jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)))
 
     return _compiled.cached(key, build)[0]
 

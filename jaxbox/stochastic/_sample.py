@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import _compiled
+from .._compiled import jit
 from ..models import get_model
 from ._problem import DEFAULT_X0_STD, system
 from ._states import _check_params
@@ -42,7 +43,7 @@ def simulate_sde(
     std = DEFAULT_X0_STD if x0_std is None else float(x0_std)
     fn = _compiled.cached(
         ("stochastic", "system", model.structure, hold),
-        lambda: jax.jit(lambda th, dt: system(model, th, dt, hold)),
+        lambda: jit(lambda th, dt: system(model, th, dt, hold)),
     )[0]
     (Phi, G0, G1, Q), C, D, r, m0, _ = jax.tree_util.tree_map(
         np.asarray, fn({k: jnp.asarray(v) for k, v in theta.items()}, dt)

@@ -12,12 +12,12 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, Sequence
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pandas as pd
 
 from .. import _compiled
+from .._compiled import jit
 from ..fit._problem import FitError
 from ..models import RCModel, get_model
 from ._kalman import HOLDS, kalman_scan, rts_scan
@@ -130,7 +130,7 @@ def _filter_fn(model: RCModel, hold: str, shapes):
             )
             return out, ms, Ps, (*mats, C, D)
 
-        return jax.jit(run)
+        return jit(run)
 
     return _compiled.cached(key, build)[0]
 

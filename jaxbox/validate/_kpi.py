@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._compiled import cached
+from .._compiled import cached, jit
 from .._x64 import require_x64
 from ..data import signal_unit
 
@@ -211,7 +211,7 @@ def _compiled(model, free: tuple[str, ...], fixed: tuple[str, ...], symmetric: b
             theta.update({n: fv[i] for i, n in enumerate(fixed)})
             return g(theta)
 
-        return jax.jit(lambda p, fv: (f(p, fv), jax.jacfwd(f)(p, fv)))
+        return jit(lambda p, fv: (f(p, fv), jax.jacfwd(f)(p, fv)))
 
     return cached(("kpi", model, free, fixed, symmetric), build)[0]
 

@@ -15,6 +15,7 @@ import dataclasses
 
 import numpy as np
 
+from .._compiled import jit
 from .._x64 import require_x64
 from ..simulate import simulate_arrays
 from ..simulate._exact import discretize_foh_numpy
@@ -417,7 +418,7 @@ def _simulate(model, params, t, u, x0, method, options):
         def run(theta, t, u, x0):
             return simulate_arrays(model, theta, t, u, method=method, x0=x0, **dict(options))
 
-        fn = _JIT[(model, method, options)] = jax.jit(jax.vmap(run, in_axes=(None, None, 0, 0)))
+        fn = _JIT[(model, method, options)] = jit(jax.vmap(run, in_axes=(None, None, 0, 0)))
     theta = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
     y, x = fn(theta, jnp.asarray(t), jnp.asarray(u), jnp.asarray(x0, dtype=float))
     return np.asarray(y), np.asarray(x)

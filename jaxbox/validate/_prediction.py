@@ -19,6 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._compiled import jit
 from .._x64 import require_x64
 from ._metrics import rmse, simulation_error
 
@@ -105,15 +106,13 @@ def _discrete(model):
     """Jitted θ, Δt ↦ (Φ, Γ0, Γ1, C, D, x0) of the exact discretisation; cached per model."""
     fn = _DISCRETE.get(model)
     if fn is None:
-        import jax
-
         from ..simulate import discretize_foh
 
         def f(theta, dt):
             A, B, C, D = model.state_space(theta)
             return (*discretize_foh(A, B, dt), C, D, model.initial_state(theta))
 
-        fn = _DISCRETE[model] = jax.jit(f)
+        fn = _DISCRETE[model] = jit(f)
     return fn
 
 

@@ -44,7 +44,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Bool, Float
 from scipy import stats
 
-from .._compiled import cached
+from .._compiled import cached, jit
 from .._x64 import require_x64
 
 __all__ = ["Uncertainty", "Combination", "uncertainty", "sensitivities"]
@@ -239,9 +239,10 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     search compiles a handful of programs instead of one per candidate; ``None`` where the
     problem has no such form (the diffrax simulator, a node held at a constant temperature).
 
-    Sizes are rounded up (states and free parameters to multiples of 4 and 8…) so that
-    neighbouring structures share a program; padding states are inert and padding parameters
-    are referenced by nothing, so their Jacobian columns are zero and dropped.
+    Sizes are rounded up (states and inputs to multiples of 8, free parameters to 24…) so that
+    the structures of a search share one or two programs (one simulation each: the padding
+    costs little); padding states are inert and padding parameters are referenced by nothing,
+    so their Jacobian columns are zero and dropped.
     """
     from ..fit._fit import _RC_KEYS
     from ..models._network import ModelError
@@ -251,13 +252,13 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
         return None
     sizes = model.array_sizes()
     sizes = {
-        "states": _round_up(sizes["states"], 4),
+        "states": _round_up(sizes["states"], 8),
         "edges": _round_up(sizes["edges"], 8),
         "sources": _round_up(sizes["sources"], 4),
         "factors": _round_up(sizes["factors"], 2),
     }
     n_free, n_fixed, m = len(problem.free), len(problem.fixed), len(model.inputs)
-    width, fixed_width, m_pad = _round_up(n_free, 8), _round_up(n_fixed, 8), _round_up(m, 4)
+    width, fixed_width, m_pad = _round_up(n_free, 24), _round_up(n_fixed, 8), _round_up(m, 8)
     slots = list(problem.free) + [f"\0p{i}" for i in range(width - n_free)]
     slots += [n for n, _ in problem.fixed] + [f"\0q{i}" for i in range(fixed_width - n_fixed)]
     inputs = list(model.inputs) + [f"\0u{i}" for i in range(m_pad - m)]
@@ -296,7 +297,7 @@ def _build_rc_jacobian(segmented: bool):
     def both(p, *args):
         return f(p, *args), jax.jacfwd(f)(p, *args)
 
-    return jax.jit(both)
+    return jit(both)
 
 
 def _jacobian_fn(problem, n_samples: int):
@@ -313,7 +314,7 @@ def _build_jacobian_fn(problem):
     def both(p, fixed_values, t, u):
         return f(p, fixed_values, t, u), jax.jacfwd(f)(p, fixed_values, t, u)
 
-    return jax.jit(both)
+    return jit(both)
 
 
 def sensitivities(

@@ -229,10 +229,6 @@ def _pair_or_none(pair):
     return [lo, hi] if np.isfinite(lo) and np.isfinite(hi) else None
 
 
-def _round_up(n: int, step: int) -> int:
-    return step * max(1, -(-n // step))
-
-
 def _rc_jacobian(problem, t, u, p, fixed_values):
     """``(ŷ, ∂ŷ/∂θ)`` through one compiled program shared by every structure of the same padded
     size (the network as arrays, :meth:`~jaxbox.models.RCModel.rc_arrays`), so that a structure
@@ -244,7 +240,7 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     costs little); padding states are inert and padding parameters are referenced by nothing,
     so their Jacobian columns are zero and dropped.
     """
-    from ..fit._fit import _RC_KEYS
+    from ..fit._fit import _RC_KEYS, _round_up
     from ..models._network import ModelError
 
     model = problem.model

@@ -8,6 +8,7 @@ import pytest
 from _reference import synthetic_building
 
 import jaxbox
+from jaxbox import _compiled
 from jaxbox.models import (
     Grammar,
     ModelError,
@@ -172,11 +173,25 @@ def building():
     return GreyBox(data, name="two states")
 
 
+_FIT_PROGRAMS: dict[str, int] = {}  # fit programs each search fixture compiled
+
+
 @pytest.fixture(scope="module")
 def search(building):
     lines = []
+    before = _compiled.info("fit")["entries"]
     s = structure_search(building, starts=4, max_depth=2, progress=lines.append)
+    _FIT_PROGRAMS["search"] = _compiled.info("fit")["entries"] - before
     return s, lines
+
+
+def test_the_steps_of_a_search_share_compiled_fits(search):
+    """The roots are fitted with their children's input columns and every step's batch is
+    bucketed: the calls compile fewer programs than there are calls."""
+    _, lines = search
+    calls = sum("in one batched call" in line for line in lines)
+    assert calls >= 3
+    assert 1 <= _FIT_PROGRAMS["search"] < calls
 
 
 def test_search_finds_the_true_structure(search):

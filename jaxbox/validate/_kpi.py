@@ -153,9 +153,10 @@ def kpi_inputs(model) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 def _symmetric(model, theta) -> bool:
     """Whether the conductance matrix of ``model`` at ``theta`` is symmetric (reciprocal)."""
-    A, _, caps, held = model.rc_form({k: jnp.asarray(v, float) for k, v in theta.items()})
-    dyn = [i for i, h in enumerate(held) if not h]
-    H = (np.asarray(A) * np.asarray(caps)[:, None])[np.ix_(dyn, dyn)]
+    # in NumPy: no JAX dispatch (a compilation per operation) for a new structure
+    A, _, caps = model.rc_numpy({k: float(np.asarray(v)) for k, v in theta.items()})
+    dyn = [i for i, node in enumerate(model.network.nodes) if not node.constant]
+    H = (A * caps[:, None])[np.ix_(dyn, dyn)]
     return bool(np.allclose(H, H.T, rtol=1e-10, atol=1e-14 * np.max(np.abs(H), initial=1.0)))
 
 

@@ -19,7 +19,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._compiled import jit
 from .._x64 import require_x64
 from ._metrics import rmse, simulation_error
 
@@ -99,21 +98,15 @@ def _k_step(Phi, G0, G1, Cm, Dm, xhat, u, kmax):
     return out
 
 
-_DISCRETE: dict = {}
+def _discrete(model, params, dt: float):
+    """``(Φ, Γ0, Γ1, C, D, x0)`` of the exact discretisation at ``params`` in NumPy (Van Loan's
+    augmented exponential): no compilation for a new structure."""
+    from ..simulate._exact import discretize_foh_numpy
 
-
-def _discrete(model):
-    """Jitted θ, Δt ↦ (Φ, Γ0, Γ1, C, D, x0) of the exact discretisation; cached per model."""
-    fn = _DISCRETE.get(model)
-    if fn is None:
-        from ..simulate import discretize_foh
-
-        def f(theta, dt):
-            A, B, C, D = model.state_space(theta)
-            return (*discretize_foh(A, B, dt), C, D, model.initial_state(theta))
-
-        fn = _DISCRETE[model] = jit(f)
-    return fn
+    theta = {k: float(v) for k, v in params.items()}
+    A, B, C, D = model.state_space_numpy(theta)
+    x0 = np.asarray([theta[m.T0] for m in model.network.nodes])
+    return (*discretize_foh_numpy(A, B, dt), C, D, x0)
 
 
 def prediction_performance(
@@ -133,7 +126,6 @@ def prediction_performance(
     Returns:
         :class:`PredictionPerformance`.
     """
-    import jax.numpy as jnp
 
     from ._postsim import joined_arrays
 
@@ -166,10 +158,7 @@ def prediction_performance(
             f"horizons must be whole numbers of samples in [1, {shortest - 1}], got "
             f"{list(map(int, ks))}"
         )
-    theta = {k: jnp.asarray(v, dtype=float) for k, v in result.params.items()}
-    Phi, G0, G1, Cm, Dm, x0 = (
-        np.asarray(m) for m in _discrete(model)(theta, jnp.asarray(float(ident.step)))
-    )
+    Phi, G0, G1, Cm, Dm, x0 = _discrete(model, result.params, float(ident.step))
     # open-loop simulation over both periods (exact discretisation)
     drive = u[:-1] @ G0.T + (u[1:] - u[:-1]) @ G1.T
     xs = np.empty((n_all, len(x0)))

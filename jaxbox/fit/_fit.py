@@ -514,6 +514,14 @@ def _padded_matrices(prob: Problem, spec, args):
 _RC_KEYS = ("R", "scale", "fk", "fa", "fb", "KG", "KH", "sk", "sa", "sb", "KS", "C", "T0", "pad")
 
 
+def _array_form(problems) -> bool:
+    """Whether the networks of ``problems`` can go into one program in array form: one
+    transform style, no node held at a constant temperature."""
+    return len({p.transform.style for p in problems}) == 1 and not any(
+        node.constant for p in problems for node in p.model.network.nodes
+    )
+
+
 def _rc_members(problems, counts, layout, width: int, fixed_width: int, bucket: bool = False):
     """Per member (start) ``(kinds [B, p], *arrays)`` of every variant's network in array form
     (:meth:`~jaxbox.models.RCModel.rc_arrays`), padded to the batch's largest (``bucket``: its
@@ -521,7 +529,7 @@ def _rc_members(problems, counts, layout, width: int, fixed_width: int, bucket: 
     constant node)."""
     from ..models._network import ModelError
 
-    if any(node.constant for p in problems for node in p.model.network.nodes):
+    if not _array_form(problems):
         return None
     names = layout["union"]
     each = [p.model.array_sizes() for p in problems]
@@ -629,7 +637,7 @@ def _build(
             lin,
             z0,
             max_steps=max_steps,
-            start_counts=(len(z0),) if bucketed else tuple(c for _, c in groups),
+            start_counts=tuple(c for _, c in groups),
             slot_counts=slot_counts,
             count=count,
             # the continuation needs the observer of the exact route
@@ -771,12 +779,7 @@ def solve_jobs(
     variants = len({_problem_key(p) for p in problems}) > 1
     paddable = _paddable(problems, solver)
     least = dict(bucket) if isinstance(bucket, Mapping) else {}
-    bucket = (
-        bool(bucket)
-        and paddable
-        and len({p.transform.style for p in problems}) == 1
-        and not any(node.constant for p in problems for node in p.model.network.nodes)
-    )
+    bucket = bool(bucket) and paddable and _array_form(problems)
     if (variants or bucket) and paddable:
         layout, datas = _input_layout(problems, datas, bucket, least.get("inputs", 0))
         n_states = max(len(p.model.states) for p in problems)
@@ -809,7 +812,7 @@ def solve_jobs(
     groups = _groups(problems, counts)
     pads = None if layout is None else tuple(_pad_spec(p, layout) for p, _ in groups)
     rc = None
-    if layout is not None and len({p.transform.style for p in problems}) == 1:
+    if layout is not None:
         rc = _rc_members(problems, counts, layout, z0.shape[1], member_arrays[0].shape[1], bucket)
     n_real = len(z0)
     bucket = bucket and rc is not None
@@ -819,27 +822,27 @@ def solve_jobs(
         parts = [np.arange(j, n_real, n_parts) for j in range(n_parts)]
         size = _bucket_starts(len(parts[0]))
         groups = ((groups[0][0], size),)
-    shared = tuple(jax.device_put(np.asarray(a, dtype=float)) for a in data if a.shape[1] == 1)
+    # data shared by every start go to the device once, for every part
+    shared = [jax.device_put(np.asarray(a, float)) if a.shape[1] == 1 else None for a in data]
 
     def arguments(rows):
         """The compiled solve's arguments for the starts ``rows`` (bucketed: padded with
         copies of the last, never solved)."""
+        n_rows = len(rows)
         if bucket:
-            rows = rows[np.minimum(np.arange(size), len(rows) - 1)]
+            rows = rows[np.minimum(np.arange(size), n_rows - 1)]
         own = (z0, bounded, *member_arrays)
         own = tuple(np.asarray(a)[rows] for a in own) if bucket else own
         put = [
             jax.device_put(np.asarray(a, dtype=bool if k == 1 else float))
             for k, a in enumerate(own)
         ]
-        pool = iter(shared)
-        for a in data:
-            if a.shape[1] == 1:
-                put.append(next(pool))
-            else:
-                put.append(jax.device_put(np.asarray(a[:, rows] if bucket else a, dtype=float)))
+        put += [
+            d if d is not None else jax.device_put(np.asarray(a[:, rows] if bucket else a, float))
+            for a, d in zip(data, shared, strict=True)
+        ]
         if bucket:
-            put.append(jax.device_put(np.int32(len(set(rows.tolist())))))
+            put.append(jax.device_put(np.int32(n_rows)))
         if rc is not None:
             put.extend(jax.device_put(np.asarray(a)[rows] if bucket else np.asarray(a)) for a in rc)
         return tuple(put)

@@ -392,12 +392,13 @@ def structure_search(
         )
         return case
 
-    widest = [0]  # the most input columns of a step so far: later steps pad to it
+    widest = 0  # the most input columns of a step so far: later steps pad to it
 
     def run(cases: list[Case], step: int) -> None:
+        nonlocal widest
         say(f"step {step}: {len(cases)} candidate(s) in one batched call")
-        widest[0] = max(widest[0], len({u for c in cases for u in c.model.inputs}))
-        run_cases(cases, say, catch=True, judge=False, inputs=widest[0])
+        widest = max(widest, len({u for c in cases for u in c.model.inputs}))
+        run_cases(cases, say, catch=True, judge=False, inputs=widest)
 
     def settle(children: list[tuple[Case, Case | None]]) -> list[Case]:
         """Judge a step's children; the improving valid ones, best first."""
@@ -432,7 +433,7 @@ def structure_search(
     first = [declare(s, None, "root", 0) for s in roots(grammar)]
     # the roots are fitted with as many input columns as their children will have, so that the
     # first two steps share one compiled program
-    widest[0] = len(
+    widest = len(
         {
             u
             for s in roots(grammar)

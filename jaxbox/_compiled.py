@@ -73,7 +73,31 @@ def compiler_options() -> dict[str, Any] | None:
 
     if os.environ.get("JAXBOX_XLA_DEFAULTS", "0").strip().lower() in ("1", "yes", "on", "true"):
         return None
-    return dict(_CPU_OPTIONS) if jax.default_backend() == "cpu" else None
+    if jax.default_backend() != "cpu" or not _supported():
+        return None
+    return dict(_CPU_OPTIONS)
+
+
+_SUPPORTED: list[bool] = []
+
+
+def _supported() -> bool:
+    """Whether this jaxlib's CPU compiler knows :data:`_CPU_OPTIONS` (XLA renames and retires
+    its flags: jaxlib 0.11 has no ``xla_cpu_use_fusion_emitters``). Probed once, on a trivial
+    program."""
+    if not _SUPPORTED:
+        import jax
+        import jax.numpy as jnp
+
+        try:
+            jax.jit(lambda x: x + 1.0, compiler_options=dict(_CPU_OPTIONS)).lower(
+                jnp.zeros(())
+            ).compile()
+            ok = True
+        except Exception:  # noqa: BLE001 - an unknown option is reported as a runtime error
+            ok = False
+        _SUPPORTED[:] = [ok]
+    return _SUPPORTED[0]
 
 
 def jit(fun: Callable, **kwargs) -> Callable:

@@ -141,14 +141,49 @@ def test_transform_in_numpy_equals_jax():
     np.testing.assert_allclose(got, np.asarray(tr.to_physical(jnp.asarray(z))), rtol=1e-14)
 
 
+def test_the_starts_of_one_model_in_parts_side_by_side(data, monkeypatch):
+    """The starts of one fit dealt to parts run by threads (13 starts: parts of 5, 4 and 4,
+    the short ones padded with starts never solved) give each start what it gets in one part."""
+    import jax
+
+    from jaxbox.fit import fit_model
+
+    if jax.default_backend() != "cpu":
+        pytest.skip("parts run side by side on a CPU only")
+    runs = {}
+    for threads in ("1", "3"):
+        monkeypatch.setenv("JAXBOX_THREADS", threads)
+        monkeypatch.setattr("jaxbox.fit._fit.parallel_parts", lambda n, t=int(threads): t)
+        runs[threads] = fit_model(VARIANTS[1], data, starts=13, seed=5)
+    a, b = runs["1"], runs["3"]
+    assert len(b.starts.cost) == 13 and np.all(np.isfinite(b.starts.cost))
+    np.testing.assert_allclose(a.starts.cost, b.starts.cost, rtol=1e-9)
+    np.testing.assert_array_equal(a.starts.steps, b.starts.steps)
+    np.testing.assert_allclose(a.cost, b.cost, rtol=1e-12)
+
+
 def test_compiler_options_on_a_cpu(monkeypatch):
     import jax
 
     opts = _compiled.compiler_options()
-    if jax.default_backend() == "cpu":
+    if jax.default_backend() == "cpu" and _compiled._supported():
         assert opts == {"xla_cpu_use_fusion_emitters": False}
+    else:
+        assert opts is None
     monkeypatch.setenv("JAXBOX_XLA_DEFAULTS", "1")
     assert _compiled.compiler_options() is None
+
+
+def test_a_compiler_that_does_not_know_the_options(monkeypatch):
+    """A jaxlib whose CPU compiler retired the option (jaxlib 0.11) compiles with XLA's own
+    settings instead of failing every fit."""
+    import jax
+
+    monkeypatch.setattr(_compiled, "_SUPPORTED", [])
+    monkeypatch.setattr(_compiled, "_CPU_OPTIONS", {"xla_no_such_option_anywhere": True})
+    assert _compiled.compiler_options() is None
+    f = _compiled.jit(lambda x: 2.0 * x)
+    assert float(f(jax.numpy.asarray(1.5))) == 3.0
 
 
 def test_a_constant_node_in_a_batch_of_variants(data):

@@ -683,9 +683,11 @@ def _build_generic(groups, max_steps: int, solver):
 
 
 def parallel_parts(n_starts: int) -> int:
-    """Into how many parts a bucketed batch of ``n_starts`` is dealt, the parts run side by
-    side by threads: on a CPU one per core (``JAXBOX_THREADS`` sets the number; each part keeps
-    at least 8 starts), on an accelerator one."""
+    """Into how many parts a batch of ``n_starts`` is dealt (a bucketed batch, or the starts of
+    one problem), the parts run side by side by threads on one executable: on a CPU one per
+    core (``JAXBOX_THREADS`` sets the number; each part keeps at least 8 starts), on an
+    accelerator one. XLA runs one batched solve on about one core; each start's result does
+    not depend on the part it ran in."""
     if jax.default_backend() != "cpu":
         return 1
     env = os.environ.get("JAXBOX_THREADS", "").strip()
@@ -741,7 +743,8 @@ def solve_jobs(
     many — run one compiled program instead of one each. The results are those of the call
     without ``bucket``, to rounding. A mapping instead of ``True`` sets sizes to pad to at
     least (``{"inputs": 12}``: the input columns of the largest call to come). On a CPU the
-    starts are dealt to :func:`parallel_parts` that run side by side.
+    starts of a bucketed batch, or of a batch of one problem (one structure) with jaxbox's
+    solver, are dealt to :func:`parallel_parts` that run side by side.
 
     Returns a dict with per member (all starts of all jobs, in order): ``job`` [B], ``z``, ``p``
     [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s] and
@@ -817,10 +820,13 @@ def solve_jobs(
     n_real = len(z0)
     bucket = bucket and rc is not None
     parts = [np.arange(n_real)]
-    if bucket:  # the starts dealt to parts that run side by side, each in one queue of slots
-        n_parts = parallel_parts(n_real)
+    # the starts dealt to parts that run side by side, each in one queue of slots: a bucketed
+    # batch, or one group of starts with jaxbox's solver (one program serves every part)
+    n_parts = parallel_parts(n_real) if bucket or (len(groups) == 1 and paddable) else 1
+    split = bucket or n_parts > 1
+    if split:
         parts = [np.arange(j, n_real, n_parts) for j in range(n_parts)]
-        size = _bucket_starts(len(parts[0]))
+        size = _bucket_starts(len(parts[0])) if bucket else len(parts[0])
         groups = ((groups[0][0], size),)
     # data shared by every start go to the device once, for every part
     shared = [jax.device_put(np.asarray(a, float)) if a.shape[1] == 1 else None for a in data]
@@ -829,22 +835,22 @@ def solve_jobs(
         """The compiled solve's arguments for the starts ``rows`` (bucketed: padded with
         copies of the last, never solved)."""
         n_rows = len(rows)
-        if bucket:
+        if split:
             rows = rows[np.minimum(np.arange(size), n_rows - 1)]
         own = (z0, bounded, *member_arrays)
-        own = tuple(np.asarray(a)[rows] for a in own) if bucket else own
+        own = tuple(np.asarray(a)[rows] for a in own) if split else own
         put = [
             jax.device_put(np.asarray(a, dtype=bool if k == 1 else float))
             for k, a in enumerate(own)
         ]
         put += [
-            d if d is not None else jax.device_put(np.asarray(a[:, rows] if bucket else a, float))
+            d if d is not None else jax.device_put(np.asarray(a[:, rows] if split else a, float))
             for a, d in zip(data, shared, strict=True)
         ]
-        if bucket:
+        if split:
             put.append(jax.device_put(np.int32(n_rows)))
         if rc is not None:
-            put.extend(jax.device_put(np.asarray(a)[rows] if bucket else np.asarray(a)) for a in rc)
+            put.extend(jax.device_put(np.asarray(a)[rows] if split else np.asarray(a)) for a in rc)
         return tuple(put)
 
     calls = [arguments(rows) for rows in parts]
@@ -863,7 +869,7 @@ def solve_jobs(
         )
     key = (
         "fit",
-        "bucket" if bucket else None,
+        "bucket" if bucket else ("parts" if split else None),
         tuple((_problem_key(p), c) if rc is None else c for p, c in groups),
         slot_counts,
         solver_key(solver),
@@ -886,7 +892,7 @@ def solve_jobs(
                 rc is not None,
                 homotopy,
                 release,
-                bucket,
+                split,
             )
             .lower(*args)
             .compile()

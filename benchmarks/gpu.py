@@ -244,7 +244,7 @@ def _markdown(doc: dict) -> str:
         "`benchmarks/gpu.json`)."
         + (
             ""
-            if doc.get("incomplete")
+            if doc.get("incomplete") or doc.get("notes")
             else " One run on one machine: the GPU, that machine's CPU and the plain scipy loop "
             "measured together."
         ),

@@ -192,3 +192,9 @@ def test_one_set_of_defaults_in_python_the_selection_and_the_command_line():
         )
         assert args.starts == DEFAULT_STARTS, command
         assert args.max_steps in (None, DEFAULT_MAX_STEPS), command
+    # the experiment design's optimiser: the command line takes jaxbox.design.plan's default
+    from jaxbox.design import plan
+
+    args = parser.parse_args(["design", "--model", "Zon", "--out", "x.csv"])
+    assert args.starts is None
+    assert inspect.signature(plan).parameters["starts"].default >= 1

@@ -48,7 +48,11 @@ def add_design_arguments(p) -> None:
     p.add_argument(
         "--spread", type=float, help="std of log θ of the prior samples (default: the fit's)"
     )
-    p.add_argument("--starts", type=int_option, default=8, help="optimiser starts (default 8)")
+    p.add_argument(
+        "--starts",
+        type=int_option,
+        help="optimiser starts (default: jaxbox.design.plan's, 4)",
+    )
     p.add_argument("--seed", type=int_option, default=0)
     p.add_argument("--out", "-o", required=True, metavar="CSV", help="the schedule (CSV)")
     p.add_argument("--baselines", action="store_true", help="add the baselines to the CSV")
@@ -123,7 +127,7 @@ def design_command(args) -> int:
         raise UsageError(f"--days must be > 0, got {args.days}")
     if args.spread is not None and not (math.isfinite(args.spread) and args.spread >= 0):
         raise UsageError(f"--spread must be ≥ 0, got {args.spread}")
-    if args.starts < 1:
+    if args.starts is not None and args.starts < 1:
         raise UsageError(f"--starts must be at least 1, got {args.starts}")
     if args.robust < 0:
         raise UsageError(f"--robust must be ≥ 0, got {args.robust}")
@@ -150,8 +154,8 @@ def design_command(args) -> int:
         start_temperature=args.start_temperature,
         robust=args.robust,
         spread=args.spread,
-        starts=args.starts,
         seed=args.seed,
+        **({} if args.starts is None else {"starts": args.starts}),
     )
     fd, tmp = tempfile.mkstemp(prefix=".jaxbox-design-", suffix=".csv", dir=out.parent or ".")
     os.close(fd)

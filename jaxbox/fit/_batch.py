@@ -125,7 +125,8 @@ def fit_model(
             the diffrax simulator fit the output error directly.
         release: a route that ends with parameters within 0.1 % of their bounds (where the
             bound transform freezes them) is solved once more from there with those parameters
-            back at their start values, and ends at the better of the two (jaxbox's solver).
+            set halfway from their start values to the guess (in the transform's coordinates),
+            and ends at the better of the two (jaxbox's solver).
         max_gap: the longest input gap [s] (or text such as ``"2h"``) filled by interpolation.
         slots: starts iterated together (default :func:`default_slots`); a start that has
             terminated hands its slot to the next. Results do not depend on it.

@@ -57,12 +57,14 @@ def test_a_batch_of_variants_gives_each_fit_alone(together_and_alone):
         assert a.starts.status == b.starts.status
         done = a.starts.converged  # (a start stopped by the step cap, in a flat valley, may
         assert done.sum() >= 1  # drift by rounding: its cost is compared loosely)
-        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-7)
+        # a converged start stops when a step gains less than 1e-6 of the cost: in a flat valley
+        # two paths a rounding apart stop a few 1e-6 apart (Zon+Hea's local minimum at 0.155 K²)
+        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-5)
         np.testing.assert_allclose(a.starts.cost, b.starts.cost, rtol=1e-3)
         # the same path: a stage of a route may end a step or two apart by rounding (the padded
         # program sums in another order), out of some hundred steps over the stages
         np.testing.assert_allclose(a.starts.steps[done], b.starts.steps[done], rtol=0.02, atol=2)
-        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-7)
+        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-5)
     # the true structure fits to the noise
     assert together[2].cost < 1.2 * 0.03**2
 
@@ -100,8 +102,8 @@ def test_bucketed_calls_of_neighbouring_sizes_share_one_program(bucketed, togeth
         assert a.problem.free == b.problem.free
         done = a.starts.converged & b.starts.converged
         assert done.sum() >= 1
-        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-7)
-        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-7)
+        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-5)
+        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-5)
         np.testing.assert_allclose(a.starts.steps[done], b.starts.steps[done], rtol=0.02, atol=2)
 
 

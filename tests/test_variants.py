@@ -143,6 +143,23 @@ def test_transform_in_numpy_equals_jax():
     np.testing.assert_allclose(got, np.asarray(tr.to_physical(jnp.asarray(z))), rtol=1e-14)
 
 
+def test_the_cores_of_a_container_quota(tmp_path):
+    """Parts per core: no more than a container's CPU quota (cgroup v2 cpu.max) allows."""
+    import os
+
+    from jaxbox.fit._fit import _usable_cores
+
+    own = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cpu_max = tmp_path / "cpu.max"
+    cpu_max.write_text("max 100000\n")
+    assert _usable_cores(str(cpu_max)) == own
+    cpu_max.write_text("150000 100000\n")  # one and a half cores: one part
+    assert _usable_cores(str(cpu_max)) == 1
+    cpu_max.write_text(f"{100000 * (own + 4)} 100000\n")  # a quota above the affinity set
+    assert _usable_cores(str(cpu_max)) == own
+    assert _usable_cores(str(tmp_path / "missing")) == own
+
+
 def test_the_starts_of_one_model_in_parts_side_by_side(data, monkeypatch):
     """The starts of one fit dealt to parts run by threads (13 starts: parts of 5, 4 and 4,
     the short ones padded with starts never solved) give each start what it gets in one part."""

@@ -711,7 +711,8 @@ def _build_generic(groups, max_steps: int, solver):
 def parallel_parts(n_starts: int) -> int:
     """Into how many parts a batch of ``n_starts`` is dealt (a bucketed batch, or the starts of
     one problem), the parts run side by side by threads on one executable: on a CPU one per
-    core (``JAXBOX_THREADS`` sets the number; each part keeps at least 8 starts), on an
+    usable core (:func:`_usable_cores`; ``JAXBOX_THREADS`` sets the number; each part keeps at
+    least 8 starts), on an
     accelerator one. XLA runs one batched solve on about one core; each start's result does
     not depend on the part it ran in."""
     if jax.default_backend() != "cpu":
@@ -723,8 +724,21 @@ def parallel_parts(n_starts: int) -> int:
         except ValueError:
             raise FitError(f"JAXBOX_THREADS must be a whole number, got {env!r}") from None
     else:
-        threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+        threads = _usable_cores()
     return max(1, min(threads, n_starts // 8))
+
+
+def _usable_cores(cpu_max: str = "/sys/fs/cgroup/cpu.max") -> int:
+    """The cores this process may use: those of its affinity set, no more than its container's
+    CPU quota (cgroup v2 ``cpu.max``, ``"200000 100000"``: two cores) where one is set."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    try:
+        quota, period = open(cpu_max).read().split()[:2]
+        if quota != "max" and float(period) > 0:
+            cores = min(cores or 1, max(1, int(float(quota) / float(period))))
+    except (OSError, ValueError):
+        pass
+    return max(1, cores or 1)
 
 
 def _run_parts(compiled, calls):

@@ -712,9 +712,8 @@ def parallel_parts(n_starts: int) -> int:
     """Into how many parts a batch of ``n_starts`` is dealt (a bucketed batch, or the starts of
     one problem), the parts run side by side by threads on one executable: on a CPU one per
     usable core (:func:`_usable_cores`; ``JAXBOX_THREADS`` sets the number; each part keeps at
-    least 8 starts), on an
-    accelerator one. XLA runs one batched solve on about one core; each start's result does
-    not depend on the part it ran in."""
+    least 8 starts), on an accelerator one. XLA runs one batched solve on about one core; each
+    start's result does not depend on the part it ran in."""
     if jax.default_backend() != "cpu":
         return 1
     env = os.environ.get("JAXBOX_THREADS", "").strip()

@@ -40,6 +40,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -730,14 +731,17 @@ def parallel_parts(n_starts: int) -> int:
 def _usable_cores(cpu_max: str = "/sys/fs/cgroup/cpu.max") -> int:
     """The cores this process may use: those of its affinity set, no more than its container's
     CPU quota (cgroup v2 ``cpu.max``, ``"200000 100000"``: two cores) where one is set."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if hasattr(os, "sched_getaffinity"):
+        cores = len(os.sched_getaffinity(0))
+    else:
+        cores = os.cpu_count() or 1
     try:
-        quota, period = open(cpu_max).read().split()[:2]
+        quota, period = Path(cpu_max).read_text().split()[:2]
         if quota != "max" and float(period) > 0:
-            cores = min(cores or 1, max(1, int(float(quota) / float(period))))
+            cores = min(cores, int(float(quota) / float(period)))
     except (OSError, ValueError):
         pass
-    return max(1, cores or 1)
+    return max(1, cores)
 
 
 def _run_parts(compiled, calls):

@@ -34,6 +34,7 @@ import math
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 
 __all__ = [
@@ -263,6 +264,25 @@ def _matvec(M, x):
     return out
 
 
+def _take(a, outputs: tuple[int, ...], axis: int = 1):
+    """``a`` at the static state indices ``outputs`` along ``axis``, by slices (no gather)."""
+    lo = outputs[0]
+    if outputs == tuple(range(lo, lo + len(outputs))):
+        return lax.slice_in_dim(a, lo, lo + len(outputs), axis=axis)
+    return jnp.concatenate([lax.slice_in_dim(a, o, o + 1, axis=axis) for o in outputs], axis=axis)
+
+
+def _spread(v, outputs: tuple[int, ...], n: int):
+    """[B, p] values at the static state indices ``outputs`` → [B, n], zero elsewhere (no
+    scatter)."""
+    out = 0.0
+    for j, o in enumerate(outputs):
+        onehot = np.zeros(n)
+        onehot[o] = 1.0
+        out = out + v[:, j, None] * jnp.asarray(onehot, v.dtype)
+    return out
+
+
 def _drive(u, du, G0, G1):
     """``Γ0 u_k + Γ1 Δu_k`` for u [L, Bu, m] (Bu 1 or B) and G [B, n, m, …] → [L, B, n, …]."""
     G = jnp.concatenate([G0, G1], axis=2)
@@ -304,7 +324,7 @@ def normal_equations(
     """
     Phi, G0, G1, x0 = mats
     dPhi, dG0, dG1, dx0 = tangents
-    outputs = jnp.asarray(tuple(outputs))
+    outputs = tuple(int(o) for o in outputs)
     n_samples = u.shape[0]
     segmented = x0.ndim == 3
     if segmented:
@@ -344,7 +364,7 @@ def normal_equations(
                 return _matvec(Phi, x) + d, x
             # the measured states pulled towards their measurements
             pull = gain[:, None] * (wk > 0)
-            xc = x.at[:, outputs].add(-pull * (x[:, outputs] - yk))
+            xc = x - _spread(pull * (_take(x, outputs) - yk), outputs, n)
             return _matvec(Phi, xc) + d, (x, xc)
 
         # xs[k]: state at sample k (the prediction); xcs[k]: after the observer's correction
@@ -355,16 +375,16 @@ def normal_equations(
             # X_{k+1} = Φ X_k + ∂Φ x_k + ∂Γ0 u_k + ∂Γ1 Δu_k; only the measured rows leave
             xk, e, f, i, wk = a
             X = restart(X, f, i, dX0s if segmented else None)
-            out = X[:, outputs, :]
+            out = _take(X, outputs)
             if gain is not None:
-                keep = 1.0 - gain[:, None] * (wk > 0)
-                X = X.at[:, outputs, :].multiply(keep[..., None])
+                keep = 1.0 - _spread(gain[:, None] * (wk > 0), outputs, n)
+                X = X * keep[..., None]
             for j in range(n):
                 e = e + dPhi[:, :, j, :] * xk[:, None, j, None]
             return _matvec(Phi, X) + e, out
 
         X_next, Js = lax.scan(tangent, X, (xcs, _drive(uc, duc, dG0, dG1), fc, ic, wc))
-        r = wc * (xs[:, :, outputs] - yc)  # [L, B, p]
+        r = wc * (_take(xs, outputs, axis=2) - yc)  # [L, B, p]
         Jw = wc[..., None] * Js  # [L, B, p, q]
         Jb = jnp.transpose(Jw, (1, 0, 2, 3)).reshape(batch, -1, q)  # member-major for the products
         rb = jnp.transpose(r, (1, 0, 2)).reshape(batch, -1)

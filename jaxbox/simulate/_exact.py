@@ -357,34 +357,28 @@ def normal_equations(
         x, X, cost, g, H = carry
         uc, duc, yc, wc, fc, ic = data
 
-        def primal(x, a):
-            d, f, i, yk, wk = a
-            x = restart(x, f, i, X0s if segmented else None)
-            if gain is None:
-                return _matvec(Phi, x) + d, x
-            # the measured states pulled towards their measurements
-            pull = gain[:, None] * (wk > 0)
-            xc = x - _spread(pull * (_take(x, outputs) - yk), outputs, n)
-            return _matvec(Phi, xc) + d, (x, xc)
-
-        # xs[k]: state at sample k (the prediction); xcs[k]: after the observer's correction
-        x_next, xs = lax.scan(primal, x, (_drive(uc, duc, G0, G1), fc, ic, yc, wc))
-        xs, xcs = (xs, xs) if gain is None else xs
-
-        def tangent(X, a):
+        def sample(carry, a):
+            # the state and its tangents in one pass: x_{k+1} = Φ x_k + Γ0 u_k + Γ1 Δu_k and
             # X_{k+1} = Φ X_k + ∂Φ x_k + ∂Γ0 u_k + ∂Γ1 Δu_k; only the measured rows leave
-            xk, e, f, i, wk = a
+            x, X = carry
+            d, e, f, i, yk, wk = a
+            x = restart(x, f, i, X0s if segmented else None)
             X = restart(X, f, i, dX0s if segmented else None)
-            out = _take(X, outputs)
-            if gain is not None:
-                keep = 1.0 - _spread(gain[:, None] * (wk > 0), outputs, n)
-                X = X * keep[..., None]
+            yhat, out = _take(x, outputs), _take(X, outputs)  # the prediction of sample k
+            if gain is None:
+                xc = x
+            else:  # the measured states pulled towards their measurements
+                pull = gain[:, None] * (wk > 0)
+                xc = x - _spread(pull * (yhat - yk), outputs, n)
+                X = X * (1.0 - _spread(pull, outputs, n))[..., None]
             for j in range(n):
-                e = e + dPhi[:, :, j, :] * xk[:, None, j, None]
-            return _matvec(Phi, X) + e, out
+                e = e + dPhi[:, :, j, :] * xc[:, None, j, None]
+            return (_matvec(Phi, xc) + d, _matvec(Phi, X) + e), (yhat, out)
 
-        X_next, Js = lax.scan(tangent, X, (xcs, _drive(uc, duc, dG0, dG1), fc, ic, wc))
-        r = wc * (_take(xs, outputs, axis=2) - yc)  # [L, B, p]
+        (x_next, X_next), (yhats, Js) = lax.scan(
+            sample, (x, X), (_drive(uc, duc, G0, G1), _drive(uc, duc, dG0, dG1), fc, ic, yc, wc)
+        )
+        r = wc * (yhats - yc)  # [L, B, p]
         Jw = wc[..., None] * Js  # [L, B, p, q]
         Jb = jnp.transpose(Jw, (1, 0, 2, 3)).reshape(batch, -1, q)  # member-major for the products
         rb = jnp.transpose(r, (1, 0, 2)).reshape(batch, -1)

@@ -181,7 +181,10 @@ def test_irregular_sampling_suggests_resample() -> None:
 
 def test_missing_rows_are_gaps() -> None:
     df = frame(n=20).drop(index=[9, 10]).reset_index(drop=True)  # 01:30 and 01:40 missing
-    with pytest.warns(DataWarning, match=r"gaps: missing samples in 'T_zon' \(2\)"):
+    with pytest.warns(
+        DataWarning,
+        match=r"gaps: missing samples in 'T_zon' \(2, the first at 2020-01-01 01:30:00\)",
+    ):
         ds = load(df)
     assert len(ds) == 20 and ds.step == STEP
     assert np.isnan(ds["T_zon"][9:11]).all() and np.isfinite(ds["T_zon"][[8, 11]]).all()
@@ -219,7 +222,10 @@ def test_decimal_comma_hint(tmp_path) -> None:
 def test_missing_values_are_kept_and_noted(tmp_path) -> None:
     df = frame()
     df.loc[[3, 4, 9], "T_zon"] = np.nan
-    with pytest.warns(DataWarning, match=r"missing samples in 'T_zon' \(3\).*--max-gap"):
+    with pytest.warns(
+        DataWarning,
+        match=r"missing samples in 'T_zon' \(3, the first at 2020-01-01 00:30:00\).*--max-gap",
+    ):
         ds = load(df)
     assert np.isnan(ds["T_zon"][[3, 4, 9]]).all()
     path = tmp_path / "gap.csv"
@@ -227,7 +233,7 @@ def test_missing_values_are_kept_and_noted(tmp_path) -> None:
     text = path.read_text().splitlines()
     text[3] = text[3].rsplit(",", 1)[0] + ","  # empty Q_hea in the third data row
     path.write_text("\n".join(text) + "\n")
-    with pytest.warns(DataWarning, match=r"'Q_hea' \(1\)"):
+    with pytest.warns(DataWarning, match=r"'Q_hea' \(1, the first at 2020-01-01 00:20:00\)"):
         assert np.isnan(load(path)["Q_hea"][2])
 
 

@@ -92,13 +92,21 @@ def gap_note(data, columns: Sequence[str] | None = None) -> str | None:
     bad = [str(c) for c in frame.columns if counts[c] > 0]
     if not bad:
         return None
-    listed = ", ".join(f"{c!r} ({int(counts[c])})" for c in bad[:6])
+    listed = ", ".join(
+        f"{c!r} ({int(counts[c])}, the first at {_first_gap(frame[c])})" for c in bad[:6]
+    )
     more = f", … ({len(bad) - 6} more)" if len(bad) > 6 else ""
     return (
         f"the data have gaps: missing samples in {listed}{more}; in the windows used, input gaps "
         "are interpolated up to max_gap (command line --max-gap) and split the window into "
         "segments beyond, output gaps are masked."
     )
+
+
+def _first_gap(column) -> str:
+    """Where the first missing sample of a column is: its time stamp (or row label)."""
+    where = column.index[column.isna().to_numpy()][0]
+    return str(where)
 
 
 def prepare_window(

@@ -88,12 +88,14 @@ def _span(index: pd.DatetimeIndex, a: int, b: int, step: float) -> str:
 def gap_note(data, columns: Sequence[str] | None = None) -> str | None:
     """One line noting the gaps of ``data`` (NaN values, per column), or ``None``."""
     frame = data._frame if columns is None else data._frame[list(columns)]
-    counts = frame.isna().sum()
+    holes = frame.isna()
+    counts = holes.sum()
     bad = [str(c) for c in frame.columns if counts[c] > 0]
     if not bad:
         return None
     listed = ", ".join(
-        f"{c!r} ({int(counts[c])}, the first at {_first_gap(frame[c])})" for c in bad[:6]
+        f"{c!r} ({int(counts[c])}, the first at {frame.index[holes[c].to_numpy()][0]})"
+        for c in bad[:6]
     )
     more = f", … ({len(bad) - 6} more)" if len(bad) > 6 else ""
     return (
@@ -101,12 +103,6 @@ def gap_note(data, columns: Sequence[str] | None = None) -> str | None:
         "are interpolated up to max_gap (command line --max-gap) and split the window into "
         "segments beyond, output gaps are masked."
     )
-
-
-def _first_gap(column) -> str:
-    """Where the first missing sample of a column is: its time stamp (or row label)."""
-    where = column.index[column.isna().to_numpy()][0]
-    return str(where)
 
 
 def prepare_window(

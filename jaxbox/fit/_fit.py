@@ -247,8 +247,13 @@ def _multistart(
         if release is None:
             return jnp.zeros(y.shape, bool)
         bounded, position, _ = release
-        pos = position(y)
-        return bounded[start] & ((pos < EDGE) | (pos > 1.0 - EDGE))
+        return bounded[start] & _near_edge(position(y))
+
+    # where a trapped coordinate of each start is released to (fixed per start): halfway from
+    # its start value to the guess, or the guess itself where the start was on a bound
+    if release is not None:
+        bounded, position, anchor = release
+        release_to = jnp.where(bounded & _near_edge(position(z0)), anchor, 0.5 * (z0 + anchor))
 
     stages = max(len(r) + 1 for r in routes) + (release is not None)
     rounds = -(-np.asarray(member_counts) // np.asarray(slot_counts))
@@ -314,14 +319,7 @@ def _multistart(
         load = finished & (new_idx < end[group])
         nxt = jnp.minimum(c["nxt"] + jnp.sum(onehot, axis=0), end).astype(jnp.int32)
         new_idx = jnp.where(load, new_idx, 0)
-        # trapped coordinates go halfway from their start values to the guess (to the guess
-        # where the start itself was on a bound)
-        if release is not None:
-            zs, anchor = z0[start], release[2][start]
-            halfway = jnp.where(trapped(zs, start), anchor, 0.5 * (zs + anchor))
-            released = jnp.where(edge, halfway, y)
-        else:
-            released = y
+        released = y if release is None else jnp.where(edge, release_to[start], y)
         y_new = jnp.where(
             load[:, None], z0[new_idx // n_routes], jnp.where(go_release[:, None], released, y)
         )
@@ -489,8 +487,12 @@ def _anchors(prob: Problem) -> np.ndarray:
     guess = np.asarray([prob.guess_dict[k] for k in prob.free], dtype=float)
     z = np.where(np.isfinite(guess), tr.to_internal(guess), 0.0)
     pos = tr.relative_position(guess)
-    edge = two_sided(tr.kinds) & ((pos < EDGE) | (pos > 1.0 - EDGE))
-    return np.where(edge, 0.0, z)
+    return np.where(two_sided(tr.kinds) & _near_edge(pos), 0.0, z)
+
+
+def _near_edge(pos):
+    """Positions in the bounds (0 … 1, NumPy or JAX) within :data:`EDGE` of either bound."""
+    return (pos < EDGE) | (pos > 1.0 - EDGE)
 
 
 def _pad_spec(prob: Problem, layout) -> tuple:

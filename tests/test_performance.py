@@ -50,9 +50,13 @@ def test_a_start_does_not_depend_on_its_batch(two_datasets):
     r = fit_model("ZonWal", data, starts=12, seed=0)
     x0s = r.starts.initial
     batched = {s: solve_starts(problem, x0s, arrays, slots=s) for s in (12, 4)}
+    # the same steps and cost; the parameters to rounding: a batch of another shape is
+    # vectorised differently (on AVX-512, 12 slots are a vector of 8 and one of 4), and the last
+    # digits of a point in a flat valley carry ~1e-8 of it
     for s, out in batched.items():
-        np.testing.assert_allclose(out["p"], r.starts.params, rtol=1e-9, err_msg=f"slots={s}")
-        np.testing.assert_array_equal(out["steps"], r.starts.steps)
+        np.testing.assert_array_equal(out["steps"], r.starts.steps, err_msg=f"slots={s}")
+        np.testing.assert_allclose(out["cost"], r.starts.cost, rtol=1e-10, err_msg=f"slots={s}")
+        np.testing.assert_allclose(out["p"], r.starts.params, rtol=1e-7, err_msg=f"slots={s}")
     for i in range(0, 12, 5):
         alone = solve_starts(problem, x0s[i : i + 1], arrays)
         np.testing.assert_allclose(alone["p"][0], r.starts.params[i], rtol=1e-7)

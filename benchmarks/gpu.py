@@ -12,6 +12,9 @@ Everything is measured in one run on one machine:
   subprocess with ``JAX_PLATFORMS=cpu``) for the ratio.
 * **fleet batch** — ``jaxbox.fit_batch`` of ``ZonWal`` on synthetic buildings × 16 starts in one
   compiled call per size (as ``benchmarks/fleet.py --gpu-batch``), on the GPU and on the CPU.
+* **parallel** — simulation by the sequential scan against the associative (parallel-in-time)
+  scan, as ``benchmarks/run.py``'s section of that name, for 1, 64 and 1024 members on the
+  GPU, 1 and 64 on the CPU.
 * **scipy** — the plain scipy loop of ``benchmarks/fleet.py`` (``least_squares``, numpy exact
   simulation, the same 16 starts and bounds) on a few of the same buildings, on the same
   machine's CPU: the baseline for the ratios.
@@ -204,6 +207,14 @@ def measure(args) -> dict:
         _log("fleet batch")
         doc["fleet"] = _fleet_batch(sizes, folder, args.distinct)
         save()
+    if "parallel" in sections:
+        _log("parallel in time")
+        import run as bench
+
+        # the CPU run (--inner) stops at 64 members: 1024 × 52560 samples take minutes there
+        batches = (1, 64) if args.inner else (1, 64, 1024)
+        doc["parallel"] = bench.parallel_in_time(args.repeats, batches=batches)
+        save()
     if "scipy" in sections:
         _log("scipy loop")
         doc["scipy"] = _scipy(folder, args.scipy, args.distinct)
@@ -219,7 +230,7 @@ def measure(args) -> dict:
                 "--repeats",
                 "1",
                 "--sections",
-                "multistart,fleet",
+                ",".join(s for s in sections if s in ("multistart", "fleet", "parallel")),
                 "--buildings",
                 str(folder),
                 "--distinct",
@@ -328,6 +339,29 @@ def _markdown(doc: dict) -> str:
                 f"building ({1 / per_fit_scipy:.1f} fits/s).",
                 "",
             ]
+    if doc.get("parallel"):
+        cpu_par = cpu.get("parallel") or {}
+        lines += [
+            "## Parallel in time: simulation by the sequential and the associative scan",
+            "",
+            f"{MULTI}, first-order hold, random inputs, a batch of members with scaled dynamics "
+            "(`benchmarks/run.py`'s section *parallel*).",
+            "",
+            "| samples | batch | sequential [ms] | associative scan [ms] | sequential ÷ "
+            "associative | CPU sequential [ms] | CPU associative [ms] | max difference [K] |",
+            "|---:|---:|---:|---:|---:|---:|---:|---:|",
+        ]
+        for n, row in doc["parallel"].items():
+            for b, v in row.items():
+                c = (cpu_par.get(n) or {}).get(b)
+                cs = f"{c['sequential_ms']:.2f}" if c else "–"
+                cp = f"{c['parallel_ms']:.2f}" if c else "–"
+                lines.append(
+                    f"| {n} | {b} | {v['sequential_ms']:.2f} | {v['parallel_ms']:.2f} | "
+                    f"{v['sequential_ms'] / v['parallel_ms']:.1f}× | {cs} | {cp} | "
+                    f"{v['max_diff_K']:.1e} |"
+                )
+        lines.append("")
     for note in doc.get("notes", []):
         lines += [note, ""]
     return "\n".join(lines)
@@ -344,7 +378,7 @@ def main(argv=None) -> None:
     ap.add_argument("--distinct", type=int, default=64, help="distinct synthetic buildings")
     ap.add_argument("--scipy", type=int, default=2, help="buildings fitted by the scipy loop")
     ap.add_argument("--repeats", type=int, default=2)
-    ap.add_argument("--sections", default="multistart,fleet,scipy")
+    ap.add_argument("--sections", default="multistart,fleet,parallel,scipy")
     ap.add_argument("--buildings", default=None, help="folder of the synthetic buildings")
     ap.add_argument("--cpu-timeout", type=float, default=240.0)
     ap.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)

@@ -387,7 +387,9 @@ def long_series(n, starts_list) -> dict:
 # ---- parallel in time -----------------------------------------------------------------------------
 
 
-def parallel_in_time(repeats) -> dict:
+def parallel_in_time(repeats, batches=(1, 64)) -> dict:
+    """Simulation of the benchmark model by the sequential and the associative scan, for three
+    lengths and the given batch sizes, on JAX's default device."""
     from jaxbox.simulate._exact import discretize_foh, simulate_foh
     from jaxbox.simulate._parallel import simulate_foh_parallel
 
@@ -400,7 +402,7 @@ def parallel_in_time(repeats) -> dict:
     for n in (492, 5905, 52560):
         u = jnp.asarray(rng.normal(size=(n, 5)) * [5, 5, 300, 100, 100] + [15, 15, 300, 100, 100])
         row = {}
-        for B_ in (1, 64):
+        for B_ in batches:
             scale = jnp.asarray(np.exp(rng.normal(0, 0.2, size=(B_, 1, 1))))
             Ab = A * scale
 
@@ -586,7 +588,8 @@ def targets(res, best_all):
                 "parallel-in-time simulation offered, and where it wins",
                 "wins here at "
                 + (", ".join(f"N={n} batch {B}" for n, B in wins) or "no size on this CPU")
-                + "; meant for GPUs (not measured: no GPU)",
+                + "; "
+                + _gpu_parallel(),
                 "offered",
             )
         )
@@ -603,6 +606,29 @@ def targets(res, best_all):
         )
     rows.append(_gpu_target())
     return rows
+
+
+def _gpu_parallel() -> str:
+    """Where the associative scan wins on a GPU, from ``benchmarks/gpu.json`` when it has it."""
+    path = HERE / "gpu.json"
+    doc = json.loads(path.read_text()) if path.exists() else {}
+    par = doc.get("parallel")
+    if not par:
+        return "meant for GPUs (not measured: no GPU)"
+    gpu = doc["machine"].get("gpu_name", "GPU").split(",")[0]
+    wins = [
+        v["sequential_ms"] / v["parallel_ms"]
+        for row in par.values()
+        for v in row.values()
+        if v["parallel_ms"] < v["sequential_ms"]
+    ]
+    sizes = sum(len(row) for row in par.values())
+    return (
+        f"on the {gpu} (GPU.md) it wins at {len(wins)} of {sizes} sizes, "
+        f"{min(wins):.1f}–{max(wins):.0f}×"
+        if wins
+        else f"on the {gpu} (GPU.md) it wins at no size"
+    )
 
 
 def _gpu_target() -> tuple[str, str, str]:

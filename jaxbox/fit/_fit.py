@@ -15,7 +15,10 @@ the gradient ``g = Jᵀr`` and the Gram matrix ``H = JᵀJ`` of the weighted res
 over the data: the discrete matrices come from a symmetric eigendecomposition (their derivatives
 in closed form), and the sensitivities of the state to the ``p`` coordinates travel with the state
 as an ``n × p`` matrix (:func:`~jaxbox.simulate._exact.normal_equations`). The Jacobian is never
-stored: the tangents are held one chunk of samples at a time. ``simulator="diffrax"`` builds ``J``
+stored: the tangents are held one chunk of samples at a time. On an accelerator, where a
+sequential scan leaves the device idle, a narrow batch runs parallel in time instead (two
+associative scans over the samples, :func:`~jaxbox.simulate._parallel.normal_equations_parallel`;
+:func:`~jaxbox.simulate._parallel.prefer_parallel` decides). ``simulator="diffrax"`` builds ``J``
 with ``jax.jacfwd`` through Kvaerno5 at fixed steps instead.
 
 The step
@@ -617,7 +620,15 @@ def _build(
         raise FitError("model variants can only be batched with the exact simulator")
     if len({p.output_states for p, _ in groups}) > 1:
         raise FitError("model variants batched together must measure the same states")
-    from ..simulate._exact import normal_equations
+    from ..simulate._exact import normal_equations as sequential
+    from ..simulate._parallel import normal_equations_parallel, prefer_parallel
+
+    def normal_equations(prim, tang, outputs, u, y, w, **kw):
+        """In time order, or parallel in time where that pays (an accelerator, a narrow batch)."""
+        batch, n = prim[0].shape[:2]
+        fast = prefer_parallel(u.shape[0], batch, n, tang[0].shape[-1])
+        ne = normal_equations_parallel if fast else sequential
+        return ne(prim, tang, outputs, u, y, w, **kw)
 
     style = groups[0][0].transform.style
 

@@ -12,16 +12,31 @@ scan (``jax.lax.associative_scan``) in ``O(log N)`` sequential levels instead of
 
 Results agree with :func:`~jaxbox.simulate.simulate_exact` to round-off (the products are
 summed in a different order).
+
+The fit's normal equations have the same form (:func:`normal_equations_parallel`): the state,
+then its sensitivities, each an affine recursion with the observer's pull and the restarts of
+segments folded into the per-sample maps. On an H100 they make one start of the 14-parameter
+fit 9× faster and 64 starts 8× (``benchmarks/GPU.md``); :func:`prefer_parallel` picks them on an
+accelerator for batches whose sensitivities fit in 256 MB.
 """
 
 from __future__ import annotations
 
+import os
+
+import jax
 import jax.numpy as jnp
 from jax import lax
 
-from ._exact import discretize_foh
+from ._exact import _drive, _spread, _take, discretize_foh, segment_index
 
-__all__ = ["linear_recurrence", "simulate_parallel", "simulate_foh_parallel"]
+__all__ = [
+    "linear_recurrence",
+    "simulate_parallel",
+    "simulate_foh_parallel",
+    "normal_equations_parallel",
+    "prefer_parallel",
+]
 
 
 def linear_recurrence(Phi, drive, x0):
@@ -60,3 +75,105 @@ def simulate_parallel(A, B, C, D, x0, u, dt):
     """
     Phi, G0, G1 = discretize_foh(A, B, dt)
     return simulate_foh_parallel(Phi, G0, G1, C, D, x0, u)
+
+
+#: most bytes of sensitivities [N, B, n, q] that :func:`normal_equations_parallel` holds at once
+_PARALLEL_BYTES = 1 << 28
+
+
+def prefer_parallel(n_samples: int, batch: int, n: int, q: int, platform: str | None = None):
+    """Whether the fit's normal equations should run parallel in time.
+
+    On an accelerator the sequential scan costs about the same few microseconds a sample for 1
+    or 10³ members (``benchmarks/GPU.md``), so a narrow batch leaves the device idle; the
+    associative scan runs ~2 log₂ N wide steps instead. It holds every sample's sensitivities at
+    once, so only up to :data:`_PARALLEL_BYTES` of them (wide batches already fill the device).
+    Never on a CPU, where the associative scan's extra work is not free.
+    ``JAXBOX_PARALLEL_IN_TIME=1`` (or ``0``) forces the choice, read when a fit is compiled.
+    """
+    forced = os.environ.get("JAXBOX_PARALLEL_IN_TIME", "").strip().lower()
+    if forced in ("1", "yes", "on", "true"):
+        return True
+    if forced in ("0", "no", "off", "false"):
+        return False
+    platform = jax.default_backend() if platform is None else platform
+    return platform != "cpu" and 8 * n_samples * batch * n * (q + 1) <= _PARALLEL_BYTES
+
+
+def _affine_scan(A, b):
+    """Prefix compositions of ``s_k = A_k s_{k−1} + b_k`` for A [N, B, n, n], b [N, B, n, …]
+    with ``A_0 = 0``: every ``s_k``, shape of ``b``."""
+
+    def compose(first, second):
+        A1, b1 = first
+        A2, b2 = second
+        return (
+            jnp.einsum("kbij,kbjl->kbil", A2, A1),
+            jnp.einsum("kbij,kbj...->kbi...", A2, b1) + b2,
+        )
+
+    return lax.associative_scan(compose, (A, b))[1]
+
+
+def normal_equations_parallel(mats, tangents, outputs, u, y, w, *, t=None, gain=None, chunk=None):
+    """:func:`~jaxbox.simulate._exact.normal_equations`, parallel in time (same arguments and
+    results; ``chunk`` is ignored: every sample's sensitivities are held at once).
+
+    The state, then its sensitivities, follow from two associative scans over the samples: a
+    sample's map ``s ↦ Φ (I − P_k) s + c_k`` (``P_k`` the observer's pull of the measured states
+    at sample ``k``, zero without a gain) composes associatively, and a segment's first sample
+    is the constant map to its initial state. The products ``Σ r²``, ``Jᵀr`` and ``JᵀJ`` are then
+    one contraction over the samples.
+    """
+    Phi, G0, G1, x0 = mats
+    dPhi, dG0, dG1, dx0 = tangents
+    outputs = tuple(int(o) for o in outputs)
+    n_samples = u.shape[0]
+    segmented = x0.ndim == 3
+    batch, n = Phi.shape[:2]
+    if segmented:
+        first, index = segment_index(t, x0.shape[1])  # [N, Bt]
+        first = jnp.broadcast_to(first, (n_samples, batch))
+        index = jnp.broadcast_to(index, (n_samples, batch))
+        rows = jnp.arange(batch)
+        starts = x0[rows[None, :], index]  # [N, B, n]
+        dstarts = dx0[rows[None, :], index]  # [N, B, n, q]
+    else:
+        first = jnp.zeros((n_samples, batch), bool).at[0].set(True)
+        starts = jnp.broadcast_to(x0, (n_samples,) + x0.shape)
+        dstarts = jnp.broadcast_to(dx0, (n_samples,) + dx0.shape)
+    du = jnp.concatenate([u[1:] - u[:-1], jnp.zeros_like(u[:1])], axis=0)
+    eye = jnp.eye(n, dtype=Phi.dtype)
+    if gain is None:
+        keep = jnp.broadcast_to(eye, (n_samples - 1, batch, n, n))
+        pulled = jnp.zeros((n_samples - 1, batch, n), Phi.dtype)
+        pull = None
+    else:
+        pull = gain[None, :, None] * (w > 0)  # [N, B, p]
+        P = jax.vmap(lambda p: _spread(p, outputs, n))(pull)  # [N, B, n]
+        keep = eye - P[:-1, :, :, None] * eye  # I − P_k
+        yfull = jax.vmap(lambda v: _spread(v, outputs, n))(
+            jnp.broadcast_to(y, (n_samples, batch, len(outputs)))
+        )
+        pulled = P[:-1] * yfull[:-1]  # P_k y_k (the measured rows)
+    M = jnp.einsum("bij,kbjl->kbil", Phi, keep)  # [N−1, B, n, n]: Φ (I − P_k)
+    d = _drive(u, du, G0, G1)  # [N, B, n]
+    c = jnp.einsum("bij,kbj->kbi", Phi, pulled) + d[:-1]
+    zero = jnp.zeros((1, batch, n, n), Phi.dtype)
+    restart = first[..., None, None]
+    A = jnp.where(restart, 0.0, jnp.concatenate([zero, M], axis=0))
+    b = jnp.where(first[..., None], starts, jnp.concatenate([starts[:1], c], axis=0))
+    x = _affine_scan(A, b)  # [N, B, n]: the state at each sample, before the pull
+    xc = x if pull is None else x - P * (x - yfull)
+    # the sensitivities: X_{k+1} = Φ (I − P_k) X_k + ∂Φ xc_k + ∂Γ0 u_k + ∂Γ1 Δu_k
+    e = jnp.einsum("bijq,kbj->kbiq", dPhi, xc[:-1]) + _drive(u, du, dG0, dG1)[:-1]
+    bX = jnp.where(first[..., None, None], dstarts, jnp.concatenate([dstarts[:1], e], axis=0))
+    X = _affine_scan(A, bX)  # [N, B, n, q]
+    yhat = _take(x, outputs, axis=2)  # [N, B, p]
+    J = _take(X, outputs, axis=2)  # [N, B, p, q]
+    r = w * (yhat - y)
+    Jw = w[..., None] * J
+    cost = jnp.einsum("kbo,kbo->b", r, r)
+    g = jnp.einsum("kbo,kboq->bq", r, Jw)
+    H = jnp.einsum("kboq,kbol->bql", Jw, Jw)
+    return cost, g, H

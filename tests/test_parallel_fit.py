@@ -12,7 +12,12 @@ from jaxbox.fit import fit_model
 from jaxbox.fit._fit import clear_compile_cache
 from jaxbox.models import get_model
 from jaxbox.simulate._exact import normal_equations
-from jaxbox.simulate._parallel import _PARALLEL_BYTES, normal_equations_parallel, prefer_parallel
+from jaxbox.simulate._parallel import (
+    _PARALLEL_BATCH,
+    _PARALLEL_BYTES,
+    normal_equations_parallel,
+    prefer_parallel,
+)
 
 B, N_STATES, M, Q, N = 3, 4, 3, 5, 37
 
@@ -71,8 +76,10 @@ def test_parallel_in_time_only_on_an_accelerator_and_for_a_narrow_batch(monkeypa
     assert not prefer_parallel(492, 64, 4, 14, platform="cpu")
     assert prefer_parallel(492, 64, 4, 14, platform="gpu")
     assert prefer_parallel(52560, 1, 6, 20, platform="gpu")
-    too_wide = _PARALLEL_BYTES // (8 * 492 * 4 * 15) + 1
-    assert not prefer_parallel(492, too_wide, 4, 14, platform="gpu")
+    assert prefer_parallel(492, _PARALLEL_BATCH, 4, 14, platform="gpu")
+    assert not prefer_parallel(492, _PARALLEL_BATCH + 1, 4, 14, platform="gpu")
+    too_long = _PARALLEL_BYTES // (8 * 64 * 4 * 15) + 1  # samples
+    assert not prefer_parallel(too_long, 64, 4, 14, platform="gpu")
     monkeypatch.setenv("JAXBOX_PARALLEL_IN_TIME", "1")
     assert prefer_parallel(492, 64, 4, 14, platform="cpu")
     monkeypatch.setenv("JAXBOX_PARALLEL_IN_TIME", "0")

@@ -17,7 +17,7 @@ The fit's normal equations have the same form (:func:`normal_equations_parallel`
 then its sensitivities, each an affine recursion with the observer's pull and the restarts of
 segments folded into the per-sample maps. On an H100 they make one start of the 14-parameter
 fit 9× faster and 64 starts 8× (``benchmarks/GPU.md``); :func:`prefer_parallel` picks them on an
-accelerator for batches whose sensitivities fit in 256 MB.
+accelerator for batches of up to 1024 members whose sensitivities fit in 256 MB.
 """
 
 from __future__ import annotations
@@ -79,6 +79,9 @@ def simulate_parallel(A, B, C, D, x0, u, dt):
 
 #: most bytes of sensitivities [N, B, n, q] that :func:`normal_equations_parallel` holds at once
 _PARALLEL_BYTES = 1 << 28
+#: widest batch run parallel in time: on an H100 it wins at 1024 members (1.4–2×) and loses at
+#: 4096 (0.74×), where the sequential scan already fills the device (``benchmarks/GPU.md``)
+_PARALLEL_BATCH = 1024
 
 
 def prefer_parallel(n_samples: int, batch: int, n: int, q: int, platform: str | None = None):
@@ -87,7 +90,8 @@ def prefer_parallel(n_samples: int, batch: int, n: int, q: int, platform: str | 
     On an accelerator the sequential scan costs about the same few microseconds a sample for 1
     or 10³ members (``benchmarks/GPU.md``), so a narrow batch leaves the device idle; the
     associative scan runs ~2 log₂ N wide steps instead. It holds every sample's sensitivities at
-    once, so only up to :data:`_PARALLEL_BYTES` of them (wide batches already fill the device).
+    once, so only up to :data:`_PARALLEL_BYTES` of them, and only for up to
+    :data:`_PARALLEL_BATCH` members (wider batches already fill the device).
     Never on a CPU, where the associative scan's extra work is not free.
     ``JAXBOX_PARALLEL_IN_TIME=1`` (or ``0``) forces the choice, read when a fit is compiled.
     """
@@ -97,7 +101,11 @@ def prefer_parallel(n_samples: int, batch: int, n: int, q: int, platform: str | 
     if forced in ("0", "no", "off", "false"):
         return False
     platform = jax.default_backend() if platform is None else platform
-    return platform != "cpu" and 8 * n_samples * batch * n * (q + 1) <= _PARALLEL_BYTES
+    return (
+        platform != "cpu"
+        and batch <= _PARALLEL_BATCH
+        and 8 * n_samples * batch * n * (q + 1) <= _PARALLEL_BYTES
+    )
 
 
 def _affine_scan(A, b):

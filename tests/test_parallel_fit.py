@@ -3,6 +3,7 @@ on an accelerator) equal the sequential pass: with and without the observer's pu
 samples, segments, shared and per-member inputs; and a whole fit through them reaches the same
 optimum from the same starts."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -110,3 +111,16 @@ def test_a_fit_parallel_in_time_reaches_the_same_optimum(monkeypatch):
     np.testing.assert_allclose(par.starts.cost, seq.starts.cost, rtol=1e-7)
     for name, value in seq.params.items():
         assert par.params[name] == pytest.approx(value, rel=1e-6), name
+
+
+def test_parallel_normal_equations_differentiate_like_the_sequential_pass():
+    """Experiment design differentiates JᵀJ through the pass with respect to the inputs."""
+    mats, tangents, u, y, w, _ = _problem(1, 1)
+
+    def information(fn, inputs):
+        _, _, H = fn(mats, tangents, (0, 2), inputs, y, w)
+        return jnp.sum(jnp.log(jnp.diagonal(H, axis1=1, axis2=2)))
+
+    seq = jax.grad(lambda v: information(normal_equations, v))(u)
+    par = jax.grad(lambda v: information(normal_equations_parallel, v))(u)
+    np.testing.assert_allclose(par, seq, rtol=1e-10, atol=1e-12 * float(jnp.max(jnp.abs(seq))))

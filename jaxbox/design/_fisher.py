@@ -35,7 +35,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..models import ModelError, RCModel
-from ..simulate._exact import discretize_foh_rc, normal_equations
+from ..simulate._exact import discretize_foh_rc
+from ..simulate._parallel import normal_equations_auto
 
 __all__ = ["CRITERIA", "Setup", "make_setup", "RATIO_PREFIXES"]
 
@@ -144,11 +145,12 @@ class Setup:
 
         J is propagated with the state by the fit's own sensitivity recursion
         (:func:`~jaxbox.simulate._exact.normal_equations`: ``X_{k+1} = Φ X_k + ∂Φ x_k + ∂Γ0 u_k
-        + ∂Γ1 Δu_k``), and only ``JᵀJ`` is kept; it is differentiable in U.
+        + ∂Γ1 Δu_k``; parallel in time on an accelerator, as the fit), and only ``JᵀJ`` is
+        kept; it is differentiable in U.
         """
         n, p = U.shape[0], len(self.output_states)
         zeros = jnp.zeros((n, 1, p), dtype=U.dtype)
-        _, _, H = normal_equations(
+        _, _, H = normal_equations_auto(
             mats, tangents, self.output_states, U[:, None, :], zeros, jnp.ones_like(zeros)
         )
         return H / sigma**2

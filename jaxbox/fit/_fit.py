@@ -620,15 +620,8 @@ def _build(
         raise FitError("model variants can only be batched with the exact simulator")
     if len({p.output_states for p, _ in groups}) > 1:
         raise FitError("model variants batched together must measure the same states")
-    from ..simulate._exact import normal_equations as sequential
-    from ..simulate._parallel import normal_equations_parallel, prefer_parallel
-
-    def normal_equations(prim, tang, outputs, u, y, w, **kw):
-        """In time order, or parallel in time where that pays (an accelerator, a narrow batch)."""
-        batch, n = prim[0].shape[:2]
-        fast = prefer_parallel(u.shape[0], batch, n, tang[0].shape[-1])
-        ne = normal_equations_parallel if fast else sequential
-        return ne(prim, tang, outputs, u, y, w, **kw)
+    # in time order, or parallel in time where that pays (an accelerator, a narrow batch)
+    from ..simulate._parallel import normal_equations_auto as normal_equations
 
     style = groups[0][0].transform.style
 

@@ -35,6 +35,7 @@ __all__ = [
     "simulate_parallel",
     "simulate_foh_parallel",
     "normal_equations_parallel",
+    "normal_equations_auto",
     "prefer_parallel",
 ]
 
@@ -185,3 +186,16 @@ def normal_equations_parallel(mats, tangents, outputs, u, y, w, *, t=None, gain=
     g = jnp.einsum("kbo,kboq->bq", r, Jw)
     H = jnp.einsum("kboq,kbol->bql", Jw, Jw)
     return cost, g, H
+
+
+def normal_equations_auto(mats, tangents, outputs, u, y, w, **kwargs):
+    """:func:`~jaxbox.simulate._exact.normal_equations` in time order, or
+    :func:`normal_equations_parallel` where :func:`prefer_parallel` says it pays (an
+    accelerator, a batch of up to 1024 members); the same arguments and results."""
+    from ._exact import normal_equations
+
+    batch, n = mats[0].shape[:2]
+    fast = prefer_parallel(u.shape[0], batch, n, tangents[0].shape[-1])
+    return (normal_equations_parallel if fast else normal_equations)(
+        mats, tangents, outputs, u, y, w, **kwargs
+    )

@@ -608,10 +608,15 @@ def targets(res, best_all):
     return rows
 
 
+def _gpu_doc() -> dict | None:
+    """``benchmarks/gpu.json`` (the GPU run of ``benchmarks/gpu.py``), or ``None``."""
+    path = HERE / "gpu.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
 def _gpu_parallel() -> str:
     """Where the associative scan wins on a GPU, from ``benchmarks/gpu.json`` when it has it."""
-    path = HERE / "gpu.json"
-    doc = json.loads(path.read_text()) if path.exists() else {}
+    doc = _gpu_doc() or {}
     par = doc.get("parallel")
     if not par:
         return "meant for GPUs (not measured: no GPU)"
@@ -633,10 +638,9 @@ def _gpu_parallel() -> str:
 
 def _gpu_target() -> tuple[str, str, str]:
     """The GPU row of the targets, from ``benchmarks/gpu.json`` (its own run) when there is one."""
-    path = HERE / "gpu.json"
-    if not path.exists():
+    doc = _gpu_doc()
+    if doc is None:
         return ("GPU run of the batched benchmark", "no GPU machine available", "not run")
-    doc = json.loads(path.read_text())
     best = min(doc.get("multistart", []), key=lambda r: r["per_start_ms"], default=None)
     fleet = max(doc.get("fleet", []), key=lambda r: r["fits_per_s"], default=None)
     parts = [f"{doc['machine'].get('gpu_name') or 'GPU'}, {doc['date']} (GPU.md)"]

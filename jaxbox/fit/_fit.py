@@ -621,7 +621,7 @@ def _build(
     if len({p.output_states for p, _ in groups}) > 1:
         raise FitError("model variants batched together must measure the same states")
     # in time order, or parallel in time where that pays (an accelerator, a narrow batch)
-    from ..simulate._parallel import normal_equations_auto as normal_equations
+    from ..simulate._parallel import normal_equations_auto
 
     style = groups[0][0].transform.style
 
@@ -642,7 +642,7 @@ def _build(
                 tt, uu, yy, ww = data
                 prim = jax.vmap(mats)(*args)
                 tang = jax.vmap(jax.jacfwd(mats))(*args)
-                return normal_equations(
+                return normal_equations_auto(
                     prim, tang, groups[0][0].output_states, uu, yy, ww, t=tt, gain=gain
                 )
             prim, tang, start = [], [], 0
@@ -661,7 +661,7 @@ def _build(
                 jnp.concatenate(x, axis=0) if len(x) > 1 else x[0] for x in zip(*parts, strict=True)
             )
             tt, uu, yy, ww = data
-            return normal_equations(
+            return normal_equations_auto(
                 cat(prim), cat(tang), groups[0][0].output_states, uu, yy, ww, t=tt, gain=gain
             )
 

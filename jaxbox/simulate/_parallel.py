@@ -28,7 +28,14 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-from ._exact import _drive, _spread, _take, discretize_foh, segment_index
+from ._exact import (
+    _drive,
+    _spread,
+    _take,
+    discretize_foh,
+    normal_equations,
+    segment_index,
+)
 
 __all__ = [
     "linear_recurrence",
@@ -38,6 +45,14 @@ __all__ = [
     "normal_equations_auto",
     "prefer_parallel",
 ]
+
+
+def _compose(first, second):
+    """The affine map ``first`` then ``second``: ``(A₂A₁, A₂b₁ + b₂)`` for A [..., n, n] and
+    b [..., n, r] (any leading axes)."""
+    A1, b1 = first
+    A2, b2 = second
+    return A2 @ A1, A2 @ b1 + b2
 
 
 def linear_recurrence(Phi, drive, x0):
@@ -50,15 +65,8 @@ def linear_recurrence(Phi, drive, x0):
     """
     K, n = drive.shape[0], Phi.shape[0]
     mats = jnp.broadcast_to(Phi, (K, n, n))
-
-    def compose(first, second):
-        # apply `first`, then `second`
-        A1, b1 = first
-        A2, b2 = second
-        return A2 @ A1, jnp.einsum("kij,kj...->ki...", A2, b1) + b2
-
-    A, b = lax.associative_scan(compose, (mats, drive))
-    xs = jnp.einsum("kij,j...->ki...", A, x0) + b
+    A, b = lax.associative_scan(_compose, (mats, drive.reshape(K, n, -1)))
+    xs = (A @ x0.reshape(n, -1) + b).reshape(drive.shape)
     return jnp.concatenate([x0[None], xs], axis=0)
 
 
@@ -112,16 +120,8 @@ def prefer_parallel(n_samples: int, batch: int, n: int, q: int, platform: str | 
 def _affine_scan(A, b):
     """Prefix compositions of ``s_k = A_k s_{k−1} + b_k`` for A [N, B, n, n], b [N, B, n, …]
     with ``A_0 = 0``: every ``s_k``, shape of ``b``."""
-
-    def compose(first, second):
-        A1, b1 = first
-        A2, b2 = second
-        return (
-            jnp.einsum("kbij,kbjl->kbil", A2, A1),
-            jnp.einsum("kbij,kbj...->kbi...", A2, b1) + b2,
-        )
-
-    return lax.associative_scan(compose, (A, b))[1]
+    flat = b.reshape(b.shape[:3] + (-1,))
+    return lax.associative_scan(_compose, (A, flat))[1].reshape(b.shape)
 
 
 def normal_equations_parallel(mats, tangents, outputs, u, y, w, *, t=None, gain=None, chunk=None):
@@ -138,50 +138,43 @@ def normal_equations_parallel(mats, tangents, outputs, u, y, w, *, t=None, gain=
     dPhi, dG0, dG1, dx0 = tangents
     outputs = tuple(int(o) for o in outputs)
     n_samples = u.shape[0]
-    segmented = x0.ndim == 3
     batch, n = Phi.shape[:2]
-    if segmented:
-        first, index = segment_index(t, x0.shape[1])  # [N, Bt]
-        first = jnp.broadcast_to(first, (n_samples, batch))
-        index = jnp.broadcast_to(index, (n_samples, batch))
-        rows = jnp.arange(batch)
-        starts = x0[rows[None, :], index]  # [N, B, n]
-        dstarts = dx0[rows[None, :], index]  # [N, B, n, q]
-    else:
-        first = jnp.zeros((n_samples, batch), bool).at[0].set(True)
-        starts = jnp.broadcast_to(x0, (n_samples,) + x0.shape)
-        dstarts = jnp.broadcast_to(dx0, (n_samples,) + dx0.shape)
     du = jnp.concatenate([u[1:] - u[:-1], jnp.zeros_like(u[:1])], axis=0)
-    eye = jnp.eye(n, dtype=Phi.dtype)
+    d = _drive(u, du, G0, G1)[:-1]  # [N−1, B, n]
     if gain is None:
-        keep = jnp.broadcast_to(eye, (n_samples - 1, batch, n, n))
-        pulled = jnp.zeros((n_samples - 1, batch, n), Phi.dtype)
-        pull = None
-    else:
-        pull = gain[None, :, None] * (w > 0)  # [N, B, p]
-        P = jax.vmap(lambda p: _spread(p, outputs, n))(pull)  # [N, B, n]
-        keep = eye - P[:-1, :, :, None] * eye  # I − P_k
-        yfull = jax.vmap(lambda v: _spread(v, outputs, n))(
+        M = jnp.broadcast_to(Phi, (n_samples - 1,) + Phi.shape)
+        c = d
+    else:  # the pull x ← x − P_k (x − y_k) on the measured rows: the map Φ (I − P_k), Φ P_k y_k
+        P = jax.vmap(lambda p: _spread(p, outputs, n))(gain[None, :, None] * (w > 0))  # [N, B, n]
+        Py = P * jax.vmap(lambda v: _spread(v, outputs, n))(
             jnp.broadcast_to(y, (n_samples, batch, len(outputs)))
         )
-        pulled = P[:-1] * yfull[:-1]  # P_k y_k (the measured rows)
-    M = jnp.einsum("bij,kbjl->kbil", Phi, keep)  # [N−1, B, n, n]: Φ (I − P_k)
-    d = _drive(u, du, G0, G1)  # [N, B, n]
-    c = jnp.einsum("bij,kbj->kbi", Phi, pulled) + d[:-1]
-    zero = jnp.zeros((1, batch, n, n), Phi.dtype)
-    restart = first[..., None, None]
-    A = jnp.where(restart, 0.0, jnp.concatenate([zero, M], axis=0))
-    b = jnp.where(first[..., None], starts, jnp.concatenate([starts[:1], c], axis=0))
+        M = Phi[None] * (1.0 - P[:-1])[:, :, None, :]  # [N−1, B, n, n]
+        c = jnp.einsum("bij,kbj->kbi", Phi, Py[:-1]) + d
+    # the first sample is the constant map to the initial state (A = 0)
+    A = jnp.concatenate([jnp.zeros((1, batch, n, n), Phi.dtype), M], axis=0)
+    segmented = x0.ndim == 3
+    if segmented:  # and so is every segment's first sample, to that segment's initial state
+        first, index = segment_index(t, x0.shape[1])  # [N, Bt]
+        first = jnp.broadcast_to(first, (n_samples, batch))
+        rows = jnp.arange(batch)[None, :]
+        index = jnp.broadcast_to(index, (n_samples, batch))
+        starts, dstarts = x0[rows, index], dx0[rows, index]  # [N, B, n], [N, B, n, q]
+        A = jnp.where(first[..., None, None], 0.0, A)
+        x0, dx0 = starts[0], dstarts[0]
+    b = jnp.concatenate([x0[None], c], axis=0)
+    if segmented:
+        b = jnp.where(first[..., None], starts, b)
     x = _affine_scan(A, b)  # [N, B, n]: the state at each sample, before the pull
-    xc = x if pull is None else x - P * (x - yfull)
     # the sensitivities: X_{k+1} = Φ (I − P_k) X_k + ∂Φ xc_k + ∂Γ0 u_k + ∂Γ1 Δu_k
+    xc = x if gain is None else x - P * x + Py  # the state after the pull
     e = jnp.einsum("bijq,kbj->kbiq", dPhi, xc[:-1]) + _drive(u, du, dG0, dG1)[:-1]
-    bX = jnp.where(first[..., None, None], dstarts, jnp.concatenate([dstarts[:1], e], axis=0))
+    bX = jnp.concatenate([dx0[None], e], axis=0)
+    if segmented:
+        bX = jnp.where(first[..., None, None], dstarts, bX)
     X = _affine_scan(A, bX)  # [N, B, n, q]
-    yhat = _take(x, outputs, axis=2)  # [N, B, p]
-    J = _take(X, outputs, axis=2)  # [N, B, p, q]
-    r = w * (yhat - y)
-    Jw = w[..., None] * J
+    r = w * (_take(x, outputs, axis=2) - y)  # [N, B, p]
+    Jw = w[..., None] * _take(X, outputs, axis=2)  # [N, B, p, q]
     cost = jnp.einsum("kbo,kbo->b", r, r)
     g = jnp.einsum("kbo,kboq->bq", r, Jw)
     H = jnp.einsum("kboq,kbol->bql", Jw, Jw)
@@ -192,8 +185,6 @@ def normal_equations_auto(mats, tangents, outputs, u, y, w, **kwargs):
     """:func:`~jaxbox.simulate._exact.normal_equations` in time order, or
     :func:`normal_equations_parallel` where :func:`prefer_parallel` says it pays (an
     accelerator, a batch of up to 1024 members); the same arguments and results."""
-    from ._exact import normal_equations
-
     batch, n = mats[0].shape[:2]
     fast = prefer_parallel(u.shape[0], batch, n, tangents[0].shape[-1])
     return (normal_equations_parallel if fast else normal_equations)(

@@ -664,8 +664,13 @@ def report(res: dict) -> str:
             f" The run was interrupted after a section and resumed (`--resume`) at "
             f"{', '.join(res['resumed'])} on the same machine; the sections already measured "
             "were kept."
-            if res.get("resumed")
+            if res.get("resumed") and not res.get("remeasured")
             else ""
+        )
+        + "".join(
+            f" Measured again on {r['date']} with the code of that day (`--remeasure`): "
+            f"{', '.join(r['sections'])}; the other sections are from the earlier run."
+            for r in res.get("remeasured", ())
         )
     )
     w("")
@@ -1026,6 +1031,13 @@ def main(argv=None):
         action="store_true",
         help="keep the sections of an interrupted run (benchmarks/results.partial.json)",
     )
+    ap.add_argument(
+        "--remeasure",
+        default="",
+        help="comma list of sections to measure again with the current code, keeping the "
+        "others of benchmarks/results.json (e.g. the peers, which take an hour): "
+        + ", ".join(_SECTIONS),
+    )
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", default=str(HERE / "RESULTS.md"))
     ap.add_argument("--notes", default=str(HERE / "NOTES.md"), help="appended to the report")
@@ -1044,6 +1056,19 @@ def main(argv=None):
         return
     partial = HERE / "results.partial.json"
     res = {"argv": " ".join(sys.argv[1:]), "date": time.strftime("%Y-%m-%d %H:%M")}
+    again = [k for k in args.remeasure.split(",") if k]
+    if again:
+        unknown = sorted(set(again) - set(_SECTIONS))
+        if unknown:
+            ap.error(f"unknown sections {unknown}; choose from {', '.join(_SECTIONS)}")
+        if not (args.resume and partial.exists()):
+            old = _int_keys(json.loads((HERE / "results.json").read_text()))
+            kept = {k: v for k, v in old.items() if k not in again and k != "machine"}
+            kept.setdefault("remeasured", []).append(
+                {"date": time.strftime("%Y-%m-%d %H:%M"), "sections": again}
+            )
+            partial.write_text(json.dumps(kept, indent=1, default=float))
+        args.resume = True
     if args.resume and partial.exists():
         res = _int_keys(json.loads(partial.read_text()))
         res.setdefault("resumed", []).append(time.strftime("%Y-%m-%d %H:%M"))

@@ -664,7 +664,7 @@ def report(res: dict) -> str:
             f" The run was interrupted after a section and resumed (`--resume`) at "
             f"{', '.join(res['resumed'])} on the same machine; the sections already measured "
             "were kept."
-            if res.get("resumed") and not res.get("remeasured")
+            if res.get("resumed")
             else ""
         )
         + "".join(
@@ -1057,19 +1057,21 @@ def main(argv=None):
     partial = HERE / "results.partial.json"
     res = {"argv": " ".join(sys.argv[1:]), "date": time.strftime("%Y-%m-%d %H:%M")}
     again = [k for k in args.remeasure.split(",") if k]
-    if again:
-        unknown = sorted(set(again) - set(_SECTIONS))
-        if unknown:
-            ap.error(f"unknown sections {unknown}; choose from {', '.join(_SECTIONS)}")
-        if not (args.resume and partial.exists()):
-            old = _int_keys(json.loads((HERE / "results.json").read_text()))
-            kept = {k: v for k, v in old.items() if k not in again and k != "machine"}
-            kept.setdefault("remeasured", []).append(
-                {"date": time.strftime("%Y-%m-%d %H:%M"), "sections": again}
-            )
-            partial.write_text(json.dumps(kept, indent=1, default=float))
-        args.resume = True
-    if args.resume and partial.exists():
+    unknown = sorted(set(again) - set(_SECTIONS))
+    if unknown:
+        ap.error(f"unknown sections {unknown}; choose from {', '.join(_SECTIONS)}")
+    if again and not (args.resume and partial.exists()):
+        # the earlier run's sections but these (and the machine, measured now)
+        old = _int_keys(json.loads((HERE / "results.json").read_text()))
+        res = {k: v for k, v in old.items() if k not in again and k != "machine"}
+        res.setdefault("remeasured", []).append(
+            {"date": time.strftime("%Y-%m-%d %H:%M"), "sections": again}
+        )
+        partial.write_text(json.dumps(res, indent=1, default=float))
+        log(
+            f"measuring again {', '.join(again)}; kept {', '.join(k for k in res if k in _SECTIONS)}"
+        )
+    elif args.resume and partial.exists():
         res = _int_keys(json.loads(partial.read_text()))
         res.setdefault("resumed", []).append(time.strftime("%Y-%m-%d %H:%M"))
         log(

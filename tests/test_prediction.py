@@ -110,6 +110,12 @@ def test_cross_validation_period_runs_on_from_the_identification_state():
     assert pf.sim_rmse_auto[0] == pytest.approx(v.rmse_auto["T_zon"], rel=1e-9)
     assert pf.rmse_cross.shape == (2, 1) and pf.se_cross.shape == (2,)
     assert pf.rmse_cross[0, 0] < pf.rmse_cross[1, 0]
+    # the default post-simulation (adaptive diffrax) agrees with the exact route
+    vd = validate(res, valid)
+    assert vd.rmse_cross["T_zon"] == pytest.approx(v.rmse_cross["T_zon"], rel=1e-5)
+    np.testing.assert_allclose(vd.sim_cross, v.sim_cross, rtol=0, atol=1e-5)
+    with pytest.raises(ValueError, match="unknown post-simulation method 'euler'"):
+        validate(res, valid, method="euler")
     d = pf.to_dict()
     json.dumps(d, allow_nan=False)
     assert set(d["cross"]["rmse"]["T_zon"]) == {1, 24}

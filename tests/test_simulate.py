@@ -127,3 +127,54 @@ def test_numpy_post_simulation_equals_the_jax_exact_route(inputs, name):
         yj, xj = simulate_arrays(m, th, t, runs[k], method="exact", x0=x0[k])
         np.testing.assert_allclose(x[k], np.asarray(xj), rtol=0, atol=1e-9)
         np.testing.assert_allclose(y[k], np.asarray(yj), rtol=0, atol=1e-9)
+
+
+def test_diffrax_post_simulation_shares_one_program_and_keeps_its_tolerance(inputs):
+    """The diffrax route of the post-simulation integrates the state-space matrices padded to
+    the next multiple of 4 states and inputs: models of different structures share one
+    compiled program, the padded states stay zero, and the step control keeps the tolerance of
+    the unpadded system (its norm runs over the real states only), held against the exact
+    first-order-hold route."""
+    from jaxbox import _compiled
+    from jaxbox.simulate import RMSOver, integrate_diffrax
+    from jaxbox.validate._postsim import _simulate, exact_runs_numpy
+
+    t, u = inputs
+    u = dict(u, T_bou=8 + 0.5 * u["T_amb"], I_e=0.5 * u["I_glo_hor"], I_w=0.3 * u["I_glo_hor"])
+    opts = (("atol", 1e-8), ("rtol", 1e-8))
+    before = _compiled.info("postsim")["entries"]
+    for name in ("Zon", "ZonWal", "ZonWalIntInf"):  # 1, 2 and 3 states, 3 or 4 inputs
+        m = get_model(name)
+        th = m.defaults() | {"T_zon0": 24.0}
+        U = _u(m, u)[None]
+        x0 = np.asarray(m.initial_state(th))[None]
+        y, x = _simulate(m, th, t, U, x0, "diffrax", opts)
+        A, B, C, D = m.state_space_numpy(th)
+        ye, xe = exact_runs_numpy(A, B, C, D, DT, U, x0)
+        assert x.shape == xe.shape and y.shape == ye.shape
+        np.testing.assert_allclose(x, xe, rtol=0, atol=2e-5)
+        np.testing.assert_allclose(y, ye, rtol=0, atol=2e-5)
+    assert _compiled.info("postsim")["entries"] == before + 1
+
+    # padded with zero states and inputs: those states stay zero, and the error of the real
+    # ones is that of the unpadded system, not the looser one of an RMS over every state
+    m = get_model("ZonWal")
+    th = m.defaults() | {"T_zon0": 24.0}
+    A, B, C, D = m.state_space_numpy(th)
+    U = _u(m, u)
+    x0 = np.asarray(m.initial_state(th))
+    _, xe = exact_runs_numpy(A, B, C, D, DT, U[None], x0[None])
+    Ap, Bp, Up, x0p = np.zeros((32, 32)), np.zeros((32, 4)), np.zeros((len(t), 4)), np.zeros(32)
+    Ap[:2, :2], Bp[:2, :3], Up[:, :3], x0p[:2] = A, B, U, x0
+    err = {}
+    for label, a, b, uu, xx, norm in (
+        ("own", A, B, U, x0, None),
+        ("padded", Ap, Bp, Up, x0p, RMSOver(np.float64(2.0))),
+        ("padded, every state", Ap, Bp, Up, x0p, None),
+    ):
+        xs = np.asarray(integrate_diffrax(a, b, xx, t, uu, rtol=1e-6, atol=1e-6, norm=norm))
+        if xs.shape[1] > 2:
+            assert np.all(xs[:, 2:] == 0.0)
+        err[label] = np.abs(xs[:, :2] - xe[0]).max()
+    # an RMS over 32 states, 30 of them zero, is a quarter of the RMS over the 2 real ones
+    assert err["padded"] < 1.25 * err["own"] and err["padded, every state"] > 2 * err["own"], err

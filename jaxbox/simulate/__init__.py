@@ -1,6 +1,7 @@
 """Simulation: exact first-order-hold discretisation and diffrax implicit integration."""
 
 from ._diffrax import RMSOver as RMSOver
+from ._diffrax import diffrax_runs_numpy as diffrax_runs_numpy
 from ._diffrax import integrate_diffrax as integrate_diffrax
 from ._diffrax import simulate_diffrax as simulate_diffrax
 from ._exact import discretize_foh as discretize_foh

@@ -15,14 +15,17 @@ step-size strategies:
 from __future__ import annotations
 
 import contextlib
+import functools
 
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
-__all__ = ["simulate_diffrax", "integrate_diffrax", "RMSOver"]
+__all__ = ["simulate_diffrax", "integrate_diffrax", "diffrax_runs_numpy", "RMSOver"]
 
 
 class RMSOver(eqx.Module):
@@ -166,3 +169,61 @@ def integrate_diffrax(
     if not throw:
         xs = jnp.where(sol.result == diffrax.RESULTS.successful, xs, jnp.nan)
     return xs
+
+
+#: state and input counts of :func:`diffrax_runs_numpy` are padded to multiples of this
+PAD = 4
+
+
+def _padded(size: int) -> int:
+    return max(PAD, -(-size // PAD) * PAD)
+
+
+def diffrax_runs_numpy(
+    A: np.ndarray,
+    B: np.ndarray,
+    t: np.ndarray,
+    u: np.ndarray,
+    x0: np.ndarray,
+    *,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+) -> np.ndarray:
+    """States [S, N, n] of S runs of ``dx/dt = A x + B u(t)`` (adaptive Kvaerno5, as
+    :func:`simulate_diffrax`): inputs ``u`` [S, N, m] at the sample times ``t`` [N] [s], from
+    ``x0`` [S, n] [°C]; NumPy in and out. A run that fails is NaN.
+
+    The matrices are padded with zeros to multiples of :data:`PAD` states and inputs, and one
+    compiled program (kept in the bounded cache of compiled functions) serves every system of a
+    padded size, run count, length and tolerances: the models of a selection share it instead
+    of compiling one each. The padded states stay zero, and the step control's norm runs over
+    the real states only (:class:`RMSOver`), so the steps and the tolerance are those of the
+    unpadded system.
+    """
+    from .._compiled import cached, jit
+
+    A, B, u = np.asarray(A, float), np.asarray(B, float), np.asarray(u, float)
+    n, m = B.shape
+    n_pad, m_pad = _padded(n), _padded(m)
+    Ap = np.zeros((n_pad, n_pad))
+    Ap[:n, :n] = A
+    Bp = np.zeros((n_pad, m_pad))
+    Bp[:n, :m] = B
+    Up = np.zeros(u.shape[:2] + (m_pad,))
+    Up[..., :m] = u
+    X0 = np.zeros((len(x0), n_pad))
+    X0[:, :n] = np.asarray(x0, float)
+    options = (("atol", float(atol)), ("rtol", float(rtol)))
+    key = ("diffrax-runs", n_pad, m_pad, Up.shape[0], Up.shape[1], options)
+    fn = cached(key, lambda: jit(functools.partial(_runs, **dict(options))))[0]
+    return np.asarray(fn(Ap, Bp, np.asarray(t, float), Up, X0, float(n)))[..., :n]
+
+
+def _runs(A, B, t, U, X0, count, **options):
+    """:func:`integrate_diffrax` of every run under ``vmap``, the norm over ``count`` states."""
+    norm = RMSOver(count)
+
+    def one(u, x0):
+        return integrate_diffrax(A, B, x0, t, u, throw=False, norm=norm, **options)
+
+    return jax.vmap(one)(U, X0)

@@ -12,12 +12,11 @@ states estimated on it), and output gaps are left out of the metrics.
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import numpy as np
 
-from .._compiled import cached, jit
 from .._x64 import require_x64
+from ..simulate import diffrax_runs_numpy
 from ..simulate._exact import discretize_foh_numpy
 from ._metrics import rmse, simulation_error
 
@@ -406,53 +405,14 @@ def exact_runs_numpy(A, B, C, D, dt, u, x0):
 def _simulate(model, params, t, u, x0, method, options):
     """Outputs [S, N, p] and states [S, N, n] of S runs: inputs u [S, N, m] from x0 [S, n].
 
-    The exact route runs in NumPy (:func:`exact_runs_numpy`): no compilation per structure or
-    data size, which a structure search that post-simulates dozens of candidates would pay. The
-    diffrax route integrates the state-space matrices, evaluated in NumPy and padded to
-    :func:`_padded` sizes, in one compiled program per padded size, data length and tolerances
-    (:func:`_diffrax_runs`): the models of a selection share it instead of compiling one each."""
+    Both routes take the state-space matrices evaluated in NumPy: the exact route runs in NumPy
+    (:func:`exact_runs_numpy`), with no compilation per structure or data size, which a
+    structure search that post-simulates dozens of candidates would pay; the diffrax route
+    (:func:`~jaxbox.simulate.diffrax_runs_numpy`) compiles one program per padded size, which
+    the models of a selection share."""
     A, B, C, D = model.state_space_numpy({k: float(v) for k, v in params.items()})
     u = np.asarray(u, float)
     if method == "exact":
         return exact_runs_numpy(A, B, C, D, float(t[1] - t[0]), u, x0)
-    n, m = B.shape
-    n_pad, m_pad = _padded(n), _padded(m)
-    Ap = np.zeros((n_pad, n_pad))
-    Ap[:n, :n] = A
-    Bp = np.zeros((n_pad, m_pad))
-    Bp[:n, :m] = B
-    Up = np.zeros(u.shape[:2] + (m_pad,))
-    Up[..., :m] = u
-    X0 = np.zeros((len(x0), n_pad))
-    X0[:, :n] = np.asarray(x0, float)
-    t = np.asarray(t, float)
-    key = ("postsim", "diffrax", n_pad, m_pad, Up.shape[0], Up.shape[1], options)
-    fn = cached(key, lambda: jit(functools.partial(_diffrax_runs, **dict(options))))[0]
-    xs = np.asarray(fn(Ap, Bp, t, Up, X0, float(n)))[..., :n]
+    xs = diffrax_runs_numpy(A, B, t, u, x0, **dict(options))
     return xs @ C.T + u @ D.T, xs
-
-
-def _padded(size: int) -> int:
-    """``size`` rounded up to a multiple of :data:`_PAD` (at least one multiple)."""
-    return max(_PAD, -(-size // _PAD) * _PAD)
-
-
-#: state and input counts of the diffrax post-simulation are padded to multiples of this
-_PAD = 4
-
-
-def _diffrax_runs(A, B, t, U, X0, count, **options):
-    """States [S, N, n] of ``dx/dt = A x + B u(t)`` from each ``X0`` [S, n] under each ``U``
-    [S, N, m] (adaptive Kvaerno5, see :func:`~jaxbox.simulate.integrate_diffrax`); the step
-    control's norm runs over the first ``count`` states (the rest are padding, held at zero).
-    A run that fails is NaN."""
-    import jax
-
-    from ..simulate import RMSOver, integrate_diffrax
-
-    norm = RMSOver(count)
-
-    def one(u, x0):
-        return integrate_diffrax(A, B, x0, t, u, throw=False, norm=norm, **options)
-
-    return jax.vmap(one)(U, X0)

@@ -106,6 +106,19 @@ def test_simulate_errors(inputs):
         simulate_model(m, m.defaults() | {"R_x": 1.0}, ds)
     with pytest.raises(ValueError, match="unknown simulation method"):
         simulate_model(m, None, ds, method="euler")
+    # a non-physical value is refused by name, before anything runs
+    for method in ("exact", "diffrax"):
+        with pytest.raises(ModelError, match="C_zon = -1e\\+06 is not positive; a capacity"):
+            simulate_model(m, m.defaults() | {"C_zon": -1e6}, ds, method=method)
+    with pytest.raises(ModelError, match="R_wal = 0 is not positive; a resistance"):
+        simulate_model(m, m.defaults() | {"R_wal": 0.0}, ds)
+    with pytest.raises(ModelError, match="gA is nan; give a finite value"):
+        simulate_model(m, m.defaults() | {"gA": float("nan")}, ds)
+    # a traced value (under jit) is left to the computation that uses it
+    from jaxbox.simulate._simulate import check_theta
+
+    th = m.defaults()
+    assert jax.jit(lambda c: check_theta(m, th | {"C_zon": c})["C_zon"])(-1.0) == -1.0
 
 
 @pytest.mark.parametrize("name", ["Zon", "ZonWalIntInfWinBouC"])

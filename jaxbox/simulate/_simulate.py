@@ -52,6 +52,19 @@ def check_theta(model: RCModel, theta: Mapping | None) -> dict:
             f"model {model.name}: no value for parameter(s) {', '.join(missing)}; give every "
             "parameter (model.defaults() holds default values)"
         )
+    for name, value in theta.items():
+        try:
+            v = float(np.asarray(value))
+        except (TypeError, ValueError):  # jax's tracer errors are TypeErrors
+            continue  # traced (under jit or grad), or not a scalar: checked where it is used
+        if not np.isfinite(v):
+            raise ModelError(f"model {model.name}: parameter {name} is {v}; give a finite value")
+        if name.startswith(("R_", "C_")) and not v > 0:
+            kind = "resistance [K/W]" if name.startswith("R_") else "capacity [J/K]"
+            raise ModelError(
+                f"model {model.name}: parameter {name} = {v:g} is not positive; a {kind} must "
+                "be greater than zero"
+            )
     return theta
 
 

@@ -58,54 +58,17 @@ def _errors_as_nan(active: bool):
         eqx_errors.EQX_ON_ERROR = saved
 
 
-def simulate_diffrax(
-    A,
-    B,
-    C,
-    D,
-    x0,
-    t,
-    u,
-    *,
-    adaptive: bool = True,
-    rtol: float = 1e-8,
-    atol: float = 1e-8,
-    substeps: int = 1,
-    max_steps: int | None = None,
-    adjoint: diffrax.AbstractAdjoint | None = None,
-    throw: bool = True,
-):
+def simulate_diffrax(A, B, C, D, x0, t, u, **options):
     """Integrate ``dx/dt = A x + B u(t)`` from ``x0`` [°C] over the sample times ``t`` [s].
 
     Args:
         A, B, C, D: state-space matrices (SI, per second).
-        x0: initial state [°C] at ``t[0]``.
-        t: sample times [s], increasing, shape [N].
-        u: inputs at the samples, shape [N, m].
-        adaptive: PID step control (True) or ``substeps`` constant steps per interval.
-        rtol, atol: tolerances of the step control and of the implicit stage solves.
-        substeps: fixed steps per sample interval when ``adaptive=False``.
-        max_steps: solver step cap (default from N).
-        adjoint: diffrax adjoint; ``diffrax.ForwardMode()`` for forward-mode Jacobians.
-        throw: raise on solver failure (set False under ``vmap``; the outputs are then NaN).
+        x0, t, u, options: as in :func:`integrate_diffrax`.
 
     Returns:
         (y [N, p], x [N, n]) at the sample times.
     """
-    xs = integrate_diffrax(
-        A,
-        B,
-        x0,
-        t,
-        u,
-        adaptive=adaptive,
-        rtol=rtol,
-        atol=atol,
-        substeps=substeps,
-        max_steps=max_steps,
-        adjoint=adjoint,
-        throw=throw,
-    )
+    xs = integrate_diffrax(A, B, x0, t, u, **options)
     return xs @ C.T + u @ D.T, xs
 
 
@@ -125,9 +88,25 @@ def integrate_diffrax(
     throw: bool = True,
     norm=None,
 ) -> Float[Array, "N n"]:
-    """The states [°C] of :func:`simulate_diffrax` at the sample times (its arguments); ``norm``:
-    the step control's error norm (default diffrax's RMS norm; :class:`RMSOver` for a padded
-    system)."""
+    """The states [°C] at the sample times of ``dx/dt = A x + B u(t)`` integrated from ``x0``.
+
+    Args:
+        A, B: state-space matrices (SI, per second).
+        x0: initial state [°C] at ``t[0]``.
+        t: sample times [s], increasing, shape [N].
+        u: inputs at the samples, shape [N, m].
+        adaptive: PID step control (True) or ``substeps`` constant steps per interval.
+        rtol, atol: tolerances of the step control and of the implicit stage solves.
+        substeps: fixed steps per sample interval when ``adaptive=False``.
+        max_steps: solver step cap (default from N).
+        adjoint: diffrax adjoint; ``diffrax.ForwardMode()`` for forward-mode Jacobians.
+        throw: raise on solver failure (set False under ``vmap``; the states are then NaN).
+        norm: the step control's error norm (default diffrax's RMS norm; :class:`RMSOver` for a
+            system padded with states that stay zero).
+
+    Returns:
+        x [N, n] at the sample times.
+    """
     n_samples = t.shape[0]
     interp = diffrax.LinearInterpolation(ts=t, ys=u)
 

@@ -2,9 +2,13 @@
 
 Every start (the guess plus Latin-hypercube samples, :func:`jaxbox.fit.sample_starts`) of every
 dataset runs BFGS (``optimistix.BFGS``) on the negative log-likelihood per observation, in the
-bound transform's unbounded coordinates, under one ``vmap`` in one compiled call per model
-structure, free/fixed split and data shape (kept in :mod:`jaxbox._compiled`). The gradient is
-reverse-mode autodiff through the Kalman filter's ``lax.scan``.
+bound transform's unbounded coordinates, under one ``vmap`` in one compiled call (kept in
+:mod:`jaxbox._compiled`). The gradient is reverse-mode autodiff through the Kalman filter's
+``lax.scan``. The network, its noise parameters and the bound transform enter the compiled
+solve as arrays padded to rounded sizes (:mod:`jaxbox.stochastic._arrays`), so every model
+structure of the same padded size, every free/fixed split and every set of bounds share one
+program per data shape; a network with a node held at a constant temperature has a program of
+its own.
 
 At the best start, the exact Hessian of the NLL (plus the log prior) with respect to the
 physical free parameters (``jax.hessian``) gives the covariance of the estimates, their
@@ -28,8 +32,9 @@ from .._x64 import require_x64
 from ..fit._problem import FitError
 from ..fit._result import StartReport
 from ..fit._starts import sample_starts
-from ..fit._transforms import Transform
+from ..fit._transforms import Transform, to_physical_coded
 from ..models import get_model
+from ._arrays import KEYS, has_array_form, ml_arrays, padded_sizes, system_from_arrays
 from ._kalman import kalman_scan
 from ._problem import StochasticProblem, make_stochastic_problem, stochastic_arrays, system
 from ._result import MLResult
@@ -59,9 +64,11 @@ def _objective(full: Transform, model, hold: str):
     return f
 
 
-def _build(full, model, hold, max_steps: int, rtol: float, atol: float, per_member: bool):
+def _bfgs(obj, max_steps: int, rtol: float, atol: float, per_member: bool, n_args: int):
+    """BFGS on ``obj(z, *args)`` from every start under one ``vmap`` over the ``n_args``
+    arguments of ``(z0, *args)`` (the data, the last two, shared unless ``per_member``):
+    ``(z, objective, code, steps)`` per start."""
     solver = optx.BFGS(rtol=rtol, atol=atol)
-    obj = _objective(full, model, hold)
 
     def one(z0, *args):
         def fn(z, _):
@@ -80,8 +87,41 @@ def _build(full, model, hold, max_steps: int, rtol: float, atol: float, per_memb
         return sol.value, val, code.astype(jnp.int32), steps
 
     d = 0 if per_member else None
-    axes = (0,) * 11 + (d, d)
-    return jit(jax.vmap(one, in_axes=axes))
+    return jit(jax.vmap(one, in_axes=(0,) * (n_args - 2) + (d, d)))
+
+
+def _build(full, model, hold, max_steps: int, rtol: float, atol: float, per_member: bool):
+    """The batched BFGS solve of one model structure (a network with a held node)."""
+    return _bfgs(_objective(full, model, hold), max_steps, rtol, atol, per_member, 13)
+
+
+def _objective_arrays(style: str, hold: str):
+    """:func:`_objective` for a problem in array form: ``f(z, arrays, dt, scale, u, y)`` with
+    ``arrays`` the values of :func:`~jaxbox.stochastic._arrays.ml_arrays` in ``KEYS`` order."""
+
+    def f(z, arrays, dt, scale, u, y):
+        a = dict(zip(KEYS, arrays, strict=True))
+        physical = to_physical_coded(z, a["lower"], a["upper"], a["scale"], a["kinds"], style)
+        p = jnp.where(a["mask"], physical, a["values"])
+        v = jnp.concatenate([p, jnp.asarray([1.0, 0.0], dtype=p.dtype)])
+        mats, C, D, r, m0, P0 = system_from_arrays(v, a, dt, hold)
+        nll = kalman_scan(mats, C, D, r, m0, P0, u, y)
+        ps = a["prior_sd"]
+        has = a["mask"] & jnp.isfinite(ps)
+        d = jnp.where(has, (p - a["prior_mean"]) / jnp.where(has, ps, 1.0), 0.0)
+        return (nll + 0.5 * jnp.sum(d * d)) / scale
+
+    return f
+
+
+def _build_arrays(style, hold, max_steps: int, rtol: float, atol: float, per_member: bool):
+    """The batched BFGS solve of problems in array form (one program per padded size)."""
+    return _bfgs(_objective_arrays(style, hold), max_steps, rtol, atol, per_member, 6)
+
+
+def _pad_columns(u: np.ndarray, width: int) -> np.ndarray:
+    """Inputs [N, m] with zero columns up to ``width`` (padding inputs of the array form)."""
+    return np.concatenate([u, np.zeros((u.shape[0], width - u.shape[1]))], axis=1)
 
 
 def solve_ml(
@@ -93,10 +133,12 @@ def solve_ml(
 ) -> dict:
     """BFGS from every start of every job in one compiled, batched call.
 
-    A job is ``(problem, starts [S, k] physical, (dt, u, y))``. Jobs must share the model
-    structure, the hold, the transform kinds and the data shapes; they may differ in data,
-    bounds, fixed values, priors and in which parameters are free. The compiled solve is kept
-    per model structure, hold, transform kinds, shapes and solver settings.
+    A job is ``(problem, starts [S, k] physical, (dt, u, y))``. Jobs must share the hold, the
+    style of the bound transforms, the number of samples and the outputs; they may differ in
+    model structure, data, bounds, fixed values, priors and in which parameters are free. The
+    compiled solve is kept per padded size (:mod:`jaxbox.stochastic._arrays`), hold, data
+    shape and solver settings; a job whose network holds a node at a constant temperature
+    needs jobs of its own structure and transform kinds, and a program of its own.
 
     Returns per member: ``job``, ``p`` [B, k] (each job's free parameters), ``objective`` [B]
     (NLL + prior per observation), ``code`` (0 converged, 1 step cap, 2 non-finite),
@@ -104,6 +146,8 @@ def solve_ml(
     """
     if not jobs:
         raise FitError("no job to solve")
+    if all(has_array_form(sp.model) for sp, _, _ in jobs):
+        return _solve_arrays(jobs, max_steps, rtol, atol)
     fulls = [sp.full_transform() for sp, _, _ in jobs]
     keys = {
         (sp.model.structure, sp.hold, f[0].kinds, f[0].style)
@@ -144,11 +188,7 @@ def solve_ml(
         free_idx.append(idx)
     members = [np.concatenate(c, axis=0) for c in cols[:11]]
     per_member = len(jobs) > 1
-    if per_member:
-        u = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(us, counts, strict=True)])
-        y = np.concatenate([np.repeat(a[None], c, 0) for a, c in zip(ys, counts, strict=True)])
-    else:
-        u, y = us[0], ys[0]
+    u, y = _data(us, ys, counts)
     args = [jnp.asarray(a, dtype=float) for a in (*members, u, y)]
     args[1] = args[1].astype(bool)
     key = (
@@ -163,35 +203,142 @@ def solve_ml(
         rtol,
         atol,
     )
-    t0 = time.perf_counter()
-    compiled, built = _compiled.cached(
-        key,
-        lambda: (
-            _build(full0, sp0.model, sp0.hold, max_steps, rtol, atol, per_member)
-            .lower(*args)
-            .compile()
-        ),
+    build = lambda: _build(full0, sp0.model, sp0.hold, max_steps, rtol, atol, per_member)  # noqa: E731
+    (z, *out), times = _compile_and_run(key, build, args)
+    p_all = full0.to_physical(np.asarray(z, dtype=float), members[3], members[4], members[5])
+    starts = np.cumsum([0, *counts])
+    parts = [
+        p_all[a:b][:, idx] for a, b, idx in zip(starts[:-1], starts[1:], free_idx, strict=True)
+    ]
+    return _outcome(counts, parts, out, times)
+
+
+def _data(us, ys, counts) -> tuple:
+    """``(u, y)`` of the solve: one series shared by every start, or with several jobs each
+    start's own (a leading axis over the starts)."""
+    if len(us) == 1:
+        return us[0], ys[0]
+    rep = lambda arrays: np.concatenate(  # noqa: E731
+        [np.repeat(a[None], c, 0) for a, c in zip(arrays, counts, strict=True)]
     )
+    return rep(us), rep(ys)
+
+
+def _compile_and_run(key, build, args) -> tuple:
+    """The compiled solve of ``key`` (built on a miss) run on ``args``: its outputs and
+    ``(compile_s, fit_s)``."""
+    t0 = time.perf_counter()
+    compiled, built = _compiled.cached(key, lambda: build().lower(*args).compile())
     compile_s = time.perf_counter() - t0 if built else 0.0
     t0 = time.perf_counter()
-    z, val, code, steps = jax.block_until_ready(compiled(*args))
-    fit_s = time.perf_counter() - t0
-    p_all = full0.to_physical(np.asarray(z, dtype=float), members[3], members[4], members[5])
-    parts, start = [], 0
-    for c, idx in zip(counts, free_idx, strict=True):
-        parts.append(p_all[start : start + c][:, idx])
-        start += c
+    out = jax.block_until_ready(compiled(*args))
+    return out, (compile_s, time.perf_counter() - t0)
+
+
+def _outcome(counts, parts, out, times) -> dict:
+    """What :func:`solve_ml` returns, from each job's free parameters ``parts`` and the
+    solve's ``(objective, code, steps)`` and ``(compile_s, fit_s)``."""
+    val, code, steps = out
     width = {p.shape[1] for p in parts}
     return {
-        "job": np.repeat(np.arange(len(jobs)), counts),
+        "job": np.repeat(np.arange(len(parts)), counts),
         "p": np.concatenate(parts, axis=0) if len(width) == 1 else parts,
         "p_jobs": parts,
         "objective": np.asarray(val),
         "code": np.asarray(code),
         "steps": np.asarray(steps),
-        "compile_s": compile_s,
-        "fit_s": fit_s,
+        "compile_s": times[0],
+        "fit_s": times[1],
     }
+
+
+def _solve_arrays(jobs, max_steps: int, rtol: float, atol: float) -> dict:
+    """:func:`solve_ml` of jobs whose networks have an array form: one program per padded
+    size, hold, data shape and solver settings, whatever their structures."""
+    problems = [sp for sp, _, _ in jobs]
+    if len({(sp.hold, sp.transform.style) for sp in problems}) > 1:
+        raise FitError("jobs solved together need the same hold and bound-transform style")
+    shapes = {(len(a[1]), np.shape(a[2])) for _, _, a in jobs}
+    if len(shapes) > 1:
+        raise FitError(
+            f"datasets solved together need the same length and outputs; got {sorted(shapes)}"
+        )
+    sizes = padded_sizes(problems)
+    z0s, members, dts, scales, us, ys, counts, free_idx = [], [], [], [], [], [], [], []
+    for sp, starts, (dt, u, y) in jobs:
+        starts = np.atleast_2d(np.asarray(starts, dtype=float))
+        s = len(starts)
+        idx = np.asarray([sp.param_names.index(n) for n in sp.free])
+        z0 = np.zeros((s, sizes["params"]))
+        z0[:, idx] = np.where(np.isfinite(starts), sp.transform.to_internal(starts), np.nan)
+        arrays = ml_arrays(sp, sizes)
+        z0s.append(z0)
+        members.append([np.broadcast_to(arrays[k], (s, *np.shape(arrays[k]))) for k in KEYS])
+        dts.append(np.full(s, float(dt)))
+        scales.append(np.full(s, float(np.isfinite(y).sum())))
+        us.append(_pad_columns(np.asarray(u, dtype=float), sizes["inputs"]))
+        ys.append(np.asarray(y, dtype=float))
+        counts.append(s)
+        free_idx.append(idx)
+    per_member = len(jobs) > 1
+    u, y = _data(us, ys, counts)
+    arrays = tuple(jnp.asarray(np.concatenate(c, axis=0)) for c in zip(*members, strict=True))
+    z0 = jnp.asarray(np.concatenate(z0s), dtype=float)
+    rest = tuple(jnp.asarray(np.concatenate(a), dtype=float) for a in (dts, scales))
+    data = (jnp.asarray(u, dtype=float), jnp.asarray(y, dtype=float))
+    args = (z0, arrays, *rest, *data)
+    sp0 = problems[0]
+    key = (
+        "stochastic",
+        "ml-arrays",
+        sp0.hold,
+        sp0.transform.style,
+        tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves(args)),
+        max_steps,
+        rtol,
+        atol,
+    )
+    build = lambda: _build_arrays(sp0.transform.style, sp0.hold, max_steps, rtol, atol, per_member)  # noqa: E731
+    (z, *out), times = _compile_and_run(key, build, args)
+    z = np.asarray(z, dtype=float)
+    starts = np.cumsum([0, *counts])
+    parts = [
+        sp.transform.to_physical(z[a:b][:, idx])
+        for (sp, _, _), a, b, idx in zip(jobs, starts[:-1], starts[1:], free_idx, strict=True)
+    ]
+    return _outcome(counts, parts, out, times)
+
+
+def _hessian(sp: StochasticProblem, vec: np.ndarray, dt: float, u, y):
+    """NLL, its gradient and its exact Hessian in every parameter (``param_names`` order) at
+    the values ``vec``: one program per padded size, hold and data shape (a network without an
+    array form: per structure)."""
+    if not has_array_form(sp.model):
+        fn = _hessian_fn(sp, (np.shape(u), np.shape(y)))
+        args = (vec, np.asarray(sp.x0_std), dt, u, y)
+        return fn(*(jnp.asarray(a, dtype=float) for a in args))
+    sizes = padded_sizes([sp])
+    arrays = tuple(jnp.asarray(a) for a in (ml_arrays(sp, sizes)[k] for k in KEYS))
+    pv = np.zeros(sizes["params"])
+    pv[: len(vec)] = vec
+    data = (_pad_columns(np.asarray(u, dtype=float), sizes["inputs"]), np.asarray(y, dtype=float))
+    args = (jnp.asarray(pv), arrays, jnp.asarray(float(dt)), *(jnp.asarray(a) for a in data))
+    shapes = tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves(args))
+    hold = sp.hold
+
+    def build():
+        def f(pv, arrays, dt, u, y):
+            a = dict(zip(KEYS, arrays, strict=True))
+            v = jnp.concatenate([pv, jnp.asarray([1.0, 0.0], dtype=pv.dtype)])
+            mats, C, D, r, m0, P0 = system_from_arrays(v, a, dt, hold)
+            return kalman_scan(mats, C, D, r, m0, P0, u, y)
+
+        return jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)), once=True)
+
+    fn = _compiled.cached(("stochastic", "hessian-arrays", hold, shapes), build)[0]
+    nll, grad, H = fn(*args)
+    k = len(vec)
+    return nll, np.asarray(grad)[:k], np.asarray(H)[:k, :k]
 
 
 def _hessian_fn(sp: StochasticProblem, shapes):
@@ -234,10 +381,8 @@ def _result(sp, data, arrays, starts, out, sl, settings, timing) -> MLResult:
     pb = p[best]
     values = {**sp.fixed_dict, **dict(zip(sp.free, pb, strict=True))}
     vec = np.asarray([values[n] for n in sp.param_names], dtype=float)
-    hess = _hessian_fn(sp, (u.shape, y.shape))
     t0 = time.perf_counter()
-    args = (vec, np.asarray(sp.x0_std), dt, u, y)
-    nll, grad, H = hess(*(jnp.asarray(a, dtype=float) for a in args))
+    nll, grad, H = _hessian(sp, vec, dt, u, y)
     idx = np.asarray([sp.param_names.index(n) for n in sp.free])
     grad, H = np.asarray(grad)[idx], np.asarray(H)[np.ix_(idx, idx)]
     pm, ps = sp.prior_arrays()

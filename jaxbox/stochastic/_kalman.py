@@ -97,6 +97,30 @@ def _sym(P):
     return 0.5 * (P + P.T)
 
 
+#: up to this many states the filter's products are written as broadcast multiplications and
+#: sums (fused loops); beyond, as matrix products
+SMALL_STATES = 6
+
+
+def _product(small: bool):
+    """``a @ b`` for vectors and matrices; with ``small``, as a broadcast product summed over
+    the shared axis. On a CPU, XLA emits the matrix products of the filter's step (4 × 4 and
+    up) as calls to a matrix-multiplication routine, each with an overhead far above its
+    arithmetic; the broadcast form fuses into the step's loops: a filter of 4–6 states with its
+    gradient runs 4–6 times faster this way (3 states and fewer: the same)."""
+    if not small:
+        return jnp.matmul
+
+    def mm(a, b):
+        if a.ndim == 1:
+            return jnp.sum(a[:, None] * b, axis=0)
+        if b.ndim == 1:
+            return jnp.sum(a * b[None, :], axis=1)
+        return jnp.sum(a[:, :, None] * b[None, :, :], axis=1)
+
+    return mm
+
+
 def kalman_scan(mats, Cm, D, r, m0, P0, u, y, *, full: bool = False):
     """Run the filter over one series.
 
@@ -117,6 +141,7 @@ def kalman_scan(mats, Cm, D, r, m0, P0, u, y, *, full: bool = False):
     n = Phi.shape[0]
     eye = jnp.eye(n, dtype=Phi.dtype)
     single = Cm.shape[0] == 1
+    mm = _product(n <= SMALL_STATES)
     ok = jnp.isfinite(y)
     y0 = jnp.where(ok, y, 0.0)
     du = jnp.concatenate([u[1:] - u[:-1], jnp.zeros_like(u[:1])], axis=0)
@@ -128,11 +153,10 @@ def kalman_scan(mats, Cm, D, r, m0, P0, u, y, *, full: bool = False):
         yk, okk, uk, dk = data
         okf = okk.astype(m.dtype)
         Ck = Cm * okf[:, None]
-        e = jnp.where(okk, yk - Cm @ m - D @ uk, 0.0)
+        e = jnp.where(okk, yk - mm(Cm, m) - mm(D, uk), 0.0)
         Rk = jnp.diag(jnp.where(okk, r2, 0.0))
-        S = Ck @ P @ Ck.T + Rk + jnp.diag(1.0 - okf)
-        S = _sym(S)
-        PCt = P @ Ck.T
+        PCt = mm(P, Ck.T)
+        S = _sym(mm(Ck, PCt) + Rk + jnp.diag(1.0 - okf))
         if single:  # one output: scalar innovation variance, no factorisation
             s = S[0, 0]
             K = PCt / s
@@ -145,11 +169,11 @@ def kalman_scan(mats, Cm, D, r, m0, P0, u, y, *, full: bool = False):
             quad = a @ a
             logdet = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
         nll = 0.5 * (logdet + quad + _LOG2PI * jnp.sum(okf))
-        mf = m + K @ e
-        IKC = eye - K @ Ck
-        Pf = _sym(IKC @ P @ IKC.T + K @ Rk @ K.T)
-        mn = Phi @ mf + dk
-        Pn = _sym(Phi @ Pf @ Phi.T + Q)
+        mf = m + mm(K, e)
+        IKC = eye - mm(K, Ck)
+        Pf = _sym(mm(mm(IKC, P), IKC.T) + mm(mm(K, Rk), K.T))
+        mn = mm(Phi, mf) + dk
+        Pn = _sym(mm(mm(Phi, Pf), Phi.T) + Q)
         if full:
             out = (nll, jnp.where(okk, e, jnp.nan), S, m, P, mf, Pf)
         else:

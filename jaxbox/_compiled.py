@@ -108,7 +108,8 @@ _ONCE_OPTIONS = {"xla_backend_optimization_level": 0}
 def jit(fun: Callable, *, once: bool = False, **kwargs) -> Callable:
     """``jax.jit`` with :func:`compiler_options`; ``once``: a program evaluated once per result,
     compiled without the backend's optimisations (the exact Hessian of a maximum-likelihood
-    fit: 3.3 s to compile instead of 7.4 s, 0.10 s to run instead of 0.06 s)."""
+    fit: 3.3 s of XLA compilation instead of 7.4 s, 0.10 s to run instead of 0.06 s; a fit's
+    data sensitivities, 10 parameters: 2.2 s to the first result instead of 3.7 s)."""
     import jax
 
     options = compiler_options()

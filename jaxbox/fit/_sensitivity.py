@@ -197,7 +197,7 @@ def _build_functions(problem: Problem) -> dict:
         grad_u = jax.grad(cost, argnums=4)
         return jax.jacfwd(grad_u)(q, scale, fixed_values, t, u, y, sqrt_w)  # [N, m, n]
 
-    return {"derivatives": jit(derivatives), "inputs": jit(mixed_inputs)}
+    return {"derivatives": jit(derivatives, once=True), "inputs": jit(mixed_inputs, once=True)}
 
 
 def fit_sensitivity(result, *, hessian: str = "exact", inputs: bool = False) -> FitSensitivity:

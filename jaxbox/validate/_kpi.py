@@ -212,7 +212,7 @@ def _compiled(model, free: tuple[str, ...], fixed: tuple[str, ...], symmetric: b
             theta.update({n: fv[i] for i, n in enumerate(fixed)})
             return g(theta)
 
-        return jit(lambda p, fv: (f(p, fv), jax.jacfwd(f)(p, fv)))
+        return jit(lambda p, fv: (f(p, fv), jax.jacfwd(f)(p, fv)), once=True)
 
     return cached(("kpi", model, free, fixed, symmetric), build)[0]
 

@@ -174,5 +174,14 @@ def test_forward_selection_by_likelihood_ratio(ti, data, fit, fit_quiet):
     assert second["statistic"] == pytest.approx(2 * (second["loglik"] - first["loglik"]))
     assert second["pvalue"] < 0.05 and second["accepted"]
     assert sel["accepted"] == "BM_Ti"
+    # the second model's last start is the first model's estimate (as many starts in all; the
+    # diffusion fixed at 1e-10 there lies outside its bounds here and keeps its default)
+    richer = sel["fits"]["BM_Ti"]
+    assert len(richer.starts.initial) == STARTS
+    last = dict(zip(richer.free, richer.starts.initial[-1], strict=True))
+    parent = sel["fits"][first["model"]].params
+    for name in ("C_zon", "R_wal", "gA", "T_zon0", "sigma_y_zon"):
+        assert last[name] == pytest.approx(parent[name], rel=1e-12)
+    assert last["sigma_zon"] == pytest.approx(richer.problem.guess_dict["sigma_zon"])
     with pytest.raises(ValueError, match="alpha"):
         forward_selection_lr(["BM_Ti"], data, alpha=2.0)

@@ -4,11 +4,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
+from ..fit._starts import sample_starts
 from ..models import get_model
-from ._fit import fit_ml
+from ._fit import DEFAULT_ML_STARTS, fit_ml
+from ._noise import noise_parameters
+from ._problem import make_stochastic_problem
 from ._result import MLResult, likelihood_ratio_test
 
-__all__ = ["forward_selection_lr"]
+__all__ = ["forward_selection_lr", "parent_guess"]
 
 
 def forward_selection_lr(
@@ -23,9 +28,12 @@ def forward_selection_lr(
 
     Each model is compared with the model currently accepted by a likelihood-ratio test
     (:func:`likelihood_ratio_test`); it replaces it when it has more free parameters and the
-    test's p-value is below ``alpha``. The models must be nested in that order (each extends the
-    one before, as the ``bacher-madsen`` family does from ``BM_Ti``); the test is not valid
-    otherwise.
+    test's p-value is below ``alpha``. Besides its own starts (the guess and the Latin
+    hypercube of :func:`fit_ml`), a model is started once more from the accepted model's
+    estimates (:func:`parent_guess`), so that a richer model can begin where the model it
+    extends ended and its likelihood is not below that model's for want of a start. The
+    models must be nested in that order (each extends the one before, as the
+    ``bacher-madsen`` family does from ``BM_Ti``); the test is not valid otherwise.
 
     Args:
         models: model names or :class:`~jaxbox.models.RCModel`, simplest first; an entry may
@@ -52,7 +60,10 @@ def forward_selection_lr(
     for i, entry in enumerate(models):
         m, extra = entry if isinstance(entry, tuple) else (entry, {})
         model = get_model(m)
-        fit = fit_ml(model, data, **{**fit_options, **dict(extra)})
+        options = {**fit_options, **dict(extra)}
+        if current is not None:
+            options["starts"] = _with_parent_start(model, data, current, options)
+        fit = fit_ml(model, data, **options)
         name = model.name if not extra else f"{model.name} {_describe(extra)}"
         if name in fits:
             name = f"{name} #{i + 1}"
@@ -78,6 +89,40 @@ def forward_selection_lr(
             current, accepted = fit, name
         table.append(row)
     return {"accepted": accepted, "table": table, "fits": fits}
+
+
+def parent_guess(model, parent: MLResult, options=None) -> dict[str, float]:
+    """The initial guess of ``model`` from the estimates of ``parent`` (a nested model's
+    :class:`MLResult`): every parameter of the stochastic form that ``parent`` also has and that
+    is neither fixed in ``options`` nor outside its bounds there (the defaults, or
+    ``options["bounds"]``) takes the parent's value; the others keep their defaults."""
+    options = options or {}
+    bounds = {p.name: (p.lower, p.upper) for p in noise_parameters(model)}
+    bounds.update(
+        {n: (model.parameter(n).lower, model.parameter(n).upper) for n in model.param_names}
+    )
+    bounds.update({n: tuple(b) for n, b in (options.get("bounds") or {}).items() if n in bounds})
+    fixed = set(options.get("fixed") or ())
+    return {
+        n: float(v)
+        for n, v in parent.params.items()
+        if n in bounds and n not in fixed and bounds[n][0] <= v <= bounds[n][1]
+    }
+
+
+def _with_parent_start(model, data, parent: MLResult, options: dict) -> np.ndarray:
+    """The starts of ``model``: those :func:`fit_ml` draws for ``options`` but the last (so that
+    their number, and the compiled solve, stay those of the other models), or the explicit ones,
+    then its guess with the parent's estimates put in."""
+    names = ("free", "fixed", "bounds", "guess", "priors", "hold", "x0_std")
+    sp = make_stochastic_problem(model, data, **{k: options[k] for k in names if k in options})
+    starts = options.get("starts", DEFAULT_ML_STARTS)
+    if isinstance(starts, int | np.integer):
+        seed, concentration = options.get("seed", 0), options.get("concentration", 4.0)
+        starts = sample_starts(sp, data, max(int(starts) - 1, 1), seed, concentration)
+    guess = {**sp.guess_dict, **parent_guess(model, parent, options)}
+    row = np.asarray([guess[n] for n in sp.free], dtype=float)
+    return np.vstack([np.atleast_2d(np.asarray(starts, dtype=float)), row])
 
 
 def _describe(options) -> str:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from ..fit._fit import _round_up
 from ..models import RCModel
 from ..models._network import rc_from_arrays
 from ..simulate._exact import discretize_foh_rc
@@ -63,10 +64,6 @@ KEYS = (
     "pad",
 )
 _RC = ("R", "rscale", "fk", "fa", "fb", "KG", "KH", "sk", "sa", "sb", "KS", "C", "T0", "pad")
-
-
-def _round_up(n: int, step: int) -> int:
-    return step * max(1, -(-n // step))
 
 
 def has_array_form(model: RCModel) -> bool:

@@ -95,6 +95,14 @@ def _build(full, model, hold, max_steps: int, rtol: float, atol: float, per_memb
     return _bfgs(_objective(full, model, hold), max_steps, rtol, atol, per_member, 13)
 
 
+def _nll_arrays(p, a: dict, dt, hold: str, u, y):
+    """The negative log-likelihood of a problem in array form (``a``: the arrays of
+    :func:`~jaxbox.stochastic._arrays.ml_arrays` by name) at the padded values ``p`` [P]."""
+    v = jnp.concatenate([p, jnp.asarray([1.0, 0.0], dtype=p.dtype)])
+    mats, C, D, r, m0, P0 = system_from_arrays(v, a, dt, hold)
+    return kalman_scan(mats, C, D, r, m0, P0, u, y)
+
+
 def _objective_arrays(style: str, hold: str):
     """:func:`_objective` for a problem in array form: ``f(z, arrays, dt, scale, u, y)`` with
     ``arrays`` the values of :func:`~jaxbox.stochastic._arrays.ml_arrays` in ``KEYS`` order."""
@@ -103,9 +111,7 @@ def _objective_arrays(style: str, hold: str):
         a = dict(zip(KEYS, arrays, strict=True))
         physical = to_physical_coded(z, a["lower"], a["upper"], a["scale"], a["kinds"], style)
         p = jnp.where(a["mask"], physical, a["values"])
-        v = jnp.concatenate([p, jnp.asarray([1.0, 0.0], dtype=p.dtype)])
-        mats, C, D, r, m0, P0 = system_from_arrays(v, a, dt, hold)
-        nll = kalman_scan(mats, C, D, r, m0, P0, u, y)
+        nll = _nll_arrays(p, a, dt, hold, u, y)
         ps = a["prior_sd"]
         has = a["mask"] & jnp.isfinite(ps)
         d = jnp.where(has, (p - a["prior_mean"]) / jnp.where(has, ps, 1.0), 0.0)
@@ -328,10 +334,7 @@ def _hessian(sp: StochasticProblem, vec: np.ndarray, dt: float, u, y):
 
     def build():
         def f(pv, arrays, dt, u, y):
-            a = dict(zip(KEYS, arrays, strict=True))
-            v = jnp.concatenate([pv, jnp.asarray([1.0, 0.0], dtype=pv.dtype)])
-            mats, C, D, r, m0, P0 = system_from_arrays(v, a, dt, hold)
-            return kalman_scan(mats, C, D, r, m0, P0, u, y)
+            return _nll_arrays(pv, dict(zip(KEYS, arrays, strict=True)), dt, hold, u, y)
 
         return jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)), once=True)
 

@@ -9,8 +9,7 @@ import numpy as np
 from ..fit._starts import sample_starts
 from ..models import get_model
 from ._fit import DEFAULT_ML_STARTS, fit_ml
-from ._noise import noise_parameters
-from ._problem import make_stochastic_problem
+from ._problem import StochasticProblem, make_stochastic_problem
 from ._result import MLResult, likelihood_ratio_test
 
 __all__ = ["forward_selection_lr", "parent_guess"]
@@ -91,22 +90,16 @@ def forward_selection_lr(
     return {"accepted": accepted, "table": table, "fits": fits}
 
 
-def parent_guess(model, parent: MLResult, options=None) -> dict[str, float]:
-    """The initial guess of ``model`` from the estimates of ``parent`` (a nested model's
-    :class:`MLResult`): every parameter of the stochastic form that ``parent`` also has and that
-    is neither fixed in ``options`` nor outside its bounds there (the defaults, or
-    ``options["bounds"]``) takes the parent's value; the others keep their defaults."""
-    options = options or {}
-    bounds = {p.name: (p.lower, p.upper) for p in noise_parameters(model)}
-    bounds.update(
-        {n: (model.parameter(n).lower, model.parameter(n).upper) for n in model.param_names}
-    )
-    bounds.update({n: tuple(b) for n, b in (options.get("bounds") or {}).items() if n in bounds})
-    fixed = set(options.get("fixed") or ())
+def parent_guess(problem: StochasticProblem, parent: MLResult) -> dict[str, float]:
+    """The parent's estimates for the free parameters of ``problem`` (a richer model's
+    maximum-likelihood problem; ``parent``: the fit of a model it extends): every free
+    parameter that ``parent`` also has and whose estimate lies within its bounds in
+    ``problem``; the others are left out (they keep their guess)."""
+    bounds = problem.bounds
     return {
         n: float(v)
         for n, v in parent.params.items()
-        if n in bounds and n not in fixed and bounds[n][0] <= v <= bounds[n][1]
+        if n in bounds and bounds[n][0] <= v <= bounds[n][1]
     }
 
 
@@ -120,7 +113,7 @@ def _with_parent_start(model, data, parent: MLResult, options: dict) -> np.ndarr
     if isinstance(starts, int | np.integer):
         seed, concentration = options.get("seed", 0), options.get("concentration", 4.0)
         starts = sample_starts(sp, data, max(int(starts) - 1, 1), seed, concentration)
-    guess = {**sp.guess_dict, **parent_guess(model, parent, options)}
+    guess = {**sp.guess_dict, **parent_guess(sp, parent)}
     row = np.asarray([guess[n] for n in sp.free], dtype=float)
     return np.vstack([np.atleast_2d(np.asarray(starts, dtype=float)), row])
 

@@ -14,6 +14,8 @@ from jaxbox.stochastic import (
     fit_ml_many,
     forward_selection_lr,
     likelihood_ratio_test,
+    make_stochastic_problem,
+    parent_starts,
 )
 
 TI = {
@@ -174,14 +176,42 @@ def test_forward_selection_by_likelihood_ratio(ti, data, fit, fit_quiet):
     assert second["statistic"] == pytest.approx(2 * (second["loglik"] - first["loglik"]))
     assert second["pvalue"] < 0.05 and second["accepted"]
     assert sel["accepted"] == "BM_Ti"
-    # the second model's last start is the first model's estimate (as many starts in all; the
-    # diffusion fixed at 1e-10 there lies outside its bounds here and keeps its default)
+    # the second model's last starts are the first model's estimate (as many starts in all);
+    # the diffusion fixed at 1e-10 there lies outside its bounds here: it is at its guess, then
+    # next to its floor (the parent embedded), then next to its ceiling
     richer = sel["fits"]["BM_Ti"]
     assert len(richer.starts.initial) == STARTS
-    last = dict(zip(richer.free, richer.starts.initial[-1], strict=True))
     parent = sel["fits"][first["model"]].params
-    for name in ("C_zon", "R_wal", "gA", "T_zon0", "sigma_y_zon"):
-        assert last[name] == pytest.approx(parent[name], rel=1e-12)
-    assert last["sigma_zon"] == pytest.approx(richer.problem.guess_dict["sigma_zon"])
+    rows = [dict(zip(richer.free, r, strict=True)) for r in richer.starts.initial[-3:]]
+    for row in rows:
+        for name in ("C_zon", "R_wal", "gA", "T_zon0", "sigma_y_zon"):
+            assert row[name] == pytest.approx(parent[name], rel=1e-12)
+    lo, hi = richer.problem.bounds["sigma_zon"]
+    assert rows[0]["sigma_zon"] == pytest.approx(richer.problem.guess_dict["sigma_zon"])
+    assert lo < rows[1]["sigma_zon"] < 1.02 * lo and 0.98 * hi < rows[2]["sigma_zon"] < hi
     with pytest.raises(ValueError, match="alpha"):
         forward_selection_lr(["BM_Ti"], data, alpha=2.0)
+
+
+def test_parent_starts_embed_the_model_a_richer_one_extends(ti, data, fit):
+    """A two-state model started from a one-state fit: one of the embedding starts (the wall
+    node with its new parameters next to their bounds) has the parent's likelihood, and the
+    richer model's fit from these starts is not below it."""
+    te = jaxbox.get_model("BM_TiTe")
+    sp = make_stochastic_problem(te, data)
+    rows = parent_starts(sp, fit)
+    assert rows.shape == (3, len(sp.free))
+    new = [n for n in sp.free if n not in fit.params]
+    assert set(new) == {"C_wal", "fra_wal", "T_wal0", "sigma_wal"}
+    for row in rows:
+        values = dict(zip(sp.free, row, strict=True))
+        for n in fit.free:
+            assert values[n] == pytest.approx(fit.params[n], rel=1e-12)
+        assert values["T_wal0"] == pytest.approx(sp.guess_dict["T_wal0"])
+    lls = [estimate_states(te, dict(zip(sp.free, r, strict=True)), data).loglik for r in rows]
+    assert max(lls[1:]) == pytest.approx(fit.loglik, abs=0.5)
+    assert max(lls[1:]) > lls[0] + 1.0  # the guesses of the new parameters are worse
+    richer = fit_ml(te, data, starts=np.vstack([rows, rows[:1]]))
+    assert richer.loglik >= fit.loglik - 0.5
+    with pytest.raises(ValueError, match="position"):
+        parent_starts(sp, fit, position=0.5)

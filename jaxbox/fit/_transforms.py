@@ -72,6 +72,13 @@ class Transform:
                 out.append(sci * zi)
         return xp.stack(out, axis=-1)
 
+    def at_position(self, fraction: float) -> np.ndarray:
+        """Physical values [n] of every parameter at ``fraction`` (0 … 1) of its range, in
+        this transform's scale (logarithmic for ``log``); meaningful for the two-sided kinds
+        (:func:`two_sided`), e.g. ``1e-3``: next to the lower bounds."""
+        z = np.full(len(self.names), _unsquash(self.style, fraction), dtype=float)
+        return self.to_physical(z)
+
     def to_internal(self, p):
         """Internal coordinates z from physical values p (numpy; bound values are nudged in)."""
         p = np.asarray(p, dtype=float)

@@ -32,6 +32,7 @@ from ._result import likelihood_ratio_test as likelihood_ratio_test
 from ._sample import simulate_sde as simulate_sde
 from ._select import forward_selection_lr as forward_selection_lr
 from ._select import parent_guess as parent_guess
+from ._select import parent_starts as parent_starts
 from ._states import StateEstimate as StateEstimate
 from ._states import estimate_states as estimate_states
 from ._states import k_step_errors as k_step_errors

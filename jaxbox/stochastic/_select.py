@@ -7,12 +7,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..fit._starts import sample_starts
+from ..fit._transforms import two_sided
 from ..models import get_model
 from ._fit import DEFAULT_ML_STARTS, fit_ml
 from ._problem import StochasticProblem, make_stochastic_problem
 from ._result import MLResult, likelihood_ratio_test
 
-__all__ = ["forward_selection_lr", "parent_guess"]
+__all__ = ["forward_selection_lr", "parent_guess", "parent_starts"]
 
 
 def forward_selection_lr(
@@ -28,11 +29,14 @@ def forward_selection_lr(
     Each model is compared with the model currently accepted by a likelihood-ratio test
     (:func:`likelihood_ratio_test`); it replaces it when it has more free parameters and the
     test's p-value is below ``alpha``. Besides its own starts (the guess and the Latin
-    hypercube of :func:`fit_ml`), a model is started once more from the accepted model's
-    estimates (:func:`parent_guess`), so that a richer model can begin where the model it
-    extends ended and its likelihood is not below that model's for want of a start. The
-    models must be nested in that order (each extends the one before, as the
-    ``bacher-madsen`` family does from ``BM_Ti``); the test is not valid otherwise.
+    hypercube of :func:`fit_ml`), a model is started from the accepted model's estimates
+    (:func:`parent_starts`: its new parameters at their guesses, and the accepted model
+    embedded in it, the new parameters next to their lower or their upper bounds), so that a
+    richer model begins where the model it extends ended and its likelihood is not far below
+    that model's for want of a start. These starts take the place of the last Latin-hypercube
+    starts: every model has as many starts, and they share one compiled solve. The models must
+    be nested in that order (each extends the one before, as the ``bacher-madsen`` family does
+    from ``BM_Ti``); the test is not valid otherwise.
 
     Args:
         models: model names or :class:`~jaxbox.models.RCModel`, simplest first; an entry may
@@ -103,19 +107,58 @@ def parent_guess(problem: StochasticProblem, parent: MLResult) -> dict[str, floa
     }
 
 
+#: where the embedding starts put a new parameter: this fraction of its range (in the bounds
+#: transform's scale, logarithmic for resistances and capacities) from a bound
+EMBED_POSITION = 1e-3
+
+
+def parent_starts(
+    problem: StochasticProblem, parent: MLResult, position: float = EMBED_POSITION
+) -> np.ndarray:
+    """Starts of a richer model from the estimates of a model it extends [k, n_free] (physical
+    values, columns in ``problem.free`` order, 1 ≤ k ≤ 3 distinct rows).
+
+    Every row holds the parent's estimates (:func:`parent_guess`); the parameters it does not
+    give (the parent does not have them, or holds them outside their bounds here, as a
+    diffusion the parent fixed at zero) are, row by row: at their guesses; next to their lower
+    bounds; next to their upper bounds (``position`` of their range from the bound, in the
+    bounds transform's scale).
+    A new node with its resistance and capacity at their floors merges into its neighbour, a
+    new aperture or gain at its floor adds nothing, a new resistance at its ceiling leaves its
+    node unconnected, a new diffusion at its floor is silent: one of the two embedding rows is
+    then the parent itself, up to the ``position``, and a richer model starts at (nearly) the
+    parent's likelihood. Initial temperatures and parameters with an open bound keep their
+    guesses; rows that coincide are given once.
+    """
+    if not 0.0 < position < 0.5:
+        raise ValueError(f"position must lie in (0, 0.5), got {position}")
+    inherited = parent_guess(problem, parent)
+    base = {**problem.guess_dict, **inherited}
+    row = np.asarray([base[n] for n in problem.free], dtype=float)
+    tr = problem.transform
+    new = two_sided(tr.kinds) & np.asarray(
+        [n not in inherited and not (n.startswith("T_") and n.endswith("0")) for n in problem.free]
+    )
+    rows = [row]
+    for side in (position, 1.0 - position):
+        edge = np.where(new, tr.at_position(side), row)
+        if not any(np.array_equal(r, edge) for r in rows):
+            rows.append(edge)
+    return np.stack(rows)
+
+
 def _with_parent_start(model, data, parent: MLResult, options: dict) -> np.ndarray:
-    """The starts of ``model``: those :func:`fit_ml` draws for ``options`` but the last (so that
-    their number, and the compiled solve, stay those of the other models), or the explicit ones,
-    then its guess with the parent's estimates put in."""
+    """The starts of ``model``: those :func:`fit_ml` draws for ``options`` but the last ``k``
+    (so that their number, and the compiled solve, stay those of the other models), or the
+    explicit ones, then the ``k`` starts from the parent (:func:`parent_starts`)."""
     names = ("free", "fixed", "bounds", "guess", "priors", "hold", "x0_std")
     sp = make_stochastic_problem(model, data, **{k: options[k] for k in names if k in options})
+    rows = parent_starts(sp, parent)
     starts = options.get("starts", DEFAULT_ML_STARTS)
     if isinstance(starts, int | np.integer):
         seed, concentration = options.get("seed", 0), options.get("concentration", 4.0)
-        starts = sample_starts(sp, data, max(int(starts) - 1, 1), seed, concentration)
-    guess = {**sp.guess_dict, **parent_guess(sp, parent)}
-    row = np.asarray([guess[n] for n in sp.free], dtype=float)
-    return np.vstack([np.atleast_2d(np.asarray(starts, dtype=float)), row])
+        starts = sample_starts(sp, data, max(int(starts) - len(rows), 1), seed, concentration)
+    return np.vstack([np.atleast_2d(np.asarray(starts, dtype=float)), rows])
 
 
 def _describe(options) -> str:

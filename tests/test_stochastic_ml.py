@@ -177,8 +177,8 @@ def test_forward_selection_by_likelihood_ratio(ti, data, fit, fit_quiet):
     assert second["pvalue"] < 0.05 and second["accepted"]
     assert sel["accepted"] == "BM_Ti"
     # the second model's last starts are the first model's estimate (as many starts in all);
-    # the diffusion fixed at 1e-10 there lies outside its bounds here: it is at its guess, then
-    # next to its floor (the parent embedded), then next to its ceiling
+    # the diffusion fixed at 1e-10 there lies outside its bounds here: it is next to its floor
+    # (the parent embedded), then next to its ceiling, then at its guess
     richer = sel["fits"]["BM_Ti"]
     assert len(richer.starts.initial) == STARTS
     parent = sel["fits"][first["model"]].params
@@ -187,8 +187,8 @@ def test_forward_selection_by_likelihood_ratio(ti, data, fit, fit_quiet):
         for name in ("C_zon", "R_wal", "gA", "T_zon0", "sigma_y_zon"):
             assert row[name] == pytest.approx(parent[name], rel=1e-12)
     lo, hi = richer.problem.bounds["sigma_zon"]
-    assert rows[0]["sigma_zon"] == pytest.approx(richer.problem.guess_dict["sigma_zon"])
-    assert lo < rows[1]["sigma_zon"] < 1.02 * lo and 0.98 * hi < rows[2]["sigma_zon"] < hi
+    assert rows[2]["sigma_zon"] == pytest.approx(richer.problem.guess_dict["sigma_zon"])
+    assert lo < rows[0]["sigma_zon"] < 1.02 * lo and 0.98 * hi < rows[1]["sigma_zon"] < hi
     with pytest.raises(ValueError, match="alpha"):
         forward_selection_lr(["BM_Ti"], data, alpha=2.0)
 
@@ -209,9 +209,16 @@ def test_parent_starts_embed_the_model_a_richer_one_extends(ti, data, fit):
             assert values[n] == pytest.approx(fit.params[n], rel=1e-12)
         assert values["T_wal0"] == pytest.approx(sp.guess_dict["T_wal0"])
     lls = [estimate_states(te, dict(zip(sp.free, r, strict=True)), data).loglik for r in rows]
-    assert max(lls[1:]) == pytest.approx(fit.loglik, abs=0.5)
-    assert max(lls[1:]) > lls[0] + 1.0  # the guesses of the new parameters are worse
-    richer = fit_ml(te, data, starts=np.vstack([rows, rows[:1]]))
+    assert max(lls[:2]) == pytest.approx(fit.loglik, abs=0.5)
+    assert max(lls[:2]) > lls[2] + 1.0  # the guesses of the new parameters are worse
+    richer = fit_ml(te, data, starts=np.vstack([rows, rows[-1:]]))
     assert richer.loglik >= fit.loglik - 0.5
+    # in a selection they take the place of the last hypercube starts, the floor row first
+    from jaxbox.stochastic._select import _with_parent_start
+
+    for n, k in ((16, 3), (3, 2), (2, 1)):
+        starts = _with_parent_start(te, data, fit, {"starts": n})
+        assert starts.shape == (n, len(sp.free))
+        np.testing.assert_array_equal(starts[n - k :], rows[:k])
     with pytest.raises(ValueError, match="position"):
         parent_starts(sp, fit, position=0.5)

@@ -30,8 +30,8 @@ def forward_selection_lr(
     (:func:`likelihood_ratio_test`); it replaces it when it has more free parameters and the
     test's p-value is below ``alpha``. Besides its own starts (the guess and the Latin
     hypercube of :func:`fit_ml`), a model is started from the accepted model's estimates
-    (:func:`parent_starts`: its new parameters at their guesses, and the accepted model
-    embedded in it, the new parameters next to their lower or their upper bounds), so that a
+    (:func:`parent_starts`: the accepted model embedded in it, its new parameters next to
+    their lower or their upper bounds, and its new parameters at their guesses), so that a
     richer model begins where the model it extends ended and its likelihood is not far below
     that model's for want of a start. These starts take the place of the last Latin-hypercube
     starts: every model has as many starts, and they share one compiled solve. The models must
@@ -120,9 +120,9 @@ def parent_starts(
 
     Every row holds the parent's estimates (:func:`parent_guess`); the parameters it does not
     give (the parent does not have them, or holds them outside their bounds here, as a
-    diffusion the parent fixed at zero) are, row by row: at their guesses; next to their lower
-    bounds; next to their upper bounds (``position`` of their range from the bound, in the
-    bounds transform's scale).
+    diffusion the parent fixed at zero) are, row by row: next to their lower bounds; next to
+    their upper bounds (``position`` of their range from the bound, in the bounds transform's
+    scale); at their guesses.
     A new node with its resistance and capacity at their floors merges into its neighbour, a
     new aperture or gain at its floor adds nothing, a new resistance at its ceiling leaves its
     node unconnected, a new diffusion at its floor is silent: one of the two embedding rows is
@@ -139,23 +139,28 @@ def parent_starts(
     new = two_sided(tr.kinds) & np.asarray(
         [n not in inherited and not (n.startswith("T_") and n.endswith("0")) for n in problem.free]
     )
-    rows = [row]
-    for side in (position, 1.0 - position):
-        edge = np.where(new, tr.at_position(side), row)
-        if not any(np.array_equal(r, edge) for r in rows):
-            rows.append(edge)
+    rows: list[np.ndarray] = []
+    for candidate in (
+        np.where(new, tr.at_position(position), row),
+        np.where(new, tr.at_position(1.0 - position), row),
+        row,
+    ):
+        if not any(np.array_equal(r, candidate) for r in rows):
+            rows.append(candidate)
     return np.stack(rows)
 
 
 def _with_parent_start(model, data, parent: MLResult, options: dict) -> np.ndarray:
     """The starts of ``model``: those :func:`fit_ml` draws for ``options`` but the last ``k``
     (so that their number, and the compiled solve, stay those of the other models), or the
-    explicit ones, then the ``k`` starts from the parent (:func:`parent_starts`)."""
+    explicit ones, then ``k`` starts from the parent (:func:`parent_starts`, the first ``k``:
+    all of them, but no more than ``starts − 1`` when the number of starts is given)."""
     names = ("free", "fixed", "bounds", "guess", "priors", "hold", "x0_std")
     sp = make_stochastic_problem(model, data, **{k: options[k] for k in names if k in options})
     rows = parent_starts(sp, parent)
     starts = options.get("starts", DEFAULT_ML_STARTS)
     if isinstance(starts, int | np.integer):
+        rows = rows[: max(int(starts) - 1, 1)]
         seed, concentration = options.get("seed", 0), options.get("concentration", 4.0)
         starts = sample_starts(sp, data, max(int(starts) - len(rows), 1), seed, concentration)
     return np.vstack([np.atleast_2d(np.asarray(starts, dtype=float)), rows])

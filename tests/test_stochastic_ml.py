@@ -222,3 +222,35 @@ def test_parent_starts_embed_the_model_a_richer_one_extends(ti, data, fit):
         np.testing.assert_array_equal(starts[n - k :], rows[:k])
     with pytest.raises(ValueError, match="position"):
         parent_starts(sp, fit, position=0.5)
+
+
+def test_a_start_ends_when_its_objective_stalls():
+    """BFGS's own test needs the coordinates settled too: on an objective whose infimum lies at
+    infinity (a parameter creeping towards its bound through the transform) it runs on while the
+    coordinate grows; the stall test ends it once the objective has not fallen by 1e-8 of itself
+    for its window of steps. Elsewhere it changes nothing."""
+    import jax
+    import jax.numpy as jnp
+    import optimistix as optx
+
+    from jaxbox.stochastic._fit import ML_STALL_WINDOW, _Stalling
+
+    def creep(z, _):
+        return 1.0 + 1.0 / (1.0 + jax.nn.softplus(z[0]))
+
+    def bowl(z, _):
+        return jnp.sum((z - jnp.asarray([3.0, -1.0])) ** 2) + 2.0
+
+    def solve(fn, stall, y0):
+        inner = optx.BFGS(rtol=1e-8, atol=1e-8)
+        solver = _Stalling(inner) if stall else inner
+        return optx.minimise(fn, solver, y0, max_steps=2000, throw=False)
+
+    plain, stalled = (solve(creep, s, jnp.zeros(1)) for s in (False, True))
+    assert stalled.result == optx.RESULTS.successful
+    assert ML_STALL_WINDOW < int(stalled.stats["num_steps"]) < int(plain.stats["num_steps"]) - 30
+    assert float(creep(stalled.value, None)) == pytest.approx(float(creep(plain.value, None)))
+    assert float(creep(stalled.value, None)) - 1.0 < 1e-8 * ML_STALL_WINDOW
+    plain, stalled = (solve(bowl, s, jnp.zeros(2)) for s in (False, True))
+    assert int(plain.stats["num_steps"]) == int(stalled.stats["num_steps"]) < 50
+    np.testing.assert_array_equal(np.asarray(plain.value), np.asarray(stalled.value))

@@ -3,9 +3,11 @@
 Every start (the guess plus Latin-hypercube samples, :func:`jaxbox.fit.sample_starts`) of every
 dataset runs BFGS (``optimistix.BFGS``) on the negative log-likelihood per observation, in the
 bound transform's unbounded coordinates, under one ``vmap`` in one compiled call (kept in
-:mod:`jaxbox._compiled`). The gradient is reverse-mode autodiff through the Kalman filter's
-``lax.scan``. The network, its noise parameters and the bound transform enter the compiled
-solve as arrays padded to rounded sizes (:mod:`jaxbox.stochastic._arrays`), so every model
+:mod:`jaxbox._compiled`); a start ends when BFGS converges, when its objective stalls (not
+lowered by 1e-8 of itself in 50 steps) or at ``max_steps`` (1000). The gradient is
+reverse-mode autodiff through the Kalman filter's ``lax.scan``. The network, its noise
+parameters and the bound transform enter the compiled solve as arrays padded to rounded sizes
+(:mod:`jaxbox.stochastic._arrays`), so every model
 structure of the same padded size, every free/fixed split and every set of bounds share one
 program per data shape; a network with a node held at a constant temperature has a program of
 its own.
@@ -20,11 +22,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
+from typing import Any
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from jaxtyping import Array
 
 from .. import _compiled
 from .._compiled import jit
@@ -42,8 +47,61 @@ from ._result import MLResult
 __all__ = ["fit_ml", "fit_ml_many", "DEFAULT_ML_STARTS", "DEFAULT_ML_MAX_STEPS"]
 
 DEFAULT_ML_STARTS = 16
-DEFAULT_ML_MAX_STEPS = 300
+DEFAULT_ML_MAX_STEPS = 1000
+#: a start whose objective has not fallen by ``ML_STALL_RTOL`` of itself for ``ML_STALL_WINDOW``
+#: steps has converged (its coordinates may still creep towards a bound)
+ML_STALL_WINDOW = 50
+ML_STALL_RTOL = 1e-8
 _CONVERGED, _MAX_STEPS, _NONFINITE = 0, 1, 2
+
+
+class _StallState(eqx.Module):
+    inner: Any
+    f_ref: Array
+    since: Array
+
+
+class _Stalling(optx.AbstractMinimiser):
+    """A minimiser that also ends when its objective stalls: not lowered by ``rtol · |f|`` for
+    ``window`` steps. BFGS's own test (objective *and* coordinates settled) never ends a start
+    whose coordinates creep towards a bound through the bound transform, each step lowering the
+    objective by nothing that matters; with many starts under one ``vmap`` the slowest sets
+    the time."""
+
+    inner: optx.AbstractMinimiser
+    window: int = ML_STALL_WINDOW
+    stall_rtol: float = ML_STALL_RTOL
+
+    @property
+    def rtol(self) -> float:
+        return self.inner.rtol
+
+    @property
+    def atol(self) -> float:
+        return self.inner.atol
+
+    @property
+    def norm(self):
+        return self.inner.norm
+
+    def init(self, fn, y, args, options, f_struct, aux_struct, tags) -> _StallState:
+        state = self.inner.init(fn, y, args, options, f_struct, aux_struct, tags)
+        return _StallState(state, jnp.asarray(jnp.inf, f_struct.dtype), jnp.asarray(0))
+
+    def step(self, fn, y, args, options, state: _StallState, tags):
+        y, inner, aux = self.inner.step(fn, y, args, options, state.inner, tags)
+        f = inner.f_info.f
+        lower = f < state.f_ref - self.stall_rtol * jnp.abs(f)
+        f_ref = jnp.where(lower | ~jnp.isfinite(state.f_ref), f, state.f_ref)
+        since = jnp.where(lower, 0, state.since + 1)
+        return y, _StallState(inner, f_ref, since), aux
+
+    def terminate(self, fn, y, args, options, state: _StallState, tags):
+        done, result = self.inner.terminate(fn, y, args, options, state.inner, tags)
+        return done | (state.since >= self.window), result
+
+    def postprocess(self, fn, y, aux, args, options, state: _StallState, tags, result):
+        return self.inner.postprocess(fn, y, aux, args, options, state.inner, tags, result)
 
 
 def _objective(full: Transform, model, hold: str):
@@ -67,8 +125,9 @@ def _objective(full: Transform, model, hold: str):
 def _bfgs(obj, max_steps: int, rtol: float, atol: float, per_member: bool, n_args: int):
     """BFGS on ``obj(z, *args)`` from every start under one ``vmap`` over the ``n_args``
     arguments of ``(z0, *args)`` (the data, the last two, shared unless ``per_member``):
-    ``(z, objective, code, steps)`` per start."""
-    solver = optx.BFGS(rtol=rtol, atol=atol)
+    ``(z, objective, code, steps)`` per start. A start also ends when its objective stalls
+    (:class:`_Stalling`)."""
+    solver = _Stalling(optx.BFGS(rtol=rtol, atol=atol))
 
     def one(z0, *args):
         def fn(z, _):

@@ -137,7 +137,7 @@ def parent_starts(
     row = np.asarray([base[n] for n in problem.free], dtype=float)
     tr = problem.transform
     new = two_sided(tr.kinds) & np.asarray(
-        [n not in inherited and not (n.startswith("T_") and n.endswith("0")) for n in problem.free]
+        [n not in inherited and not problem.spec(n).is_initial_state for n in problem.free]
     )
     rows: list[np.ndarray] = []
     for candidate in (

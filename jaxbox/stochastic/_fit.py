@@ -41,7 +41,13 @@ from ..fit._transforms import Transform, to_physical_coded
 from ..models import get_model
 from ._arrays import KEYS, has_array_form, ml_arrays, padded_sizes, system_from_arrays
 from ._kalman import kalman_scan
-from ._problem import StochasticProblem, make_stochastic_problem, stochastic_arrays, system
+from ._problem import (
+    StochasticProblem,
+    make_stochastic_problem,
+    neg_log_prior,
+    stochastic_arrays,
+    system,
+)
 from ._result import MLResult
 
 __all__ = ["fit_ml", "fit_ml_many", "DEFAULT_ML_STARTS", "DEFAULT_ML_MAX_STEPS"]
@@ -115,9 +121,7 @@ def _objective(full: Transform, model, hold: str):
         theta = {n: p[..., i] for i, n in enumerate(names)}
         mats, C, D, r, m0, P0 = system(model, theta, dt, hold, x0_std)
         nll = kalman_scan(mats, C, D, r, m0, P0, u, y)
-        has = mask & jnp.isfinite(ps)
-        d = jnp.where(has, (p - pm) / jnp.where(has, ps, 1.0), 0.0)
-        return (nll + 0.5 * jnp.sum(d * d)) / scale
+        return (nll + neg_log_prior(p, pm, jnp.where(mask, ps, jnp.inf))) / scale
 
     return f
 
@@ -171,10 +175,8 @@ def _objective_arrays(style: str, hold: str):
         physical = to_physical_coded(z, a["lower"], a["upper"], a["scale"], a["kinds"], style)
         p = jnp.where(a["mask"], physical, a["values"])
         nll = _nll_arrays(p, a, dt, hold, u, y)
-        ps = a["prior_sd"]
-        has = a["mask"] & jnp.isfinite(ps)
-        d = jnp.where(has, (p - a["prior_mean"]) / jnp.where(has, ps, 1.0), 0.0)
-        return (nll + 0.5 * jnp.sum(d * d)) / scale
+        ps = jnp.where(a["mask"], a["prior_sd"], jnp.inf)
+        return (nll + neg_log_prior(p, a["prior_mean"], ps)) / scale
 
     return f
 

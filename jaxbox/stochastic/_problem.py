@@ -157,14 +157,20 @@ class StochasticProblem:
 
     def log_prior(self, p, pm, ps):
         """Negative log prior density up to a constant: ``½ Σ ((p − μ)/s)²`` over priors."""
-        has = jnp.isfinite(ps)
-        d = jnp.where(has, (p - pm) / jnp.where(has, ps, 1.0), 0.0)
-        return 0.5 * jnp.sum(d * d)
+        return neg_log_prior(p, pm, ps)
 
     def objective_physical(self, p, fixed_values, pm, ps, dt, u, y):
         """NLL plus the negative log prior at physical free values ``p``."""
         theta = self.theta(p, fixed_values)
         return self.nll_theta(theta, dt, u, y) + self.log_prior(p, pm, ps)
+
+
+def neg_log_prior(p, pm, ps):
+    """Negative log density of Gaussian priors up to a constant, ``½ Σ ((p − μ)/s)²``, over the
+    entries with a finite standard deviation ``s`` (``inf``: no prior); traceable."""
+    has = jnp.isfinite(ps)
+    d = jnp.where(has, (p - pm) / jnp.where(has, ps, 1.0), 0.0)
+    return 0.5 * jnp.sum(d * d)
 
 
 def system(model: RCModel, theta, dt, hold: str = "foh", x0_std=None):

@@ -87,6 +87,27 @@ def test_short_input_gap_is_interpolated_with_a_warning_naming_it(two_segments):
     assert np.isnan(out["T_zon"]).sum() == 3  # the output gap stays: it is masked
 
 
+def test_many_interpolated_gaps_of_one_input_are_one_note(two_segments):
+    """Dozens of one-sample holes in one column give one summary, not a warning each."""
+    frame = two_segments.frame.copy()
+    holes = [20, 30, 45, 50, 70, 120, 130, 140]
+    frame.iloc[holes, frame.columns.get_loc("I_glo_hor")] = np.nan
+    frame.iloc[[150, 151], frame.columns.get_loc("I_glo_hor")] = np.nan
+    with pytest.warns(DataWarning) as got:
+        out = prepare_window(
+            Dataset(frame), ("T_amb", "Q_hea", "I_glo_hor"), ("T_zon",), max_gap="2h"
+        )
+    texts = [str(w.message) for w in got]
+    about = [t for t in texts if "'I_glo_hor'" in t and "interpolated" in t]
+    assert len(about) == 1, texts
+    assert "in 9 gaps of 1 h to 2 h (10 samples in all)" in about[0]
+    assert "the first at 2024-01-01 20:00:00, the last at 2024-01-07 06:00:00" in about[0]
+    # the other input's single gap keeps its own note, the long gap still cuts, the holes fill
+    assert any("interpolated input 'T_amb' at 2024-01-02 16:00:00" in t for t in texts)
+    assert any("splits into segments" in t for t in texts)
+    assert np.isfinite(out["I_glo_hor"]).all() and len(out.segments) == 2
+
+
 def test_long_gap_splits_into_segments(two_segments):
     with pytest.warns(
         DataWarning,

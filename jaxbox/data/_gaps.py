@@ -46,6 +46,8 @@ __all__ = [
 DEFAULT_MAX_GAP = 3600.0
 #: The fewest samples of a segment; shorter pieces between gaps are dropped with a warning.
 MIN_SEGMENT = 4
+#: More interpolated gaps than this in the same input(s) are reported in one summary note.
+MAX_GAP_NOTES = 5
 _TOL = 1e-6
 
 
@@ -83,6 +85,29 @@ def _span(index: pd.DatetimeIndex, a: int, b: int, step: float) -> str:
     length = f"{minutes / 60:g} h" if minutes >= 60 else f"{minutes:g} min"
     where = f"at {index[a]}" if n == 1 else f"from {index[a]} to {index[b - 1]}"
     return f"{where} ({n} sample{'s' if n > 1 else ''}, {length})"
+
+
+def _filled_summary(
+    what: str, names: tuple[str, ...], runs: list[tuple[int, int]], index, step: float
+) -> str:
+    """One note for many interpolated gaps of the same input(s): how many, how long, where."""
+    runs = sorted(runs)
+    lengths = [b - a for a, b in runs]
+    which = f"input{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))}"
+
+    def _dur(n: int) -> str:
+        minutes = n * step / 60
+        return f"{minutes / 60:g} h" if minutes >= 60 else f"{minutes:g} min"
+
+    size = (
+        _dur(lengths[0])
+        if min(lengths) == max(lengths)
+        else (f"{_dur(min(lengths))} to {_dur(max(lengths))}")
+    )
+    return (
+        f"{what}: interpolated {which} in {len(runs)} gaps of {size} ({sum(lengths)} samples in "
+        f"all), the first at {index[runs[0][0]]}, the last at {index[runs[-1][0]]}"
+    )
 
 
 def gap_note(data, columns: Sequence[str] | None = None) -> str | None:
@@ -168,11 +193,19 @@ def prepare_window(
                 filled[name] = frame[name].to_numpy().copy()
             filled[name][a0:b0] = column
     notes = []
+    filled_runs: dict[tuple[str, ...], list[tuple[int, int]]] = {}
+    for (kind, a, b), names in found.items():
+        if kind == "filled":
+            filled_runs.setdefault(tuple(names), []).append((a, b))
+    summarised = {key for key, runs in filled_runs.items() if len(runs) > MAX_GAP_NOTES}
+    for key in summarised:
+        notes.append(_filled_summary(what, key, filled_runs[key], frame.index, step))
     for (kind, a, b), names in sorted(found.items(), key=lambda item: item[0][1:]):
         which = f"input{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))}"
         span = _span(frame.index, a, b, step)
         if kind == "filled":
-            notes.append(f"{what}: interpolated {which} {span}")
+            if tuple(names) not in summarised:
+                notes.append(f"{what}: interpolated {which} {span}")
         elif kind == "edge":
             notes.append(f"{what}: {which} missing at an end of the window {span}: cut off")
         else:

@@ -179,6 +179,22 @@ def test_irregular_sampling_suggests_resample() -> None:
         load(df)
 
 
+@pytest.mark.parametrize(
+    ("step", "rule"),
+    [(600, "10min"), (900, "15min"), (120, "5min"), (3000, "1h"), (9000, "3h")],
+)
+def test_irregular_sampling_suggests_a_grid_as_fine_as_the_data(step, rule) -> None:
+    """Jittered time stamps (a logger's clock) are told to resample onto the finest usual grid
+    not finer than their step, not onto hours whatever the step."""
+    rng = np.random.default_rng(0)
+    t = pd.Timestamp("2020-01-01") + pd.to_timedelta(
+        step * np.arange(40) + rng.integers(-step // 20, step // 20, 40), unit="s"
+    )
+    df = pd.DataFrame({"time": t, "T_zon": 20.0 + rng.normal(size=40)})
+    with pytest.raises(DataError, match=rf"irregular sampling.*resample='{rule}'\)"):
+        load(df)
+
+
 def test_missing_rows_are_gaps() -> None:
     df = frame(n=20).drop(index=[9, 10]).reset_index(drop=True)  # 01:30 and 01:40 missing
     with pytest.warns(

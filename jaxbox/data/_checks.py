@@ -205,10 +205,19 @@ def check_regular(index: pd.DatetimeIndex, where: Where = _position) -> None:
 
 
 def _rule_hint(step: float) -> str:
-    for seconds, rule in ((3600, "1h"), (900, "15min"), (600, "10min"), (300, "5min")):
-        if step <= seconds:
+    """The finest usual grid not finer than ``step`` [s] (``"15min"`` for 15-minute data with
+    jittered time stamps), so that resampling keeps the data's resolution."""
+    for seconds, rule in (
+        (60, "1min"),
+        (300, "5min"),
+        (600, "10min"),
+        (900, "15min"),
+        (1800, "30min"),
+        (3600, "1h"),
+    ):
+        if step <= seconds * (1 + 1e-6):
             return rule
-    return "1h" if step <= 3600 else f"{int(np.ceil(step / 3600))}h"
+    return f"{int(np.ceil(step / 3600 - 1e-6))}h"
 
 
 def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:

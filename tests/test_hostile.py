@@ -499,6 +499,24 @@ def test_semicolons_decimal_commas_and_kilowatts_read_with_options(tmp_path, mon
     assert DataOptions(args).sep == "\t"
 
 
+def test_an_energy_meter_read_with_counter(tmp_path):
+    """A heat meter in kWh is refused with the option that reads it, and read with it."""
+    from jaxbox.cli._common import cli_message
+    from jaxbox.cli._data import DataOptions, load_data
+    from jaxbox.data import DataError
+
+    f = frame()
+    power = f["Q_hea"].to_numpy()
+    f["Q_hea"] = 100.0 + np.cumsum(power * 3600 / 3.6e6)
+    path = csv(tmp_path / "meter.csv", f)
+    with pytest.raises(DataError) as info:
+        load_data(str(path), DataOptions(_args(data=[str(path)]))).check_plausible()
+    assert "--counter Q_hea=kWh" in cli_message(str(info.value))
+    data = load_data(str(path), DataOptions(_args(data=[str(path)], counter=["Q_hea=kWh"])))
+    np.testing.assert_allclose(data["Q_hea"][1:], power[1:], rtol=1e-9)
+    assert np.isnan(data["Q_hea"][0])
+
+
 def _args(**kw):
     import argparse
 
@@ -510,6 +528,7 @@ def _args(**kw):
         sep=None,
         decimal=None,
         scale=[],
+        counter=[],
         resample=None,
         train=None,
         validate=None,

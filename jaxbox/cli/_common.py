@@ -149,6 +149,8 @@ _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
     (re.compile(r"^scale (names|factor)"), r"--scale \1"),
     (re.compile(r"^resample rule\b"), "--resample"),
     (re.compile(r"\bscale applies after columns="), "--scale applies after --map"),
+    (re.compile(r"^counters names column"), "--counter names column"),
+    (re.compile(r"\(counters apply after columns=\)"), "(--counter applies after --map)"),
     (
         re.compile(r"read it with pd\.read_csv\(\.\.\., encoding=\.\.\.\) and pass the DataFrame"),
         "save it as UTF-8 text",

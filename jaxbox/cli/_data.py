@@ -79,6 +79,14 @@ def add_data_arguments(p) -> None:
         help="multiply canonical column COLUMN by FACTOR, e.g. Q_hea=1000 for kW (repeatable)",
     )
     p.add_argument(
+        "--counter",
+        action="append",
+        default=[],
+        metavar="COLUMN=UNIT",
+        help="canonical column COLUMN is a cumulative energy meter in UNIT (kWh, MWh, Wh, J, kJ, "
+        "MJ, GJ): use the mean power of each interval (repeatable)",
+    )
+    p.add_argument(
         "--range",
         action="append",
         default=[],
@@ -140,6 +148,7 @@ class DataOptions:
                 f"--sep and --decimal are both {self.sep!r}; with --decimal ',' use --sep ';'"
             )
         self.scale = scale(args.scale)
+        self.counters = pairs(args.counter, "--counter", "Q_hea=kWh")
         self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
         self.resample = resample_rule(args.resample)
         self.train_text, self.valid_text = args.train, args.validate
@@ -157,6 +166,7 @@ class DataOptions:
             "--sep": self.sep,
             "--decimal": self.decimal,
             "--scale": self.scale,
+            "--counter": self.counters,
         }
 
     def _check_specs(self) -> None:
@@ -218,6 +228,7 @@ def load_data(spec: str, opts: DataOptions | None = None):
         sep=opts.sep,
         decimal=opts.decimal,
         scale=opts.scale or None,
+        counters=opts.counters or None,
     )
 
 

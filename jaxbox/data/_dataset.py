@@ -23,6 +23,7 @@ from ._checks import (
     segment_slices,
     to_float,
 )
+from ._counters import counters_to_power
 from ._errors import DataError, list_names
 from ._plausible import check_plausibility
 from ._resample import resample_mean
@@ -52,6 +53,7 @@ def validated_frame(
     regular: bool = True,
     where: Where = _position,
     scale: Mapping[str, float] | None = None,
+    counters: Mapping[str, float] | None = None,
 ) -> pd.DataFrame:
     """A fresh float64 copy of ``frame`` (DatetimeIndex named ``time``) after the checks.
 
@@ -60,7 +62,9 @@ def validated_frame(
     kelvin and, with ``regular``, a constant sampling step; rows missing from that step's grid
     (every step a whole multiple of the median step) are put back as rows of NaN. NaN values
     are gaps, kept (see :mod:`jaxbox.data._gaps`). ``scale`` (column -> factor) multiplies
-    columns before the value checks.
+    columns before the value checks; ``counters`` (column -> joules per unit) turns cumulative
+    energy meters into the mean power of each interval (:mod:`jaxbox.data._counters`; on a
+    regular grid, an interval over missing rows is a gap).
     """
     if not isinstance(frame, pd.DataFrame):
         raise DataError(
@@ -92,6 +96,9 @@ def validated_frame(
     values = to_float(frame.set_axis(columns, axis=1).set_axis(index, axis=0), where)
     for name, factor in (scale or {}).items():
         values[name] = values[name] * factor
+    if counters:
+        longest = median_step(index) if grid is not None else None
+        values = counters_to_power(values, counters, longest=longest)
     check_finite(values)
     if check:
         check_kelvin(values)

@@ -18,6 +18,7 @@ import pandas as pd
 
 from ._args import check_mapping
 from ._checks import parse_time
+from ._counters import check_counters
 from ._dataset import Dataset, validated_frame
 from ._errors import DataError, DataWarning, list_names
 from ._gaps import gap_note
@@ -255,6 +256,7 @@ def load(
     sep: str | None = None,
     decimal: str | None = None,
     scale: Mapping[str, float] | None = None,
+    counters: Mapping[str, str] | None = None,
 ) -> Dataset:
     """Load monitoring data into a checked :class:`Dataset`.
 
@@ -281,6 +283,10 @@ def load(
         decimal: decimal mark of a CSV file (default ``"."``; ``","`` with ``sep=";"``).
         scale: canonical column name (after ``columns``) -> factor multiplying its values,
             e.g. ``{"Q_hea": 1000}`` for heating power logged in kW. Applied before the checks.
+        counters: canonical column name (after ``columns``) -> energy unit (``"kWh"``, ``"MWh"``,
+            ``"Wh"``, ``"J"``, ``"kJ"``, ``"MJ"``, ``"GJ"``) of a column that holds a cumulative
+            energy meter instead of a power: it becomes the mean power [W] of each sampling
+            interval (a gap at the first sample and where the counter falls or is missing).
 
     Always refused (whatever ``check``): duplicate column names, infinite values and absurd
     magnitudes (see :func:`jaxbox.data.check_finite`). The physical plausibility of the
@@ -328,8 +334,16 @@ def load(
     frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)
     frame = frame.set_axis(index, axis=0)
     factors = _factors(scale, [str(name) for name in frame.columns])
+    joules = check_counters(counters, [str(name) for name in frame.columns])
     dataset = Dataset._new(
-        validated_frame(frame, check=check, regular=resample is None, where=where, scale=factors)
+        validated_frame(
+            frame,
+            check=check,
+            regular=resample is None,
+            where=where,
+            scale=factors,
+            counters=joules,
+        )
     )
     dataset = dataset if resample is None else dataset.resample(resample)
     note = gap_note(dataset) if check else None

@@ -20,6 +20,8 @@ and refuses values that no building produces or that betray a unit or sensor pro
   the robust standard deviation ``1.4826 · MAD`` of the sample-to-sample differences); for a
   power, more than 20 times the 99th percentile of its magnitudes;
 * ``stuck`` — a temperature that does not change at all for ``stuck_hours`` (24 h) or more;
+* ``counter`` — a power column that never falls and rises in most samples over at least half
+  a day: a cumulative energy meter (kWh…) rather than a power (load it with ``counters=``);
 * ``kilowatt`` — heating power that looks like kW (see below).
 
 **The kW heuristic.** A heating column ``Q_hea*`` that is not zero but peaks below 50 W cannot
@@ -98,6 +100,12 @@ _KW_UA = 1.0
 _KW_DELTA_T = 3.0
 #: An irradiance peaking below this [W/m²] over a day or more may be in kW/m².
 _KW_IRRADIANCE = 1.5
+#: A power column is an energy counter when it spans this many hours and samples, never falls
+#: (at this share of its steps: a reset or two allowed) and rises at this share of them.
+_COUNTER_HOURS = 12.0
+_COUNTER_MIN_SAMPLES = 12
+_COUNTER_MONOTONE = 0.99
+_COUNTER_RISING = 0.5
 
 _WINDOWS = "choose periods without them (--train/--validate; Dataset.slice)"
 
@@ -397,6 +405,33 @@ def _stuck(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     ]
 
 
+def _counter(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    """A power that never falls and rises at most samples: a cumulative energy meter."""
+    if not c.power or c.overridden:
+        return []
+    ok = np.isfinite(c.x)
+    x = c.x[ok]
+    if x.size < _COUNTER_MIN_SAMPLES:
+        return []
+    hours = (c.index[ok][-1] - c.index[ok][0]) / pd.Timedelta(hours=1)
+    d = np.diff(x)
+    rising = float(np.mean(d > 0))
+    if hours < _COUNTER_HOURS or np.mean(d >= 0) < _COUNTER_MONOTONE or rising < _COUNTER_RISING:
+        return []
+    return [
+        Finding(
+            c.name,
+            "counter",
+            f"{c.name!r} never falls and rises in {100 * rising:.0f} % of its samples (from "
+            f"{x[0]:.6g} at {c.index[ok][0]} to {x[-1]:.6g} at {c.index[ok][-1]}): a cumulative "
+            "energy meter, not a power? load it with counters={"
+            f"{c.name!r}: 'kWh'}} (--counter {c.name}=kWh; or MWh, Wh, J, MJ) to turn it into "
+            f"the mean power of each interval; if it is a power, declare its range with "
+            f"{c.override_hint()}.",
+        )
+    ]
+
+
 def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if c.overridden:
         return []
@@ -451,6 +486,7 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
 #: The checks in the order they run; after a column's first error its later checks are skipped.
 _CHECKS: tuple[Callable[..., list[Finding]], ...] = (
     _infinite,
+    _counter,
     _absurd,
     _kelvin,
     _fahrenheit,

@@ -387,6 +387,18 @@ CASES = [
         ["--out"],
     ),
     (
+        "fit: no irradiance for the model",
+        dropped("I_glo_hor"),
+        FIT,
+        ["'I_glo_hor'", "--map I_glo_hor=", "jaxbox select DATA", "structure search"],
+    ),
+    (
+        "select a family: no irradiance",
+        dropped("I_glo_hor"),
+        ["select", "{data}", "--models", "exp1"],
+        ["--models", "'I_glo_hor'", "jaxbox select DATA"],
+    ),
+    (
         "--models all, none fed",
         dropped("Q_hea", "I_glo_hor"),
         ["select", "{data}", "--models", "all"],

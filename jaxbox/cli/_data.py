@@ -209,6 +209,24 @@ class DataOptions:
             seen[key] = spec
 
 
+#: Appended where a named model needs a signal the data lack.
+SEARCH_HINT = (
+    "; or let 'jaxbox select DATA' (the structure search, its default) build models from the "
+    "signals your data hold"
+)
+
+
+def require_model_columns(data, model) -> None:
+    """``data`` must hold the inputs and outputs of ``model``; the error also points to the
+    structure search, which needs no signal the data lack."""
+    from ..data import DataError
+
+    try:
+        data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+    except DataError as err:
+        raise DataError(f"{str(err).rstrip('.')}{SEARCH_HINT}.") from None
+
+
 def load_data(spec: str, opts: DataOptions | None = None):
     """A dataset from a CSV path or a bundled name (exactly ``twinhouse_exp1:N2[@10min]``)."""
     from ..data import load
@@ -288,7 +306,7 @@ def load_all(args, opts: DataOptions | None = None, *, model=None):
             columns = None
             if model is not None:
                 columns = list(model.inputs) + list(model.outputs)
-                ident.require(columns, what=f"model {model.name}")
+                require_model_columns(ident, model)
             check_windows(ident, valid, columns, opts.ranges)
         except (DataError, UsageError) as err:
             if len(opts.specs) == 1:

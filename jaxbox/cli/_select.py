@@ -31,6 +31,7 @@ from ._data import (
     check_windows,
     load_all,
     load_data,
+    require_model_columns,
     slug,
 )
 from ._outputs import (
@@ -147,9 +148,9 @@ def _candidates(text: str, data=None):
         text = names
     try:
         models = candidate_models(text, data)
-        if data is not None and not isinstance(text, str):  # named models: fed by the data?
+        if data is not None and text != "all":  # named models or a family: fed by the data?
             for m in models:
-                data.require(list(m.inputs) + list(m.outputs), what=f"model {m.name}")
+                require_model_columns(data, m)
     except (ModelError, DataError) as err:
         raise UsageError(f"--models: {err}") from None
     except ValueError as err:  # no candidate the data can feed

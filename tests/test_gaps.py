@@ -348,6 +348,10 @@ def test_select_without_a_valid_model_exits_1(gap_csv, capsys, monkeypatch):
     assert main(argv) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("no valid model") and sum(e.startswith("no valid") for e in err) == 1
+    assert "span only" not in err[-1]  # a week of data: nothing to say about its length
+    assert main([*argv, "--train", "2024-01-01..2024-01-02 12:00"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "the identification data span only 37 h" in err[-1] and "a week or more" in err[-1]
 
 
 def test_greybox_cases_on_gappy_data(two_segments, tmp_path):

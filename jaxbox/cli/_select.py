@@ -357,6 +357,10 @@ def _ml_select(args) -> int:
     return 0
 
 
+#: Identification data shorter than this [h] are named when no model is valid.
+SHORT_IDENT_HOURS = 72.0
+
+
 def _no_valid_model(outcomes) -> int:
     """0 when every building has an accepted model; else 1, with one line on stderr."""
     import sys
@@ -365,8 +369,20 @@ def _no_valid_model(outcomes) -> int:
     if not none:
         return 0
     which = "" if len(outcomes) == 1 else f" for {', '.join(gb.name for gb in none)}"
+    short = []
+    for gb in none:
+        ident = getattr(gb, "ident", None)
+        hours = 0.0 if ident is None else (len(ident) * ident.step) / 3600.0
+        if ident is not None and hours < SHORT_IDENT_HOURS:
+            short.append(f"{hours:.3g} h" if len(none) == 1 else f"{gb.name} {hours:.3g} h")
+    hint = (
+        f"; the identification data span only {', '.join(short)}: slow building states need "
+        "days of data with varying heating (a week or more is usual; --train)"
+        if short
+        else ""
+    )
     print(
-        f"no valid model{which}: none of the candidates passed the validity checks",
+        f"no valid model{which}: none of the candidates passed the validity checks{hint}",
         file=sys.stderr,
         flush=True,
     )

@@ -195,6 +195,29 @@ def test_irregular_sampling_suggests_a_grid_as_fine_as_the_data(step, rule) -> N
         load(df)
 
 
+def test_local_time_with_utc_offsets_across_a_clock_change() -> None:
+    """Local time stamps with their offsets (summer time +02:00, then +01:00) are instants: they
+    are read onto one regular grid at the first offset, with a warning naming the offsets."""
+    instants = pd.date_range("2013-10-26 22:00", periods=12, freq="h", tz="Europe/Berlin")
+    df = pd.DataFrame(
+        {"time": instants.strftime("%Y-%m-%d %H:%M:%S%z"), "T_zon": 20.0 + np.arange(12)}
+    )
+    assert df["time"].str[-5:].nunique() == 2  # +0200 before 03:00 on the 27th, +0100 after
+    with pytest.warns(DataWarning, match=r"several UTC offsets \(\+01:00, \+02:00.*\+02:00"):
+        ds = load(df)
+    assert ds.step == 3600.0 and len(ds) == 12 and np.isfinite(ds["T_zon"]).all()
+    np.testing.assert_array_equal(ds["T_zon"], 20.0 + np.arange(12))
+    assert ds.index[0].utcoffset() == pd.Timedelta("2h")
+    assert (ds.index.tz_convert("UTC") == instants.tz_convert("UTC")).all()
+    half = df.assign(time=df["time"].where(df.index < 6, instants.strftime("%Y-%m-%d %H:%M:%S")))
+    with pytest.raises(DataError, match="stamps with a UTC offset and stamps without one"):
+        load(half)
+    # the same clock without offsets repeats 02:00: refused, and the message says why
+    naive = df.assign(time=instants.strftime("%Y-%m-%d %H:%M:%S"))
+    with pytest.raises(DataError, match=r"duplicate time stamp 2013-10-27 02:00:00.*daylight"):
+        load(naive)
+
+
 def test_missing_rows_are_gaps() -> None:
     df = frame(n=20).drop(index=[9, 10]).reset_index(drop=True)  # 01:30 and 01:40 missing
     with pytest.warns(

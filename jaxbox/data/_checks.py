@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from ._errors import DataError
+from ._errors import DataError, DataWarning
 from ._signals import is_temperature, signal_base
 
 __all__ = [
@@ -113,11 +113,8 @@ def _parse_strings(values: pd.Series, name: str) -> pd.Series:
     text = values.astype("string")
     try:
         iso = pd.to_datetime(text, format="ISO8601", errors="coerce")
-    except (ValueError, TypeError) as error:
-        raise DataError(
-            f"the time stamps in column {name!r} mix several UTC offsets ({error}); convert them "
-            "to one time zone (e.g. pd.to_datetime(..., utc=True)) and pass a DataFrame."
-        ) from None
+    except (ValueError, TypeError):
+        iso = _one_offset(text, name)
     if not iso.isna().any():
         return iso
     try:
@@ -127,6 +124,49 @@ def _parse_strings(values: pd.Series, name: str) -> pd.Series:
     except (ValueError, TypeError):
         return iso
     return inferred if inferred.isna().sum() < iso.isna().sum() else iso
+
+
+def _one_offset(text: pd.Series, name: str) -> pd.Series:
+    """Time stamps with several UTC offsets (local time across a daylight-saving change,
+    ``…+02:00`` then ``…+01:00``), each an unambiguous instant: all at the offset of the first,
+    so that the grid stays regular, with a :class:`DataWarning` naming the offsets."""
+    given = text.dropna()
+    suffix = given.str.strip().str.extract(_OFFSET, expand=False)
+    if given.empty or suffix.isna().any():
+        raise DataError(
+            f"the time stamps in column {name!r} mix stamps with a UTC offset and stamps without "
+            "one; give every stamp its offset (e.g. 2013-10-27 02:00:00+01:00) or none."
+        )
+    try:
+        utc = pd.to_datetime(text, format="ISO8601", utc=True, errors="coerce")
+        first = pd.Timestamp(str(given.iloc[0]).strip())
+    except (ValueError, TypeError) as error:
+        raise DataError(
+            f"cannot read the time stamps in column {name!r} with their UTC offsets ({error}); "
+            "convert them to one time zone (e.g. pd.to_datetime(..., utc=True)) and pass a "
+            "DataFrame."
+        ) from None
+    shown = ", ".join(
+        sorted({"+00:00" if o == "Z" else f"{o[:3]}:{o[-2:]}" for o in suffix.unique()})
+    )
+    warnings.warn(
+        f"the time stamps in column {name!r} carry several UTC offsets ({shown}: a change to or "
+        f"from daylight saving time?); they are taken at the offset of the first, "
+        f"{_offset_text(first.utcoffset())}.",
+        DataWarning,
+        stacklevel=5,
+    )
+    return utc.dt.tz_convert(first.tzinfo)
+
+
+#: The UTC offset at the end of an ISO 8601 time stamp.
+_OFFSET = r"((?:[+-]\d\d:?\d\d)|Z)$"
+
+
+def _offset_text(offset) -> str:
+    minutes = int(round(offset.total_seconds() / 60))
+    sign = "+" if minutes >= 0 else "-"
+    return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
 
 
 def check_order(index: pd.DatetimeIndex, where: Where = _position) -> None:
@@ -143,10 +183,16 @@ def check_order(index: pd.DatetimeIndex, where: Where = _position) -> None:
     same = np.flatnonzero(steps == 0)
     if same.size:
         i = int(same[0]) + 1
+        dst = ""
+        if index.tz is None and 0 <= index[i].hour <= 3 and index[i].month in (3, 4, 10, 11):
+            dst = (
+                " (the end of daylight saving time repeats an hour of local clock time: log in "
+                "UTC, or with UTC offsets such as +01:00, which are converted)"
+            )
         raise DataError(
             f"duplicate time stamp {index[i]} at {where(i - 1)} and {where(i)}"
-            f"{f' ({same.size} duplicates in all)' if same.size > 1 else ''}; drop or average "
-            "the duplicates first."
+            f"{f' ({same.size} duplicates in all)' if same.size > 1 else ''}{dst}; drop or "
+            "average the duplicates first."
         )
 
 

@@ -479,6 +479,23 @@ def test_scale_at_load_repairs_kilowatts(base):
     assert load(frame, scale={"Q_hea": 1000}).check_plausible() == ()
 
 
+def test_a_greybox_keeps_its_stuck_sensor_tolerance(base, tmp_path):
+    """A coarse sensor that is right may stay put for days: ``stuck_hours`` lets a GreyBox take
+    it, and a saved GreyBox is read back with the same tolerance (not refused on reload)."""
+    frame = base.copy()
+    _at(frame, "T_bou", slice(50, 110), 21.5)  # 60 h without a change
+    with pytest.raises(DataError, match=r"'T_bou' stays exactly.*stuck_hours="):
+        jaxbox.GreyBox(Dataset(frame))
+    for hours in (None, 72):
+        gb = jaxbox.GreyBox(Dataset(frame), stuck_hours=hours)
+        assert gb.stuck_hours == hours
+        gb.save(tmp_path / f"gb{hours}")
+        assert jaxbox.GreyBox.load(tmp_path / f"gb{hours}").stuck_hours == hours
+    for bad, error in ((0, DataError), (-3.0, DataError), ("24", TypeError), (True, TypeError)):
+        with pytest.raises(error, match="stuck_hours"):
+            jaxbox.GreyBox(Dataset(frame), stuck_hours=bad)
+
+
 def test_counters_at_load_give_the_power_of_each_interval(base):
     """A kWh meter (with a reset and a missing reading) becomes the mean power of each hour:
     the power itself where both readings exist, a gap at the first sample, the reset and the

@@ -15,6 +15,7 @@ from ._common import (
     bounds,
     check_interrupted,
     cli_message,
+    number,
     pairs,
     period,
     resample_rule,
@@ -95,6 +96,13 @@ def add_data_arguments(p) -> None:
         "(repeatable)",
     )
     p.add_argument(
+        "--stuck-hours",
+        metavar="H",
+        default="24",
+        help="a temperature that does not change for H hours is refused as a stuck sensor "
+        "(default 24; 'none' turns the check off, e.g. for a coarse sensor in a steady cellar)",
+    )
+    p.add_argument(
         "--resample", metavar="RULE", help="resample first, e.g. 1h (mean, right-closed)"
     )
     p.add_argument(
@@ -115,6 +123,16 @@ def add_data_arguments(p) -> None:
         "longer ones split a window into segments with their own initial states; output gaps "
         "are masked (default 1h)",
     )
+
+
+def _stuck_hours(text) -> float | None:
+    """``--stuck-hours``: a positive number of hours, or ``none`` (no stuck-sensor check)."""
+    if text is None or str(text).strip().lower() in ("none", "off"):
+        return None
+    value = number(str(text), "--stuck-hours")
+    if value <= 0:
+        raise UsageError(f"--stuck-hours {text}: give a positive number of hours, or none")
+    return value
 
 
 def _max_gap(text) -> float:
@@ -150,6 +168,7 @@ class DataOptions:
         self.scale = scale(args.scale)
         self.counters = pairs(args.counter, "--counter", "Q_hea=kWh")
         self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
+        self.stuck_hours = _stuck_hours(getattr(args, "stuck_hours", "24"))
         self.resample = resample_rule(args.resample)
         self.train_text, self.valid_text = args.train, args.validate
         self.train = period(args.train, "--train")
@@ -276,17 +295,25 @@ def _option_given(opts: DataOptions, option: str) -> bool:
     return (opts.train if option == "--train" else opts.valid) is not None
 
 
-def check_windows(ident, valid, columns=None, ranges=None) -> None:
+def check_windows(ident, valid, columns=None, ranges=None, stuck_hours="default") -> None:
     """The physical plausibility of the signals (``columns``, default every canonical one) in
-    the windows actually used (``ranges``: the ``--range`` overrides); warnings (uncertain
-    findings) go to stderr."""
+    the windows actually used (``ranges``: the ``--range`` overrides; ``stuck_hours``:
+    ``--stuck-hours``); warnings (uncertain findings) go to stderr."""
     from ..data import check_plausibility
+    from ..data._plausible import STUCK_HOURS
 
+    if stuck_hours == "default":
+        stuck_hours = STUCK_HOURS
     for data, what in ((ident, "identification data"), (valid, "validation data")):
         if data is None:
             continue
         notes = check_plausibility(
-            data, overrides=ranges or None, columns=columns, what=what, warn=False
+            data,
+            overrides=ranges or None,
+            columns=columns,
+            what=what,
+            warn=False,
+            stuck_hours=stuck_hours,
         )
         for note in notes:
             print(f"warning: {cli_message(note)}", file=sys.stderr, flush=True)
@@ -307,7 +334,7 @@ def load_all(args, opts: DataOptions | None = None, *, model=None):
             if model is not None:
                 columns = list(model.inputs) + list(model.outputs)
                 require_model_columns(ident, model)
-            check_windows(ident, valid, columns, opts.ranges)
+            check_windows(ident, valid, columns, opts.ranges, opts.stuck_hours)
         except (DataError, UsageError) as err:
             if len(opts.specs) == 1:
                 raise

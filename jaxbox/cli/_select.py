@@ -159,11 +159,15 @@ def _candidates(text: str, data=None):
     return models
 
 
-def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0):
+def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0, stuck_hours="default"):
     """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
     lock-step, each step's fits batched over the buildings."""
     from ..data import DataWarning
+    from ..data._plausible import STUCK_HOURS
     from ..select import GreyBox, forward_selection_many, structure_search
+
+    if stuck_hours == "default":  # the demo: no --stuck-hours option
+        stuck_hours = STUCK_HOURS
 
     with warnings.catch_warnings():  # the windows' warnings were given once already
         warnings.simplefilter("ignore", DataWarning)
@@ -175,6 +179,7 @@ def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0):
                 name=spec,
                 ranges=ranges,
                 max_gap=max_gap,
+                stuck_hours=stuck_hours,
             )
             for spec, data, ident, valid in sets
         ]
@@ -283,7 +288,9 @@ def select_command(args) -> int:
         _candidates(args.models, data)
     with Outputs() as outputs:
         t0 = time.perf_counter()
-        outcomes = _run_selection(sets, args, candidates, opts.ranges, opts.max_gap)
+        outcomes = _run_selection(
+            sets, args, candidates, opts.ranges, opts.max_gap, opts.stuck_hours
+        )
         elapsed = time.perf_counter() - t0
         docs = []
         for (spec, _, ident, valid), (gb, sel) in zip(sets, outcomes, strict=True):

@@ -25,7 +25,7 @@ from ._checks import (
 )
 from ._counters import counters_to_power
 from ._errors import DataError, list_names
-from ._plausible import check_plausibility
+from ._plausible import STUCK_HOURS, check_plausibility
 from ._resample import resample_mean
 from ._signals import CONSTANT
 
@@ -478,7 +478,7 @@ class Dataset:
         overrides: Mapping[str, tuple[float, float]] | None = None,
         columns: str | Iterable[str] | None = None,
         what: str | None = None,
-        stuck_hours: float | None = 24.0,
+        stuck_hours: float | None = STUCK_HOURS,
         spike_k: float = 10.0,
         warn: bool = True,
     ) -> tuple[str, ...]:

@@ -56,6 +56,7 @@ from ._signals import CONSTANT, signal_base, signal_unit
 
 __all__ = [
     "PLAUSIBLE_RANGES",
+    "STUCK_HOURS",
     "Finding",
     "check_plausibility",
     "find_implausible",
@@ -94,6 +95,8 @@ _SPIKE_FLOOR_K = 5.0
 _POWER_SPIKE_FACTOR = 20.0
 #: A heating column peaking below this [W] may be in kW.
 _KW_PEAK = 50.0
+#: A temperature that does not change for this many hours is a stuck sensor (default).
+STUCK_HOURS = 24.0
 #: Below this heat-loss coefficient [W/K] (mean heating / mean T_zon - T_amb) it is in kW.
 _KW_UA = 1.0
 #: Smallest mean zone-ambient difference [K] for the kW test.
@@ -400,7 +403,9 @@ def _stuck(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
             "stuck",
             f"{c.name!r} stays exactly at {c.x[s]:.4g} °C for {hours[k]:.3g} h, from "
             f"{c.index[s]} to {c.index[e]}: a stuck or disconnected sensor? choose periods where "
-            "it moves (--train/--validate; Dataset.slice); stuck_hours= sets the tolerance.",
+            "it moves (--train/--validate; Dataset.slice) or, if the sensor is right (a coarse "
+            "one in a steady room), raise the tolerance (stuck_hours=, --stuck-hours H; none "
+            "turns the check off).",
         )
     ]
 
@@ -515,7 +520,7 @@ def find_implausible(
     *,
     overrides: Mapping[str, tuple[float, float]] | None = None,
     columns: Iterable[str] | None = None,
-    stuck_hours: float | None = 24.0,
+    stuck_hours: float | None = STUCK_HOURS,
     spike_k: float = 10.0,
 ) -> tuple[Finding, ...]:
     """Every implausible finding (errors and warnings) in ``data``, without raising.
@@ -564,7 +569,7 @@ def check_plausibility(
     overrides: Mapping[str, tuple[float, float]] | None = None,
     columns: Iterable[str] | None = None,
     what: str | None = None,
-    stuck_hours: float | None = 24.0,
+    stuck_hours: float | None = STUCK_HOURS,
     spike_k: float = 10.0,
     warn: bool = True,
 ) -> tuple[str, ...]:

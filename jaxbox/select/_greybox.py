@@ -16,6 +16,7 @@ import pandas as pd
 
 from ..data import DataError, as_dataset, check_mapping, check_plausibility
 from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
+from ..data._plausible import STUCK_HOURS
 from ..fit import DEFAULT_STARTS, FitError
 from ..fit._batch import fit_data
 from ..models import RCModel, get_model
@@ -38,6 +39,19 @@ def _pair(value, name: str):
     return tuple(value)
 
 
+def _stuck_hours(value) -> float | None:
+    """``stuck_hours``: ``None`` (no check) or a positive number of hours."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise TypeError(f"stuck_hours must be a number of hours or None, got {value!r}")
+    if not np.isfinite(value) or value <= 0:
+        raise DataError(
+            f"stuck_hours must be a positive number of hours (or None for no check), got {value!r}"
+        )
+    return float(value)
+
+
 class GreyBox:
     """Every identification attempt (:class:`Case`) on one building's data.
 
@@ -58,6 +72,9 @@ class GreyBox:
             windows; longer gaps split a window into segments that share the parameters, each
             with its own initial states (see :func:`jaxbox.data.prepare_window`). Output gaps
             are masked.
+        stuck_hours: a temperature that does not change for this many hours is refused as a
+            stuck sensor (default 24; ``None`` turns the check off, e.g. for a coarse sensor in
+            a steady cellar).
 
     A time stamp shared by ``train`` and ``valid`` belongs to the identification window
     (:meth:`jaxbox.data.Dataset.windows`).
@@ -72,6 +89,7 @@ class GreyBox:
         name: str = "building",
         ranges: Mapping[str, tuple[float, float]] | None = None,
         max_gap: float | str = DEFAULT_MAX_GAP,
+        stuck_hours: float | None = STUCK_HOURS,
     ) -> None:
         data = as_dataset(data, what="the data of a GreyBox")
         self.data = data
@@ -85,9 +103,11 @@ class GreyBox:
                 _pair(value, label)
         ident, val = data.windows(train, valid)
         self.max_gap = duration_seconds(max_gap)
-        check_plausibility(ident, overrides=self.ranges, what="identification data")
+        self.stuck_hours = _stuck_hours(stuck_hours)
+        checks = {"overrides": self.ranges, "stuck_hours": self.stuck_hours}
+        check_plausibility(ident, what="identification data", **checks)
         if val is not None:
-            check_plausibility(val, overrides=self.ranges, what="validation data")
+            check_plausibility(val, what="validation data", **checks)
         self.train = _period(ident)
         self.valid_period = None if val is None else _period(val)
         self.cases: dict[str, Case] = {}
@@ -334,7 +354,12 @@ class GreyBox:
         """Load a GreyBox saved with :meth:`save`; see :func:`load_greybox`."""
         saved = read_greybox(path, models=check_mapping(models, "models"))
         gb = cls(
-            saved.data, train=saved.train, valid=saved.valid, name=saved.name, ranges=saved.ranges
+            saved.data,
+            train=saved.train,
+            valid=saved.valid,
+            name=saved.name,
+            ranges=saved.ranges,
+            stuck_hours=saved.stuck_hours,
         )
         gb.cases = {case.name: case for case in saved.cases}
         return gb

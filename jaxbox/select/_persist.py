@@ -43,6 +43,7 @@ import pandas as pd
 
 from .._io import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
 from ..data import DataError, Dataset
+from ..data._plausible import STUCK_HOURS
 from ..models import ModelError, RCModel, get_model
 from ._cases import Case, verdict_of
 from ._guess import Guess
@@ -74,6 +75,7 @@ class Saved:
     valid: tuple | bool
     cases: list
     ranges: dict
+    stuck_hours: float | None = STUCK_HOURS
 
 
 # ---- the schema of the index -------------------------------------------------------------------
@@ -128,8 +130,9 @@ _TOP = {
     "arrays": ("a string", False),
     "cases": ("a list", False),
     "ranges": ("an object of [lower, upper] pairs", False),
+    "stuck_hours": ("a number", True),
 }
-_TOP_OPTIONAL = {"ranges"}
+_TOP_OPTIONAL = {"ranges", "stuck_hours"}
 _CASE = {
     "name": ("a string", False),
     "model": ("a string", False),
@@ -353,6 +356,7 @@ def _save(gb, folder: Path) -> Path:
         "valid": None if gb.valid_period is None else list(gb.valid_period),
         "arrays": arrays_name,
         "ranges": {k: list(v) for k, v in getattr(gb, "ranges", {}).items()},
+        "stuck_hours": getattr(gb, "stuck_hours", STUCK_HOURS),
         "cases": [_case_doc(i, c) for i, c in enumerate(gb.cases.values())],
     }
     index = atomic_write_json(folder / INDEX, doc)
@@ -446,6 +450,7 @@ def read_greybox(path, *, models: dict | None = None) -> Saved:
         valid=False if doc["valid"] is None else tuple(doc["valid"]),
         cases=cases,
         ranges={k: tuple(v) for k, v in doc.get("ranges", {}).items()},
+        stuck_hours=doc.get("stuck_hours", STUCK_HOURS),
     )
 
 

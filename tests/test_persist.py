@@ -72,6 +72,26 @@ def test_save_load_revalidate_identical(greybox, tmp_path):
     assert back.table().equals(greybox.table())
 
 
+@pytest.mark.parametrize("zone", ["+02:00", "Europe/Berlin", "UTC"])
+def test_data_in_a_time_zone_come_back_in_it(greybox, zone, tmp_path):
+    """Time stamps with a zone or an offset (local time across a clock change is read at one
+    offset) are saved as instants and read back in the same zone: the cases' periods match."""
+    import pandas as pd
+
+    frame = greybox.data.frame
+    frame.index = frame.index.tz_localize("UTC").tz_convert(
+        "Europe/Berlin" if zone == "Europe/Berlin" else "UTC"
+    )
+    if zone == "+02:00":
+        frame.index = frame.index.tz_convert(pd.Timestamp("2024-01-01T00:00+02:00").tzinfo)
+    gb = GreyBox(Dataset(frame), name="zoned")
+    gb.add_case("Zon", starts=2)
+    save_greybox(gb, tmp_path / "gb")
+    back = load_greybox(tmp_path / "gb")
+    assert back.data.equals(gb.data) and str(back.data.index.tz) == str(gb.data.index.tz)
+    assert back.train == gb.train and list(back.cases) == ["Zon"]
+
+
 def test_interrupted_save_leaves_the_previous_file_intact(greybox, tmp_path, monkeypatch):
     folder = tmp_path / "gb"
     save_greybox(greybox, folder)
@@ -210,6 +230,9 @@ def _set(doc, path, value):
         (["cases", 0, "result", "status"], "converged", "cases[0].result.status"),
         (["cases", 1, "name"], "Zon", "cases[1].name"),
         (["cases", 0, "train"], ["2099-01-01", "2099-02-01"], "cases[0].train"),
+        (["tz"], 2, "tz"),
+        (["tz"], "Mars/Olympus_Mons", "data"),
+        (["stuck_hours"], "24", "stuck_hours"),
     ],
 )
 def test_a_malformed_index_gives_one_error_naming_the_field(saved, path, value, field):

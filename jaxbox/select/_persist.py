@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import datetime
 import hashlib
 import io
 import json
@@ -131,8 +132,9 @@ _TOP = {
     "cases": ("a list", False),
     "ranges": ("an object of [lower, upper] pairs", False),
     "stuck_hours": ("a number", True),
+    "tz": ("a string", True),
 }
-_TOP_OPTIONAL = {"ranges", "stuck_hours"}
+_TOP_OPTIONAL = {"ranges", "stuck_hours", "tz"}
 _CASE = {
     "name": ("a string", False),
     "model": ("a string", False),
@@ -324,6 +326,31 @@ def save_greybox(gb, path) -> Path:
         return _save(gb, folder)
 
 
+def _tz_text(tz) -> str | None:
+    """The time zone of the data as text: ``None``, ``"+02:00"`` for a fixed offset, or the
+    zone's name (``"Europe/Berlin"``, ``"UTC"``)."""
+    if tz is None:
+        return None
+    if isinstance(tz, datetime.timezone) and tz is not datetime.timezone.utc:
+        minutes = int(round(tz.utcoffset(None).total_seconds() / 60))
+        sign = "+" if minutes >= 0 else "-"
+        return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+    return str(getattr(tz, "key", None) or getattr(tz, "zone", None) or tz)
+
+
+def _with_tz(index: pd.DatetimeIndex, text: str | None) -> pd.DatetimeIndex:
+    """``index`` (naive UTC instants, as saved) in the saved time zone ``text``."""
+    if text is None:
+        return index
+    match = re.fullmatch(r"([+-])(\d\d):(\d\d)", text)
+    if match:
+        minutes = int(match[2]) * 60 + int(match[3])
+        tz = datetime.timezone(datetime.timedelta(minutes=minutes if match[1] == "+" else -minutes))
+    else:
+        tz = text
+    return index.tz_localize("UTC").tz_convert(tz)
+
+
 @contextlib.contextmanager
 def _saving(folder: Path):
     """One save at a time into ``folder`` (an exclusive lock on its ``.greybox.lock``, where the
@@ -357,6 +384,7 @@ def _save(gb, folder: Path) -> Path:
         "arrays": arrays_name,
         "ranges": {k: list(v) for k, v in getattr(gb, "ranges", {}).items()},
         "stuck_hours": getattr(gb, "stuck_hours", STUCK_HOURS),
+        "tz": _tz_text(gb.data.index.tz),
         "cases": [_case_doc(i, c) for i, c in enumerate(gb.cases.values())],
     }
     index = atomic_write_json(folder / INDEX, doc)
@@ -436,11 +464,14 @@ def read_greybox(path, *, models: dict | None = None) -> Saved:
     try:
         frame = pd.DataFrame(
             arrays["data/values"],
-            index=pd.DatetimeIndex(pd.to_datetime(arrays["data/time_ns"], unit="ns"), name="time"),
+            index=_with_tz(
+                pd.DatetimeIndex(pd.to_datetime(arrays["data/time_ns"], unit="ns"), name="time"),
+                doc.get("tz"),
+            ),
             columns=[str(c) for c in arrays["data/columns"]],
         )
         data = Dataset(frame)
-    except (DataError, ValueError) as err:
+    except (DataError, ValueError, KeyError) as err:
         raise PersistError(f"{index}: the saved data cannot be read back ({err})") from None
     cases = [_case(i, cd, data, arrays, models, index) for i, cd in enumerate(doc["cases"])]
     return Saved(

@@ -166,7 +166,7 @@ def simulate_model(
         data: a :class:`~jaxbox.data.Dataset` holding the model's inputs at a regular step.
         method: ``"exact"`` (default), ``"parallel"`` (exact, parallel in time: the choice on a
             GPU, where it is 5× faster at 500 samples and 240× at 50 000 than the sequential
-            scan; slower on a CPU) or ``"diffrax"`` (adaptive Kvaerno5, ``rtol``/``atol``;
+            scan; slower on a CPU) or ``"diffrax"`` (adaptive Kvaerno3, ``rtol``/``atol``;
             with no other option, one compiled program serves every model of a padded size:
             :func:`~jaxbox.simulate.diffrax_runs_numpy`).
         x0: initial state [°C] overriding the ``T_*0`` parameters.

@@ -1,7 +1,7 @@
 """Post-simulation validation: the fitted model re-simulated with an adaptive stiff solver.
 
 Validation never reuses the estimation's simulator: the optimised parameters are simulated again
-with diffrax (Kvaerno5, PID step control, steps clipped to the samples) so that any
+with diffrax (Kvaerno3, PID step control, steps clipped to the samples) so that any
 discretisation error of the estimation shows up in the validation error. The run covers the
 identification data (auto-validation) and continues over the validation data (cross-validation),
 which therefore starts from the model state at the end of the identification period. Data in
@@ -17,6 +17,7 @@ import numpy as np
 
 from .._x64 import require_x64
 from ..simulate import diffrax_runs_numpy
+from ..simulate._diffrax import ADAPTIVE_ATOL, ADAPTIVE_RTOL
 from ..simulate._exact import discretize_foh_numpy
 from ._metrics import rmse, simulation_error
 
@@ -220,8 +221,8 @@ def validate(
     valid=None,
     *,
     method: str = "diffrax",
-    rtol: float = 1e-8,
-    atol: float = 1e-8,
+    rtol: float = ADAPTIVE_RTOL,
+    atol: float = ADAPTIVE_ATOL,
     max_gap: float | str | None = None,
 ) -> Validation:
     """Post-simulate a fit on its identification data and, optionally, on validation data.
@@ -230,7 +231,7 @@ def validate(
         result: a :class:`~jaxbox.fit.FitResult`.
         valid: validation :class:`~jaxbox.data.Dataset` after the identification data (same
             step); ``None`` for auto-validation only.
-        method: ``"diffrax"`` (adaptive Kvaerno5, default) or ``"exact"``.
+        method: ``"diffrax"`` (adaptive Kvaerno3, default) or ``"exact"``.
         rtol, atol: tolerances of the adaptive solver.
         max_gap: the longest input gap of the validation data filled by interpolation [s]
             (default: the fit's, see :func:`jaxbox.data.prepare_window`).

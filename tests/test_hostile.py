@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -527,9 +528,10 @@ def test_an_energy_meter_read_with_counter(tmp_path):
     with pytest.raises(DataError) as info:
         load_data(str(path), DataOptions(_args(data=[str(path)]))).check_plausible()
     assert "--counter Q_hea=kWh" in cli_message(str(info.value))
-    data = load_data(str(path), DataOptions(_args(data=[str(path)], counter=["Q_hea=kWh"])))
-    np.testing.assert_allclose(data["Q_hea"][1:], power[1:], rtol=1e-9)
-    assert np.isnan(data["Q_hea"][0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no gap to speak of: the first row is dropped
+        data = load_data(str(path), DataOptions(_args(data=[str(path)], counter=["Q_hea=kWh"])))
+    np.testing.assert_allclose(data["Q_hea"], power[1:], rtol=1e-9)
 
 
 def _args(**kw):

@@ -498,8 +498,9 @@ def test_a_greybox_keeps_its_stuck_sensor_tolerance(base, tmp_path):
 
 def test_counters_at_load_give_the_power_of_each_interval(base):
     """A kWh meter (with a reset and a missing reading) becomes the mean power of each hour:
-    the power itself where both readings exist, a gap at the first sample, the reset and the
-    two intervals around the missing reading; a steady or stepped heating is no counter."""
+    the power itself where both readings exist, a gap at the reset and the two intervals around
+    the missing reading; the first row (the starting readings) is dropped. A steady or stepped
+    heating is no counter."""
     frame = base.copy()
     power = frame["Q_hea"].to_numpy()
     energy = 500.0 + np.cumsum(power * 3600.0 / 3.6e6)  # kWh at the end of each hour
@@ -510,17 +511,18 @@ def test_counters_at_load_give_the_power_of_each_interval(base):
         load(frame).check_plausible()
     got = load(frame, counters={"Q_hea": "kWh"})
     q = got["Q_hea"]
-    gaps = np.flatnonzero(np.isnan(q))
-    assert gaps.tolist() == [0, 100, 150, 151]
+    assert len(got) == N - 1 and got.index[0] == frame.index[1]
+    gaps = np.flatnonzero(np.isnan(q)) + 1  # rows of the frame
+    assert gaps.tolist() == [100, 150, 151]
     ok = np.isfinite(q)
-    np.testing.assert_allclose(q[ok], power[ok], rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(q[ok], power[1:][ok], rtol=1e-9, atol=1e-6)
     assert got.check_plausible() == ()
     # in joules the readings pass 1e9 (absurd for a power): turned into power before that check
     in_joules = load(frame.assign(Q_hea=frame["Q_hea"] * 3.6e6), counters={"Q_hea": "J"})
-    np.testing.assert_allclose(in_joules["Q_hea"][ok], power[ok], rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(in_joules["Q_hea"][ok], power[1:][ok], rtol=1e-9, atol=1e-6)
     # a row missing from the grid: the interval over it is a gap too
     holed = load(frame.drop(index=frame.index[60]), counters={"Q_hea": "kWh"})
-    assert np.isnan(holed["Q_hea"][[60, 61]]).all() and np.isfinite(holed["Q_hea"][62])
+    assert np.isnan(holed["Q_hea"][[59, 60]]).all() and np.isfinite(holed["Q_hea"][61])
     with pytest.raises(DataError, match="unknown energy unit 'kWx'.*kWh"):
         load(frame, counters={"Q_hea": "kWx"})
     with pytest.raises(DataError, match="counters names column 'Q_he'"):

@@ -64,7 +64,8 @@ def validated_frame(
     are gaps, kept (see :mod:`jaxbox.data._gaps`). ``scale`` (column -> factor) multiplies
     columns before the value checks; ``counters`` (column -> joules per unit) turns cumulative
     energy meters into the mean power of each interval (:mod:`jaxbox.data._counters`; on a
-    regular grid, an interval over missing rows is a gap).
+    regular grid, an interval over missing rows is a gap) and drops the first row, which only
+    gives their starting readings.
     """
     if not isinstance(frame, pd.DataFrame):
         raise DataError(
@@ -104,6 +105,8 @@ def validated_frame(
         check_kelvin(values)
     if grid is not None:  # rows missing from the regular grid: gaps of NaN
         values = values.reindex(grid)
+    if counters:  # the first row only gives the counters' starting readings
+        values = values.iloc[1:]
     return values
 
 

@@ -286,7 +286,8 @@ def load(
         counters: canonical column name (after ``columns``) -> energy unit (``"kWh"``, ``"MWh"``,
             ``"Wh"``, ``"J"``, ``"kJ"``, ``"MJ"``, ``"GJ"``) of a column that holds a cumulative
             energy meter instead of a power: it becomes the mean power [W] of each sampling
-            interval (a gap at the first sample and where the counter falls or is missing).
+            interval (the first row, the starting readings, is dropped; a gap where the counter
+            falls or is missing).
 
     Always refused (whatever ``check``): duplicate column names, infinite values and absurd
     magnitudes (see :func:`jaxbox.data.check_finite`). The physical plausibility of the

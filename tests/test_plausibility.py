@@ -496,6 +496,7 @@ def test_a_greybox_keeps_its_stuck_sensor_tolerance(base, tmp_path):
             jaxbox.GreyBox(Dataset(frame), stuck_hours=bad)
 
 
+@pytest.mark.filterwarnings("ignore::jaxbox.data.DataWarning")  # the gaps made on purpose
 def test_counters_at_load_give_the_power_of_each_interval(base):
     """A kWh meter (with a reset and a missing reading) becomes the mean power of each hour:
     the power itself where both readings exist, a gap at the reset and the two intervals around

@@ -518,7 +518,13 @@ def test_counters_at_load_give_the_power_of_each_interval(base):
     ok = np.isfinite(q)
     np.testing.assert_allclose(q[ok], power[1:][ok], rtol=1e-9, atol=1e-6)
     assert got.check_plausible() == ()
-    # in joules the readings pass 1e9 (absurd for a power): turned into power before that check
+    # in joules the readings pass 1e9 (absurd for a power): turned into power before that check,
+    # and without counters= the absurd values are named as a likely meter, unlike an error code
+    with pytest.raises(DataError, match=r"absurd.*energy meter.*counters=\{'Q_hea': 'J'\}"):
+        load(frame.assign(Q_hea=frame["Q_hea"] * 3.6e6))
+    with pytest.raises(DataError, match=r"absurd.*error code of the logger") as info:
+        load(base.assign(Q_hea=np.where(np.arange(N) == 7, 9.9e9, base["Q_hea"])))
+    assert "meter" not in str(info.value)
     in_joules = load(frame.assign(Q_hea=frame["Q_hea"] * 3.6e6), counters={"Q_hea": "J"})
     np.testing.assert_allclose(in_joules["Q_hea"][ok], power[1:][ok], rtol=1e-9, atol=1e-6)
     # a row missing from the grid: the interval over it is a gap too

@@ -372,8 +372,22 @@ def check_finite(frame: pd.DataFrame) -> None:
             huge = np.abs(values) > limit
         if huge.any():
             first = float(values[np.flatnonzero(huge)[0]])
+            seen = values[np.isfinite(values)]
+            steps = np.diff(seen)
+            counter = (
+                str(signal_base(str(name)) or "")[:2] in ("Q_", "P_")
+                and steps.size >= 2
+                and np.mean(steps >= 0) >= 0.99
+                and np.mean(steps > 0) >= 0.5
+            )
+            why = (
+                "a cumulative energy meter (in J?) rather than a power? load it with counters="
+                f"{{{str(name)!r}: 'J'}} (--counter {name}=J; or kJ, MJ, kWh)"
+                if counter
+                else "an error code of the logger? set them to NaN and fill or slice them away "
+                "(a unit off by a factor: scale=, --scale)"
+            )
             raise DataError(
                 f"column {name!r} has absurd values (e.g. {first:.3g}, beyond ±{limit:.0e}) "
-                f"{rows_text(frame.index, huge)}; an error code of the logger? set them to NaN "
-                "and fill or slice them away (a unit off by a factor: scale=, --scale)."
+                f"{rows_text(frame.index, huge)}; {why}."
             )

@@ -218,6 +218,31 @@ def test_local_time_with_utc_offsets_across_a_clock_change() -> None:
         load(naive)
 
 
+def test_a_row_of_units_under_the_header_is_skipped(tmp_path) -> None:
+    """Exports often put units under the names: that line is skipped with a warning, and the
+    line numbers of later errors still point into the file. A first row that holds a number is
+    data, not units."""
+    body = frame(n=6)
+    lines = ["time,T_zon,Q_hea", "-,degC,kW"]
+    lines += [f"{r.time},{r.T_zon},{r.Q_hea}" for r in body.itertuples()]
+    path = tmp_path / "units.csv"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.warns(DataWarning, match=r"line 2 of units.csv holds units.*'degC', 'kW'"):
+        ds = load(path)
+    assert len(ds) == 6 and ds["T_zon"][0] == 20.0 and ds["Q_hea"][5] == 500.0
+    lines[5] = lines[5].replace(",23.0,", ",x,")
+    path.write_text("\n".join(lines) + "\n")
+    with (
+        pytest.warns(DataWarning, match="holds units"),
+        pytest.raises(DataError, match=r"'x' at row 3 \(line 6 of units.csv\)"),
+    ):
+        load(path)
+    lines[1] = "-,degC,0"  # a number: data (and an error), not a row of units
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"'-' .*at row 0 \(line 2 of units.csv\)"):
+        load(path)
+
+
 def test_missing_rows_are_gaps() -> None:
     df = frame(n=20).drop(index=[9, 10]).reset_index(drop=True)  # 01:30 and 01:40 missing
     with pytest.warns(

@@ -97,7 +97,10 @@ def _sniff(path: Path, sep: str | None, decimal: str | None) -> None:
                 )
 
 
-def _read_csv(path: Path, sep: str | None = None, decimal: str | None = None) -> pd.DataFrame:
+def _read_csv(
+    path: Path, sep: str | None = None, decimal: str | None = None
+) -> tuple[pd.DataFrame, int]:
+    """The CSV at ``path`` and the number of lines skipped below its header (a row of units)."""
     if not path.exists():
         raise DataError(
             f"file not found: {str(path)!r} (relative paths are taken from the current "
@@ -137,7 +140,46 @@ def _read_csv(path: Path, sep: str | None = None, decimal: str | None = None) ->
                 "in the file."
             )
         seen.add(column)
-    return frame
+    units = _units_row(frame, options["decimal"])
+    if units is None:
+        return frame, 0
+    warnings.warn(
+        f"line 2 of {path.name} holds units, not values ({', '.join(map(repr, units[:6]))}"
+        f"{', …' if len(units) > 6 else ''}): skipped. Signals are read in the units of their "
+        "canonical names (°C, W, W/m²); convert others with scale= (command line: --scale).",
+        DataWarning,
+        stacklevel=3,
+    )
+    return pd.read_csv(path, skiprows=[1], **options), 1
+
+
+def _is_number(text: object, decimal: str) -> bool:
+    try:
+        float(str(text).strip().replace(decimal, "."))
+    except ValueError:
+        return False
+    return True
+
+
+def _units_row(frame: pd.DataFrame, decimal: str) -> list[str] | None:
+    """The cells of the first row when it names units rather than values: no cell of it is a
+    number, some are text, and at least half the cells of each of the next rows are numbers."""
+    if len(frame) < 3:
+        return None
+    first = frame.iloc[0].tolist()
+    text = [str(v).strip() for v in first if isinstance(v, str) and str(v).strip()]
+    if not text or any(_is_number(v, decimal) for v in first if isinstance(v, str)):
+        return None
+    if any(isinstance(v, int | float) and not pd.isna(v) for v in first):
+        return None
+    for _, row in frame.iloc[1:3].iterrows():
+        cells = row.tolist()
+        numbers = sum(
+            _is_number(v, decimal) if isinstance(v, str) else not pd.isna(v) for v in cells
+        )
+        if numbers < len(cells) / 2:
+            return None
+    return text
 
 
 def _time_values(
@@ -308,11 +350,11 @@ def load(
 
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
-        raw = _read_csv(path, sep, decimal)
+        raw, skipped = _read_csv(path, sep, decimal)
         label = path.name
 
         def where(i: int) -> str:
-            return f"row {i} (line {i + 2} of {label})"
+            return f"row {i} (line {i + 2 + skipped} of {label})"
 
     else:
         raise DataError(

@@ -538,6 +538,19 @@ def test_counters_at_load_give_the_power_of_each_interval(base):
         assert check_plausibility(Dataset(base.assign(Q_hea=steady))) == ()
 
 
+def test_heating_of_the_wrong_sign_is_a_warning(base):
+    """Heating logged as negative (or a cooling power): a warning naming the flip, which
+    scale=-1 applies at load; a cooled zone is not refused."""
+    frame = base.assign(Q_hea=-base["Q_hea"])
+    with pytest.warns(DataWarning, match=r"'Q_hea' is negative at 100 %.*warmer than outside"):
+        notes = check_plausibility(Dataset(frame))
+    assert len(notes) == 1 and "--scale Q_hea=-1" in notes[0]
+    kinds = [(f.column, f.kind, f.severe) for f in find_implausible(Dataset(frame))]
+    assert kinds == [("Q_hea", "sign", False)]
+    assert load(frame, scale={"Q_hea": -1}).check_plausible() == ()
+    assert check_plausibility(Dataset(base)) == ()  # the right sign: nothing to say
+
+
 def test_uncertain_kilowatts_are_a_warning(base):
     """A small heater where zone and ambient are close: may be right, so only a warning."""
     frame = base.copy()

@@ -22,7 +22,9 @@ and refuses values that no building produces or that betray a unit or sensor pro
 * ``stuck`` — a temperature that does not change at all for ``stuck_hours`` (24 h) or more;
 * ``counter`` — a power column that never falls and rises in most samples over at least half
   a day: a cumulative energy meter (kWh…) rather than a power (load it with ``counters=``);
-* ``kilowatt`` — heating power that looks like kW (see below).
+* ``kilowatt`` — heating power that looks like kW (see below);
+* ``sign`` — a heating column negative at almost every non-zero sample: heat taken out of the
+  zone (cooling), or heating logged with the opposite sign? (a warning: ``scale=-1`` flips it).
 
 **The kW heuristic.** A heating column ``Q_hea*`` that is not zero but peaks below 50 W cannot
 heat a building. When the data also hold a zone temperature ``T_zon*`` and ``T_amb`` whose mean
@@ -109,6 +111,9 @@ _COUNTER_HOURS = 12.0
 _COUNTER_MIN_SAMPLES = 12
 _COUNTER_MONOTONE = 0.99
 _COUNTER_RISING = 0.5
+#: A heating column negative at this share of at least this many non-zero samples is flagged.
+_SIGN_SHARE = 0.95
+_SIGN_MIN_SAMPLES = 10
 
 _WINDOWS = "choose periods without them (--train/--validate; Dataset.slice)"
 
@@ -488,6 +493,36 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     ]
 
 
+def _sign(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    """A heating power negative at almost every non-zero sample: cooling, or the wrong sign?"""
+    if c.overridden or signal_base(c.name) != "Q_hea":
+        return []
+    x = c.x[np.isfinite(c.x) & (c.x != 0)]
+    if x.size < _SIGN_MIN_SAMPLES:
+        return []
+    negative = float(np.mean(x < 0))
+    if negative < _SIGN_SHARE:
+        return []
+    warmer = ""
+    zones = [n for n in frame.columns if signal_base(str(n)) == "T_zon"]
+    if zones and "T_amb" in frame.columns:
+        zone = np.nanmean(frame[zones].to_numpy(dtype=float), axis=1)
+        delta = float(np.nanmean(zone - frame["T_amb"].to_numpy(dtype=float)))
+        if delta >= _KW_DELTA_T:
+            warmer = f", while the zone is {delta:.3g} K warmer than outside on average"
+    return [
+        Finding(
+            c.name,
+            "sign",
+            f"{c.name!r} is negative at {100 * negative:.0f} % of its non-zero samples (down to "
+            f"{float(np.min(x)):.4g} W){warmer}: the models take it as heat put into the zone, so "
+            f"this is cooling; if it is heating logged with the opposite sign, pass scale="
+            f"{{{c.name!r}: -1}} (--scale {c.name}=-1).",
+            severe=False,
+        )
+    ]
+
+
 #: The checks in the order they run; after a column's first error its later checks are skipped.
 _CHECKS: tuple[Callable[..., list[Finding]], ...] = (
     _infinite,
@@ -500,6 +535,7 @@ _CHECKS: tuple[Callable[..., list[Finding]], ...] = (
     _spike,
     _stuck,
     _kilowatt,
+    _sign,
 )
 
 

@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
+from ._counters import rising_share
 from ._errors import DataError, DataWarning
 from ._signals import is_temperature, signal_base
 
@@ -152,7 +153,7 @@ def _one_offset(text: pd.Series, name: str) -> pd.Series:
     warnings.warn(
         f"the time stamps in column {name!r} carry several UTC offsets ({shown}: a change to or "
         f"from daylight saving time?); they are taken at the offset of the first, "
-        f"{_offset_text(first.utcoffset())}.",
+        f"{offset_text(first.utcoffset())}.",
         DataWarning,
         stacklevel=5,
     )
@@ -163,7 +164,8 @@ def _one_offset(text: pd.Series, name: str) -> pd.Series:
 _OFFSET = r"((?:[+-]\d\d:?\d\d)|Z)$"
 
 
-def _offset_text(offset) -> str:
+def offset_text(offset) -> str:
+    """A UTC offset (``datetime.timedelta``) as ``"+02:00"``."""
     minutes = int(round(offset.total_seconds() / 60))
     sign = "+" if minutes >= 0 else "-"
     return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
@@ -372,13 +374,9 @@ def check_finite(frame: pd.DataFrame) -> None:
             huge = np.abs(values) > limit
         if huge.any():
             first = float(values[np.flatnonzero(huge)[0]])
-            seen = values[np.isfinite(values)]
-            steps = np.diff(seen)
             counter = (
                 str(signal_base(str(name)) or "")[:2] in ("Q_", "P_")
-                and steps.size >= 2
-                and np.mean(steps >= 0) >= 0.99
-                and np.mean(steps > 0) >= 0.5
+                and rising_share(values) is not None
             )
             why = (
                 "a cumulative energy meter (in J?) rather than a power? load it with counters="

@@ -20,7 +20,27 @@ import pandas as pd
 from ._args import check_mapping
 from ._errors import DataError
 
-__all__ = ["COUNTER_UNITS", "counters_to_power"]
+__all__ = ["COUNTER_UNITS", "counters_to_power", "rising_share"]
+
+#: A power column is an energy counter when it never falls (at this share of its steps: a
+#: reset or two allowed) and rises at this share of them.
+COUNTER_MONOTONE = 0.99
+COUNTER_RISING = 0.5
+
+
+def rising_share(values: np.ndarray) -> float | None:
+    """The share of the steps of ``values`` (finite ones, in order) that rise, when the series
+    looks like a cumulative counter (it never falls: :data:`COUNTER_MONOTONE`; it rises:
+    :data:`COUNTER_RISING`); else ``None``."""
+    x = np.asarray(values, dtype=float)
+    steps = np.diff(x[np.isfinite(x)])
+    if steps.size < 2:
+        return None
+    rising = float(np.mean(steps > 0))
+    if np.mean(steps >= 0) < COUNTER_MONOTONE or rising < COUNTER_RISING:
+        return None
+    return rising
+
 
 #: Joules per unit of an energy counter.
 COUNTER_UNITS: dict[str, float] = {

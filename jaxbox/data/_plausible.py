@@ -53,6 +53,7 @@ import pandas as pd
 
 from ._args import check_mapping
 from ._checks import ABSURD, ABSURD_OTHER, rows_text
+from ._counters import rising_share
 from ._errors import DataError, DataWarning, list_names
 from ._signals import CONSTANT, signal_base, signal_unit
 
@@ -105,12 +106,10 @@ _KW_UA = 1.0
 _KW_DELTA_T = 3.0
 #: An irradiance peaking below this [W/m²] over a day or more may be in kW/m².
 _KW_IRRADIANCE = 1.5
-#: A power column is an energy counter when it spans this many hours and samples, never falls
-#: (at this share of its steps: a reset or two allowed) and rises at this share of them.
+#: A power column is judged as an energy counter (:func:`._counters.rising_share`) when it
+#: spans this many hours and samples.
 _COUNTER_HOURS = 12.0
 _COUNTER_MIN_SAMPLES = 12
-_COUNTER_MONOTONE = 0.99
-_COUNTER_RISING = 0.5
 #: A heating column negative at this share of at least this many non-zero samples is flagged.
 _SIGN_SHARE = 0.95
 _SIGN_MIN_SAMPLES = 10
@@ -424,9 +423,8 @@ def _counter(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if x.size < _COUNTER_MIN_SAMPLES:
         return []
     hours = (c.index[ok][-1] - c.index[ok][0]) / pd.Timedelta(hours=1)
-    d = np.diff(x)
-    rising = float(np.mean(d > 0))
-    if hours < _COUNTER_HOURS or np.mean(d >= 0) < _COUNTER_MONOTONE or rising < _COUNTER_RISING:
+    rising = rising_share(x)
+    if hours < _COUNTER_HOURS or rising is None:
         return []
     return [
         Finding(

@@ -44,6 +44,7 @@ import pandas as pd
 
 from .._io import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
 from ..data import DataError, Dataset
+from ..data._checks import offset_text
 from ..data._plausible import STUCK_HOURS
 from ..models import ModelError, RCModel, get_model
 from ._cases import Case, verdict_of
@@ -332,9 +333,7 @@ def _tz_text(tz) -> str | None:
     if tz is None:
         return None
     if isinstance(tz, datetime.timezone) and tz is not datetime.timezone.utc:
-        minutes = int(round(tz.utcoffset(None).total_seconds() / 60))
-        sign = "+" if minutes >= 0 else "-"
-        return f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+        return offset_text(tz.utcoffset(None))
     return str(getattr(tz, "key", None) or getattr(tz, "zone", None) or tz)
 
 

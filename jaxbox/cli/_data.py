@@ -98,7 +98,6 @@ def add_data_arguments(p) -> None:
     p.add_argument(
         "--stuck-hours",
         metavar="H",
-        default="24",
         help="a temperature that does not change for H hours is refused as a stuck sensor "
         "(default 24; 'none' turns the check off, e.g. for a coarse sensor in a steady cellar)",
     )
@@ -126,8 +125,13 @@ def add_data_arguments(p) -> None:
 
 
 def _stuck_hours(text) -> float | None:
-    """``--stuck-hours``: a positive number of hours, or ``none`` (no stuck-sensor check)."""
-    if text is None or str(text).strip().lower() in ("none", "off"):
+    """``--stuck-hours``: a positive number of hours, or ``none`` (no stuck-sensor check);
+    not given: the default of :func:`jaxbox.data.check_plausibility`."""
+    if text is None:
+        from ..data._plausible import STUCK_HOURS
+
+        return STUCK_HOURS
+    if str(text).strip().lower() in ("none", "off"):
         return None
     value = number(str(text), "--stuck-hours")
     if value <= 0:
@@ -168,7 +172,7 @@ class DataOptions:
         self.scale = scale(args.scale)
         self.counters = pairs(args.counter, "--counter", "Q_hea=kWh")
         self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
-        self.stuck_hours = _stuck_hours(getattr(args, "stuck_hours", "24"))
+        self.stuck_hours = _stuck_hours(getattr(args, "stuck_hours", None))
         self.resample = resample_rule(args.resample)
         self.train_text, self.valid_text = args.train, args.validate
         self.train = period(args.train, "--train")
@@ -295,15 +299,12 @@ def _option_given(opts: DataOptions, option: str) -> bool:
     return (opts.train if option == "--train" else opts.valid) is not None
 
 
-def check_windows(ident, valid, columns=None, ranges=None, stuck_hours="default") -> None:
+def check_windows(ident, valid, columns, ranges, stuck_hours: float | None) -> None:
     """The physical plausibility of the signals (``columns``, default every canonical one) in
     the windows actually used (``ranges``: the ``--range`` overrides; ``stuck_hours``:
     ``--stuck-hours``); warnings (uncertain findings) go to stderr."""
     from ..data import check_plausibility
-    from ..data._plausible import STUCK_HOURS
 
-    if stuck_hours == "default":
-        stuck_hours = STUCK_HOURS
     for data, what in ((ident, "identification data"), (valid, "validation data")):
         if data is None:
             continue

@@ -159,15 +159,11 @@ def _candidates(text: str, data=None):
     return models
 
 
-def _run_selection(sets, args, candidates, ranges=None, max_gap=3600.0, stuck_hours="default"):
+def _run_selection(sets, args, candidates, ranges, max_gap, stuck_hours: float | None):
     """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
     lock-step, each step's fits batched over the buildings."""
     from ..data import DataWarning
-    from ..data._plausible import STUCK_HOURS
     from ..select import GreyBox, forward_selection_many, structure_search
-
-    if stuck_hours == "default":  # the demo: no --stuck-hours option
-        stuck_hours = STUCK_HOURS
 
     with warnings.catch_warnings():  # the windows' warnings were given once already
         warnings.simplefilter("ignore", DataWarning)
@@ -378,9 +374,9 @@ def _no_valid_model(outcomes) -> int:
     which = "" if len(outcomes) == 1 else f" for {', '.join(gb.name for gb in none)}"
     short = []
     for gb in none:
-        ident = getattr(gb, "ident", None)
-        hours = 0.0 if ident is None else (len(ident) * ident.step) / 3600.0
-        if ident is not None and hours < SHORT_IDENT_HOURS:
+        ident = gb.ident
+        hours = len(ident) * ident.step / 3600.0
+        if hours < SHORT_IDENT_HOURS:
             short.append(f"{hours:.3g} h" if len(none) == 1 else f"{gb.name} {hours:.3g} h")
     hint = (
         f"; the identification data span only {', '.join(short)}: slow building states need "
@@ -399,6 +395,8 @@ def _no_valid_model(outcomes) -> int:
 def demo_command(args) -> int:
     """``jaxbox demo``: forward selection over the experiment-1 hierarchy on a bundled twin
     house, the table on stdout, an HTML report (and the saved GreyBox) in ``--out``."""
+    from ..data._gaps import DEFAULT_MAX_GAP
+    from ..data._plausible import STUCK_HOURS
     from ..datasets import CITATION
 
     check_run_options(args)
@@ -406,7 +404,7 @@ def demo_command(args) -> int:
     spec = f"twinhouse_exp1:{args.house}"
     data = load_data(spec)
     ident, valid = data.split()
-    check_windows(ident, valid)
+    check_windows(ident, valid, None, None, STUCK_HOURS)
     say = progress(args)
     say(
         f"jaxbox demo: twin house {args.house} (IEA EBC Annex 58, Holzkirchen 2013), "
@@ -415,7 +413,9 @@ def demo_command(args) -> int:
     )
     with Outputs() as outputs:
         t0 = time.perf_counter()
-        ((gb, sel),) = _run_selection([(spec, data, ident, valid)], args, "exp1")
+        ((gb, sel),) = _run_selection(
+            [(spec, data, ident, valid)], args, "exp1", None, DEFAULT_MAX_GAP, STUCK_HOURS
+        )
         doc = _document(gb, sel, spec, ident, valid)
         doc["elapsed_s"] = time.perf_counter() - t0
         _stage_outputs(outputs, gb, sel, doc, out)

@@ -16,7 +16,7 @@ import pandas as pd
 
 from ._counters import rising_share
 from ._errors import DataError, DataWarning
-from ._signals import is_temperature, signal_base
+from ._signals import is_temperature, signal_base, signal_unit
 
 __all__ = [
     "Where",
@@ -374,10 +374,7 @@ def check_finite(frame: pd.DataFrame) -> None:
             huge = np.abs(values) > limit
         if huge.any():
             first = float(values[np.flatnonzero(huge)[0]])
-            counter = (
-                str(signal_base(str(name)) or "")[:2] in ("Q_", "P_")
-                and rising_share(values) is not None
-            )
+            counter = signal_unit(str(name)) == "W" and rising_share(values) is not None
             why = (
                 "a cumulative energy meter (in J?) rather than a power? load it with counters="
                 f"{{{str(name)!r}: 'J'}} (--counter {name}=J; or kJ, MJ, kWh)"

@@ -78,13 +78,17 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
+def _duration(n: int, step: float) -> str:
+    """``n`` samples of ``step`` seconds as ``"2 h"`` or ``"30 min"``."""
+    minutes = n * step / 60
+    return f"{minutes / 60:g} h" if minutes >= 60 else f"{minutes:g} min"
+
+
 def _span(index: pd.DatetimeIndex, a: int, b: int, step: float) -> str:
     """``"from A to B (n samples, 2 h)"`` or ``"at A (1 sample, 1 h)"``."""
     n = b - a
-    minutes = n * step / 60
-    length = f"{minutes / 60:g} h" if minutes >= 60 else f"{minutes:g} min"
     where = f"at {index[a]}" if n == 1 else f"from {index[a]} to {index[b - 1]}"
-    return f"{where} ({n} sample{'s' if n > 1 else ''}, {length})"
+    return f"{where} ({n} sample{'s' if n > 1 else ''}, {_duration(n, step)})"
 
 
 def _filled_summary(
@@ -94,16 +98,8 @@ def _filled_summary(
     runs = sorted(runs)
     lengths = [b - a for a, b in runs]
     which = f"input{'s' if len(names) > 1 else ''} {', '.join(map(repr, names))}"
-
-    def _dur(n: int) -> str:
-        minutes = n * step / 60
-        return f"{minutes / 60:g} h" if minutes >= 60 else f"{minutes:g} min"
-
-    size = (
-        _dur(lengths[0])
-        if min(lengths) == max(lengths)
-        else (f"{_dur(min(lengths))} to {_dur(max(lengths))}")
-    )
+    shortest, longest = _duration(min(lengths), step), _duration(max(lengths), step)
+    size = shortest if shortest == longest else f"{shortest} to {longest}"
     return (
         f"{what}: interpolated {which} in {len(runs)} gaps of {size} ({sum(lengths)} samples in "
         f"all), the first at {index[runs[0][0]]}, the last at {index[runs[-1][0]]}"

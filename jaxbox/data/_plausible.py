@@ -440,6 +440,16 @@ def _counter(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     ]
 
 
+def _zone_ambient_delta(frame: pd.DataFrame) -> float | None:
+    """Mean difference [K] of the zones' mean temperature over ``T_amb``, or ``None`` without
+    a zone or ``T_amb``."""
+    zones = [n for n in frame.columns if signal_base(str(n)) == "T_zon"]
+    if not zones or "T_amb" not in frame.columns:
+        return None
+    zone = np.nanmean(frame[zones].to_numpy(dtype=float), axis=1)
+    return float(np.nanmean(zone - frame["T_amb"].to_numpy(dtype=float)))
+
+
 def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if c.overridden:
         return []
@@ -464,13 +474,10 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if base != "Q_hea" or not 0 < peak < _KW_PEAK:
         return []
     fix = f"pass scale={{{c.name!r}: 1000}} (--scale {c.name}=1000)"
-    zones = [n for n in frame.columns if signal_base(str(n)) == "T_zon"]
+    delta = _zone_ambient_delta(frame)
     ua = None
-    if zones and "T_amb" in frame.columns:
-        zone = np.nanmean(frame[zones].to_numpy(dtype=float), axis=1)
-        delta = float(np.nanmean(zone - frame["T_amb"].to_numpy(dtype=float)))
-        if delta >= _KW_DELTA_T:
-            ua = float(np.nanmean(finite)) / delta
+    if delta is not None and delta >= _KW_DELTA_T:
+        ua = float(np.nanmean(finite)) / delta
     if ua is not None and ua < _KW_UA:
         return [
             Finding(
@@ -502,12 +509,9 @@ def _sign(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     if negative < _SIGN_SHARE:
         return []
     warmer = ""
-    zones = [n for n in frame.columns if signal_base(str(n)) == "T_zon"]
-    if zones and "T_amb" in frame.columns:
-        zone = np.nanmean(frame[zones].to_numpy(dtype=float), axis=1)
-        delta = float(np.nanmean(zone - frame["T_amb"].to_numpy(dtype=float)))
-        if delta >= _KW_DELTA_T:
-            warmer = f", while the zone is {delta:.3g} K warmer than outside on average"
+    delta = _zone_ambient_delta(frame)
+    if delta is not None and delta >= _KW_DELTA_T:
+        warmer = f", while the zone is {delta:.3g} K warmer than outside on average"
     return [
         Finding(
             c.name,

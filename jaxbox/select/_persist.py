@@ -341,12 +341,8 @@ def _with_tz(index: pd.DatetimeIndex, text: str | None) -> pd.DatetimeIndex:
     """``index`` (naive UTC instants, as saved) in the saved time zone ``text``."""
     if text is None:
         return index
-    match = re.fullmatch(r"([+-])(\d\d):(\d\d)", text)
-    if match:
-        minutes = int(match[2]) * 60 + int(match[3])
-        tz = datetime.timezone(datetime.timedelta(minutes=minutes if match[1] == "+" else -minutes))
-    else:
-        tz = text
+    offset = re.fullmatch(r"[+-]\d\d:\d\d", text)
+    tz = pd.Timestamp(f"2000-01-01T00:00{text}").tzinfo if offset else text
     return index.tz_localize("UTC").tz_convert(tz)
 
 

@@ -18,6 +18,12 @@ os.environ["JAXBOX_CACHE"] = "0"
 if os.environ.get("PYTEST_XDIST_WORKER"):  # a worker per core: one thread each
     os.environ.setdefault("JAXBOX_THREADS", "1")
 
+# the tests compile hundreds of small programs and run each briefly: XLA's backend optimisations
+# cost more compile time than they save (the benchmarks and the command line keep them)
+os.environ["XLA_FLAGS"] = " ".join(
+    [os.environ.get("XLA_FLAGS", ""), "--xla_backend_optimization_level=0"]
+).strip()
+
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
@@ -29,6 +35,11 @@ if os.environ.get("JAXBOX_TEST_CACHE", "1").strip().lower() not in ("0", "no", "
     from jaxbox import enable_compilation_cache  # noqa: E402
 
     enable_compilation_cache(_SHARED)
+    # the processes the tests start (notebook kernels, the command line, cluster workers)
+    # share it too
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = str(_SHARED)
+    os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0.5"
+    os.environ["JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES"] = "0"
 
 
 def pytest_sessionfinish(session, exitstatus):

@@ -176,7 +176,9 @@ def test_fit_several_files_in_one_batch(csv_file, capsys, tmp_path):
     assert sorted(p.name for p in plots.iterdir()) == ["1-building", "2-building"]
     assert main(["fit", str(second), *common]) == 0  # the second building alone
     alone = json.loads(capsys.readouterr().out)
-    assert doc["fits"][1]["se_auto"] == pytest.approx(alone["se_auto"], rel=1e-9)
+    # to the fit's tolerance: a batch of two is vectorised differently from one building, and the
+    # last digits of an optimum in a flat valley carry ~1e-8 of it (see test_performance)
+    assert doc["fits"][1]["se_auto"] == pytest.approx(alone["se_auto"], rel=1e-6)
     assert doc["fits"][1]["params"]["R_wal"]["value"] == pytest.approx(
         alone["params"]["R_wal"]["value"], rel=1e-7
     )

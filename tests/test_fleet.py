@@ -196,3 +196,16 @@ def test_the_default_is_the_structure_search(fleet, tmp_path):
     rows = read_results(tmp_path / "out").set_index("building")
     assert rows.loc["b4", "model"] == "Zon+Wal"
     assert rows.loc["b4", "hlc"] == pytest.approx(truth.loc["b4", "hlc"], rel=0.05)
+
+
+def test_local_workers_keep_the_xla_flags_of_the_process():
+    """A local cluster's workers run one thread each and compile with the caller's XLA flags."""
+    from jaxbox.fleet._run import worker_env
+
+    env = worker_env({"XLA_FLAGS": " --xla_backend_optimization_level=0 "})
+    assert env["XLA_FLAGS"].split() == [
+        "--xla_backend_optimization_level=0",
+        "--xla_cpu_multi_thread_eigen=false",
+    ]
+    assert worker_env({})["XLA_FLAGS"] == "--xla_cpu_multi_thread_eigen=false"
+    assert env["OMP_NUM_THREADS"] == env["OPENBLAS_NUM_THREADS"] == "1"

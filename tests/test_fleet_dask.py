@@ -15,7 +15,7 @@ import pytest
 from jaxbox.cli._main import main
 from jaxbox.datasets import make_fleet
 from jaxbox.fleet import load_config, read_results, run_fleet
-from jaxbox.fleet._run import _WORKER_ENV
+from jaxbox.fleet._run import worker_env
 
 pytestmark = pytest.mark.slow
 
@@ -87,7 +87,7 @@ def test_fleet_command_on_a_separately_started_cluster(fleet, inline, cache, tmp
 
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
-    env = {**os.environ, **_WORKER_ENV, "PYTHONPATH": str(ROOT), "JAXBOX_CACHE": "1"}
+    env = {**os.environ, **worker_env(), "PYTHONPATH": str(ROOT), "JAXBOX_CACHE": "1"}
     env["JAXBOX_CACHE_DIR"] = cache
     logs = open(tmp_path / "dask.log", "w")  # noqa: SIM115 - closed below
     procs = [

@@ -28,13 +28,18 @@ from ._work import STATUSES, process_partition
 
 __all__ = ["run_fleet", "FleetRun"]
 
-#: XLA settings of the local workers: one thread each (the parallelism is across workers)
-_WORKER_ENV = {
-    "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
-    "OMP_NUM_THREADS": "1",
-    "OPENBLAS_NUM_THREADS": "1",
-    "MKL_NUM_THREADS": "1",
-}
+#: the settings of a local worker: one thread each (the parallelism is across workers)
+_SINGLE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+_SINGLE_THREAD_XLA = "--xla_cpu_multi_thread_eigen=false"
+
+
+def worker_env(environ=None) -> dict[str, str]:
+    """The variables a local worker process starts with: one thread each, and the XLA flags of
+    ``environ`` (default ``os.environ``) kept, so that the workers compile what this process
+    would."""
+    environ = os.environ if environ is None else environ
+    flags = [f for f in (environ.get("XLA_FLAGS", "").strip(), _SINGLE_THREAD_XLA) if f]
+    return {"XLA_FLAGS": " ".join(flags), **_SINGLE_THREAD}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,8 +101,9 @@ def _local_cluster(workers: int, stack: ExitStack):
     """A LocalCluster of ``workers`` single-threaded processes, closed with ``stack``."""
     from distributed import Client, LocalCluster
 
-    saved = {k: os.environ.get(k) for k in _WORKER_ENV}
-    os.environ.update(_WORKER_ENV)  # inherited by the worker processes
+    env = worker_env()
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)  # inherited by the worker processes
     try:
         cluster = stack.enter_context(
             LocalCluster(

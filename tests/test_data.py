@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -216,6 +218,73 @@ def test_local_time_with_utc_offsets_across_a_clock_change() -> None:
     naive = df.assign(time=instants.strftime("%Y-%m-%d %H:%M:%S"))
     with pytest.raises(DataError, match=r"duplicate time stamp 2013-10-27 02:00:00.*daylight"):
         load(naive)
+
+
+def _local_clock(start: str, periods: int, freq: str) -> pd.DataFrame:
+    """Naive local clock time in Berlin (as many loggers write it) from regular instants; the
+    temperature counts the instants."""
+    instants = pd.date_range(start, periods=periods, freq=freq, tz="Europe/Berlin")
+    return pd.DataFrame(
+        {"time": instants.strftime("%Y-%m-%d %H:%M:%S"), "T_zon": 20.0 + 0.01 * np.arange(periods)}
+    )
+
+
+@pytest.mark.parametrize("freq", ["10min", "1h"])
+def test_local_clock_time_read_in_its_time_zone_across_the_end_of_summer_time(freq) -> None:
+    """The hour repeated when the clocks go back is refused without a time zone (its stamps go
+    back or repeat; the message names tz= and --tz) and read in order with one: a regular grid
+    of instants, every sample kept, in that zone."""
+    df = _local_clock("2013-10-27 00:00", 30, freq)
+    with pytest.raises(DataError, match=r"daylight saving.*tz='Europe/Berlin' \(command line"):
+        load(df)
+    ds = load(df, tz="Europe/Berlin")
+    step = pd.Timedelta(freq).total_seconds()
+    assert ds.step == step and len(ds) == 30 and str(ds.index.tz) == "Europe/Berlin"
+    np.testing.assert_array_equal(ds["T_zon"], df["T_zon"])
+    assert np.all(np.diff(ds.index.asi8) == int(step * 1e9))
+    assert ds.index[0].utcoffset() == pd.Timedelta("2h")
+    assert ds.index[-1].utcoffset() == pd.Timedelta("1h")
+
+
+def test_local_clock_time_across_the_start_of_summer_time(tmp_path) -> None:
+    """The skipped hour is a gap in naive stamps, and the gap note says it is the clock change;
+    with the time zone there is no gap. A stamp inside the skipped hour, an hour the clocks
+    repeat that is logged once, and an unknown zone are refused, naming the row or the zone."""
+    df = _local_clock("2013-03-31 00:00", 30, "10min")
+    with pytest.warns(DataWarning, match=r"missing on Sunday 2013-03-31 is where the clocks go"):
+        gappy = load(df)
+    assert gappy["T_zon"].size == 36 and np.isnan(gappy["T_zon"]).sum() == 6
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ds = load(df, tz="Europe/Berlin")
+    assert len(ds) == 30 and ds.step == 600.0 and not np.isnan(ds["T_zon"]).any()
+    # a gap of the same hour on an ordinary day is only a gap
+    plain = df.assign(time=df["time"].str.replace("2013-03-31", "2013-03-28"))
+    plain = plain[~plain["time"].str.contains(" 02:")]
+    with pytest.warns(DataWarning) as record:
+        load(plain)
+    assert not any("clocks" in str(w.message) for w in record)
+    bad = df.iloc[:13].copy()
+    bad.loc[12, "time"] = "2013-03-31 02:30:00"
+    path = tmp_path / "local.csv"
+    bad.to_csv(path, index=False)
+    with pytest.raises(DataError, match=r"02:30:00.*row 12 \(line 14 of local.csv\) does not ex"):
+        load(path, tz="Europe/Berlin")
+    once = pd.DataFrame(
+        {"time": ["2013-10-27 01:00", "2013-10-27 02:00", "2013-10-27 03:00"], "T_zon": 20.0}
+    )
+    with pytest.raises(DataError, match=r"02:00:00.*row 1 .*repeats in Europe/Berlin"):
+        load(once, tz="Europe/Berlin")
+    with pytest.raises(DataError, match=r"unknown time zone 'Mars/Base'"):
+        load(df, tz="Mars/Base")
+
+
+def test_stamps_with_offsets_are_converted_to_the_time_zone() -> None:
+    utc = pd.date_range("2013-10-27", periods=5, freq="h", tz="UTC")
+    ds = load(
+        pd.DataFrame({"time": utc.strftime("%Y-%m-%dT%H:%M:%SZ"), "T_zon": 20.0}), tz="+01:00"
+    )
+    assert ds.index[0] == utc[0] and ds.index[0].utcoffset() == pd.Timedelta("1h")
 
 
 def test_a_row_of_units_under_the_header_is_skipped(tmp_path) -> None:

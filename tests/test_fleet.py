@@ -155,6 +155,13 @@ def test_config_from_toml(tmp_path):
     assert cfg.fixed_model == "ZonWal" and cfg.starts == 3 and cfg.fraction == 0.6
     assert cfg.load_options() == {"columns": {"T_zon": "indoor"}, "resample": "1h"}
     assert load_config().fixed_model is None and load_config().models == "search"
+    path.write_text(
+        '[data]\ncounters = { Q_hea = "kWh" }\ntz = "Europe/Berlin"\n', encoding="utf-8"
+    )
+    cfg = load_config(path)
+    assert cfg.load_options() == {"counters": {"Q_hea": "kWh"}, "tz": "Europe/Berlin"}
+    with pytest.raises(FleetError, match="data.tz must name a time zone"):
+        load_config(tz=" ")
     path.write_text("[identify]\nstart = 3\n", encoding="utf-8")
     with pytest.raises(FleetError, match="unknown key 'start' in \\[identify\\]"):
         load_config(path)

@@ -534,6 +534,28 @@ def test_an_energy_meter_read_with_counter(tmp_path):
     np.testing.assert_allclose(data["Q_hea"], power[1:], rtol=1e-9)
 
 
+def test_local_clock_time_read_with_tz(tmp_path):
+    """Naive local time across the end of summer time: refused with the option that reads it,
+    read with it (an empty zone is a usage error), and the bundled data take no --tz."""
+    from jaxbox.cli._common import UsageError, cli_message
+    from jaxbox.cli._data import DataOptions, load_data
+    from jaxbox.data import DataError
+
+    f = frame()
+    instants = pd.date_range("2013-10-26 20:00", periods=len(f), freq="h", tz="Europe/Berlin")
+    f["time"] = instants.strftime("%Y-%m-%d %H:%M:%S")
+    path = csv(tmp_path / "local.csv", f)
+    with pytest.raises(DataError) as info:
+        load_data(str(path), DataOptions(_args(data=[str(path)])))
+    assert "pass the data's time zone, e.g. --tz Europe/Berlin," in cli_message(str(info.value))
+    data = load_data(str(path), DataOptions(_args(data=[str(path)], tz=" Europe/Berlin")))
+    assert data.step == 3600.0 and len(data) == len(f) and str(data.index.tz) == "Europe/Berlin"
+    with pytest.raises(UsageError, match="--tz is empty"):
+        DataOptions(_args(data=[str(path)], tz=" "))
+    with pytest.raises(UsageError, match="--tz applies to CSV files"):
+        DataOptions(_args(data=["twinhouse_exp1:N2"], tz="UTC"))
+
+
 def _args(**kw):
     import argparse
 
@@ -542,6 +564,7 @@ def _args(**kw):
         map=[],
         range=[],
         time=None,
+        tz=None,
         sep=None,
         decimal=None,
         scale=[],

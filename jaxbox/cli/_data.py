@@ -68,6 +68,12 @@ def add_data_arguments(p) -> None:
         metavar="COLUMN",
         help="name of the time column (default: time)",
     )
+    p.add_argument(
+        "--tz",
+        metavar="ZONE",
+        help="time zone of the time stamps, e.g. Europe/Berlin: stamps without a UTC offset are "
+        "local clock time there, across daylight-saving changes",
+    )
     p.add_argument("--sep", metavar="CHAR", help="column separator of the CSV (default ',')")
     p.add_argument(
         "--decimal", metavar="CHAR", help="decimal mark of the CSV: '.' (default) or ','"
@@ -163,6 +169,10 @@ class DataOptions:
         self.time = args.time
         if self.time is not None and not self.time.strip():
             raise UsageError("--time is empty; give the name of the time column")
+        self.tz = getattr(args, "tz", None)
+        if self.tz is not None and not self.tz.strip():
+            raise UsageError("--tz is empty; give a time zone such as Europe/Berlin or UTC")
+        self.tz = None if self.tz is None else self.tz.strip()
         self.sep = separator(args.sep, "--sep")
         self.decimal = separator(args.decimal, "--decimal", ".,")
         if self.sep is not None and self.sep == (self.decimal or "."):
@@ -186,6 +196,7 @@ class DataOptions:
         return {
             "--map": self.columns,
             "--time": self.time,
+            "--tz": self.tz,
             "--sep": self.sep,
             "--decimal": self.decimal,
             "--scale": self.scale,
@@ -270,6 +281,7 @@ def load_data(spec: str, opts: DataOptions | None = None):
         decimal=opts.decimal,
         scale=opts.scale or None,
         counters=opts.counters or None,
+        tz=opts.tz,
     )
 
 

@@ -24,6 +24,7 @@ __all__ = [
     "check_kelvin",
     "check_missing",
     "check_order",
+    "localize",
     "check_regular",
     "fill_missing_rows",
     "segment_slices",
@@ -153,7 +154,8 @@ def _one_offset(text: pd.Series, name: str) -> pd.Series:
     warnings.warn(
         f"the time stamps in column {name!r} carry several UTC offsets ({shown}: a change to or "
         f"from daylight saving time?); they are taken at the offset of the first, "
-        f"{offset_text(first.utcoffset())}.",
+        f"{offset_text(first.utcoffset())} (to keep local time, pass the time zone, e.g. "
+        "tz='Europe/Berlin' (command line: --tz Europe/Berlin)).",
         DataWarning,
         stacklevel=5,
     )
@@ -162,6 +164,50 @@ def _one_offset(text: pd.Series, name: str) -> pd.Series:
 
 #: The UTC offset at the end of an ISO 8601 time stamp.
 _OFFSET = r"((?:[+-]\d\d:?\d\d)|Z)$"
+
+
+def localize(
+    index: pd.DatetimeIndex, tz: str, name: str, where: Where = _position
+) -> pd.DatetimeIndex:
+    """Time stamps in the time zone ``tz``: an IANA name (``"Europe/Berlin"``), ``"UTC"`` or a
+    fixed offset (``"+01:00"``).
+
+    Stamps without a UTC offset are the local clock time of ``tz``: across the end of daylight
+    saving time the repeated hour is told apart by its order (the first pass in summer time),
+    and a stamp in the hour the clocks skip at its start is refused. Stamps with an offset are
+    converted to ``tz``.
+    """
+    try:
+        pd.Timestamp("2000-01-01", tz=tz)
+    except (KeyError, ValueError, TypeError, LookupError):
+        raise DataError(
+            f"unknown time zone {tz!r}; give a name such as 'Europe/Berlin' or 'UTC', or a fixed "
+            "offset such as '+01:00'."
+        ) from None
+    if index.tz is not None:
+        return index.tz_convert(tz)
+    try:
+        return index.tz_localize(tz, ambiguous="infer", nonexistent="raise")
+    except (ValueError, TypeError):  # pytz's errors derive from these
+        pass
+    skipped = np.flatnonzero(index.tz_localize(tz, ambiguous="NaT", nonexistent="NaT").isna())
+    if skipped.size:
+        i = int(skipped[0])
+        try:
+            index[i : i + 1].tz_localize(tz, ambiguous=True, nonexistent="raise")
+        except (ValueError, TypeError):  # the clocks skip it
+            raise DataError(
+                f"the time stamp {index[i]} in column {name!r} at {where(i)} does not exist in "
+                f"{tz} (the clocks skip that hour at the start of daylight saving time); are the "
+                f"stamps local time in {tz}?"
+            ) from None
+        raise DataError(
+            f"the time stamp {index[i]} in column {name!r} at {where(i)} is in the hour that "
+            f"the end of daylight saving time repeats in {tz}, and its order does not tell which "
+            "pass it belongs to (the hour is not logged twice); drop that hour or give the "
+            "stamps their UTC offsets."
+        )
+    raise DataError(f"cannot read the time stamps in column {name!r} as local time in {tz}.")
 
 
 def offset_text(offset) -> str:
@@ -178,24 +224,40 @@ def check_order(index: pd.DatetimeIndex, where: Where = _position) -> None:
     back = np.flatnonzero(steps < 0)
     if back.size:
         i = int(back[0]) + 1
-        raise DataError(
+        text = (
             f"time stamps are not increasing: {where(i)} has {index[i]}, earlier than "
-            f"{index[i - 1]} at {where(i - 1)}; sort the data by time first."
+            f"{index[i - 1]} at {where(i - 1)}"
         )
+        if _clock_back(index, i, steps[i - 1]):
+            raise DataError(f"{text}: {_CLOCK_BACK}")
+        raise DataError(f"{text}; sort the data by time first.")
     same = np.flatnonzero(steps == 0)
     if same.size:
         i = int(same[0]) + 1
-        dst = ""
-        if index.tz is None and 0 <= index[i].hour <= 3 and index[i].month in (3, 4, 10, 11):
-            dst = (
-                " (the end of daylight saving time repeats an hour of local clock time: log in "
-                "UTC, or with UTC offsets such as +01:00, which are converted)"
-            )
-        raise DataError(
-            f"duplicate time stamp {index[i]} at {where(i - 1)} and {where(i)}"
-            f"{f' ({same.size} duplicates in all)' if same.size > 1 else ''}{dst}; drop or "
-            "average the duplicates first."
-        )
+        stamp = f"duplicate time stamp {index[i]} at {where(i - 1)} and {where(i)}"
+        stamp += f" ({same.size} duplicates in all)" if same.size > 1 else ""
+        if _clock_back(index, i, 0):
+            raise DataError(f"{stamp}: {_CLOCK_BACK}")
+        raise DataError(f"{stamp}; drop or average the duplicates first.")
+
+
+_CLOCK_BACK = (
+    "the end of daylight saving time repeats an hour of local clock time; pass the data's time "
+    "zone, e.g. tz='Europe/Berlin' (command line: --tz Europe/Berlin), to read the stamps as "
+    "local time there, or log in UTC."
+)
+
+
+def _clock_back(index: pd.DatetimeIndex, i: int, step_ns: int) -> bool:
+    """Whether naive stamps going back (or repeating) at ``i`` by at most an hour, early on a
+    night of March, April or September to November, look like clocks set back."""
+    hour_ns = 3600 * 10**9
+    return (
+        index.tz is None
+        and -hour_ns <= int(step_ns) <= 0
+        and 0 <= index[i].hour <= 3
+        and index[i].month in (3, 4, 9, 10, 11)
+    )
 
 
 def median_step(index: pd.DatetimeIndex) -> float:

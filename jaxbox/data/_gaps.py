@@ -119,11 +119,43 @@ def gap_note(data, columns: Sequence[str] | None = None) -> str | None:
         for c in bad[:6]
     )
     more = f", … ({len(bad) - 6} more)" if len(bad) > 6 else ""
-    return (
+    note = (
         f"the data have gaps: missing samples in {listed}{more}; in the windows used, input gaps "
         "are interpolated up to max_gap (command line --max-gap) and split the window into "
         "segments beyond, output gaps are masked."
     )
+    skipped = _skipped_hour(frame.index, holes.all(axis=1).to_numpy())
+    if skipped is not None:
+        note += (
+            f" The hour missing on Sunday {skipped} is where the clocks go forward to daylight "
+            "saving time: if the stamps are local clock time, pass the time zone, e.g. "
+            "tz='Europe/Berlin' (command line: --tz Europe/Berlin)."
+        )
+    return note
+
+
+def _skipped_hour(index, empty: np.ndarray) -> str | None:
+    """The first Sunday of March, April, September or October on which the rows missing from
+    naive time stamps ``index`` (``empty``: every column missing) are exactly one clock hour
+    before 04:00, the hour local clocks skip at the start of daylight saving time; else
+    ``None``."""
+    if index.tz is not None or not empty.any():
+        return None
+    days = index.normalize()
+    hours = np.asarray(index.hour)
+    for day in pd.unique(days[empty]):
+        if day.day_of_week != 6 or day.month not in (3, 4, 9, 10):
+            continue
+        on = np.asarray(days == day)
+        missing = on & empty
+        hour = hours[missing]
+        if hour.max() != hour.min() or hour[0] > 3:
+            continue
+        clock = on & (hours == hour[0])
+        around = on & ~empty & ((hours == hour[0] - 1) | (hours == hour[0] + 1))
+        if np.array_equal(missing, clock) and around.sum() >= 2:
+            return str(day.date())
+    return None
 
 
 def prepare_window(

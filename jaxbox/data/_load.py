@@ -17,7 +17,7 @@ from pathlib import Path
 import pandas as pd
 
 from ._args import check_mapping
-from ._checks import parse_time
+from ._checks import localize, parse_time
 from ._counters import check_counters
 from ._dataset import Dataset, validated_frame
 from ._errors import DataError, DataWarning, list_names
@@ -299,6 +299,7 @@ def load(
     decimal: str | None = None,
     scale: Mapping[str, float] | None = None,
     counters: Mapping[str, str] | None = None,
+    tz: str | None = None,
 ) -> Dataset:
     """Load monitoring data into a checked :class:`Dataset`.
 
@@ -330,6 +331,11 @@ def load(
             energy meter instead of a power: it becomes the mean power [W] of each sampling
             interval (the first row, the starting readings, is dropped; a gap where the counter
             falls or is missing).
+        tz: time zone of the time stamps, e.g. ``"Europe/Berlin"`` (or ``"UTC"``, ``"+01:00"``).
+            Stamps without a UTC offset are then read as local clock time there, across
+            daylight-saving changes (the hour repeated at the end of summer time told apart by
+            its order); stamps with offsets are converted to it. The data keep that zone.
+            Without ``tz`` naive stamps stay naive (a repeated hour is a duplicate).
 
     Always refused (whatever ``check``): duplicate column names, infinite values and absurd
     magnitudes (see :func:`jaxbox.data.check_finite`). The physical plausibility of the
@@ -372,6 +378,8 @@ def load(
     except (ValueError, TypeError):
         raise DataError(f"cannot read epoch={epoch!r} as a time stamp.") from None
     index = parse_time(pd.Series(values), time_name, epoch=origin, where=where)
+    if tz is not None:
+        index = localize(index, tz, time_name, where)
 
     frame = raw.drop(columns=[time_column]) if time_column is not None else raw
     frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)

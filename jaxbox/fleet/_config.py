@@ -7,6 +7,8 @@ A TOML file has up to four tables; every key is optional::
     time = "timestamp"          # time column (default "time")
     resample = "1h"             # average onto this grid
     scale = { Q_hea = 1000 }    # factors (after renaming), e.g. kW -> W
+    counters = { Q_hea = "kWh" }  # cumulative energy meters (after renaming) and their unit
+    tz = "Europe/Berlin"        # time zone of stamps without a UTC offset (local clock time)
     sep = ","
     decimal = "."
 
@@ -69,6 +71,8 @@ class FleetConfig:
         time: name of the time column (``None``: ``time``).
         resample: pandas frequency to average onto (``None``: as recorded).
         scale: canonical name -> factor.
+        counters: canonical name -> energy unit of a cumulative meter (``"kWh"``…).
+        tz: time zone of the time stamps (``None``: as written; see :func:`jaxbox.data.load`).
         sep, decimal: CSV separator and decimal mark.
         fraction: identification share of each building's data (without ``train``).
         train, valid: absolute (start, end) periods, the same for every building.
@@ -87,6 +91,8 @@ class FleetConfig:
     time: str | None = None
     resample: str | None = None
     scale: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    counters: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    tz: str | None = None
     sep: str | None = None
     decimal: str | None = None
     fraction: float = 0.5
@@ -140,6 +146,11 @@ class FleetConfig:
             raise FleetError(f"identify.margin must be in [0, 1), got {self.margin}")
         object.__setattr__(self, "columns", dict(self.columns))
         object.__setattr__(self, "scale", {k: float(v) for k, v in dict(self.scale).items()})
+        object.__setattr__(self, "counters", {k: str(v) for k, v in dict(self.counters).items()})
+        if self.tz is not None and (not isinstance(self.tz, str) or not self.tz.strip()):
+            raise FleetError(
+                f"data.tz must name a time zone such as 'Europe/Berlin', got {self.tz!r}"
+            )
 
     @property
     def fixed_model(self) -> str | None:
@@ -165,6 +176,8 @@ class FleetConfig:
             "time": self.time,
             "resample": self.resample,
             "scale": self.scale or None,
+            "counters": self.counters or None,
+            "tz": self.tz,
             "sep": self.sep,
             "decimal": self.decimal,
         }
@@ -177,7 +190,7 @@ class FleetConfig:
 
 
 _TABLES = {
-    "data": ("columns", "time", "resample", "scale", "sep", "decimal"),
+    "data": ("columns", "time", "resample", "scale", "counters", "tz", "sep", "decimal"),
     "windows": ("fraction", "train", "valid"),
     "identify": ("models", "starts", "seed", "max_steps", "criterion", "margin", "patience"),
     "run": ("partition_size", "reports"),

@@ -287,6 +287,78 @@ def test_stamps_with_offsets_are_converted_to_the_time_zone() -> None:
     assert ds.index[0] == utc[0] and ds.index[0].utcoffset() == pd.Timedelta("1h")
 
 
+def _seconds_frame(numbers) -> pd.DataFrame:
+    return pd.DataFrame({"time": numbers, "T_zon": 20.0 + 0.01 * np.arange(len(numbers))})
+
+
+STAMPS = pd.date_range("2024-01-30", periods=300, freq="10min")
+UNIX_S = np.asarray((STAMPS - pd.Timestamp("1970-01-01")) // pd.Timedelta(seconds=1))
+
+
+@pytest.mark.parametrize(("unit", "factor"), [("ms", 1000), ("us", 10**6)])
+def test_epoch_numbers_in_a_finer_unit_are_refused_naming_it(unit, factor) -> None:
+    """Milliseconds since 1970 read as seconds would be the year 55 000: a clear error that
+    names time_unit= (no pandas overflow), and with it the stamps are right."""
+    df = _seconds_frame(UNIX_S * factor)
+    with pytest.raises(
+        DataError, match=rf"reach the year \d+; they look like .*time_unit='{unit}'"
+    ):
+        load(df)
+    ds = load(df, time_unit=unit)
+    assert (ds.index == STAMPS).all() and ds.step == 600.0
+
+
+def test_epoch_numbers_in_a_coarser_unit_or_spreadsheet_days_are_a_warning() -> None:
+    """Numbers that read as seconds land in 1970 but make sense as minutes, or as spreadsheet
+    serial days: a warning naming the reading; seconds since an experiment's start stay
+    silent; an unknown unit is refused."""
+    with pytest.warns(DataWarning, match=r"start in 1970; if they are minutes .*time_unit='min'"):
+        load(_seconds_frame(UNIX_S // 60))
+    serial = ((STAMPS - pd.Timestamp("1899-12-30")) / pd.Timedelta(days=1)).to_numpy()
+    with pytest.warns(DataWarning, match=r"spreadsheet serial dates.*epoch='1899-12-30'"):
+        load(_seconds_frame(serial))
+    ds = load(_seconds_frame(serial), time_unit="D", epoch="1899-12-30")
+    assert np.all(np.abs(ds.index - STAMPS) < pd.Timedelta("1ms")) and ds.step == 600.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ds = load(_seconds_frame(600.0 * np.arange(300)))
+    assert ds.index[0] == pd.Timestamp("1970-01-01") and ds.step == 600.0
+    with pytest.raises(DataError, match=r"unknown time_unit 'fortnight'"):
+        load(_seconds_frame(UNIX_S), time_unit="fortnight")
+
+
+@pytest.mark.parametrize("fmt", ["%d/%m/%Y %H:%M", "%d.%m.%Y %H:%M", "%m/%d/%Y %I:%M %p"])
+def test_day_first_stamps_read_in_the_order_their_steps_say(fmt) -> None:
+    """31/01/2024 and 01/02/2024 day first, 01/31/2024 month first: each read onto the regular
+    grid it was written on (read month first, 02/01 would be a month after 01/01, the samples
+    between missing)."""
+    df = pd.DataFrame({"time": STAMPS.strftime(fmt), "T_zon": 20.0})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ds = load(df)
+    assert (ds.index == STAMPS).all() and ds.step == 600.0
+
+
+def test_dates_and_clock_times_in_two_columns() -> None:
+    """A clock-only time column is refused naming the pair; the pair is joined; without a
+    time column, the message suggests the pair; a signal mapped to the date column is
+    refused."""
+    df = pd.DataFrame(
+        {"Date": STAMPS.strftime("%d.%m.%Y"), "time": STAMPS.strftime("%H:%M"), "T_zon": 20.0}
+    )
+    with pytest.raises(DataError, match=r"clock times without dates \('00:00'\).*time=\["):
+        load(df)
+    ds = load(df, time=["Date", "time"])
+    assert (ds.index == STAMPS).all() and ds.columns == ("T_zon",)
+    renamed = df.rename(columns={"time": "Time"})
+    with pytest.raises(DataError, match=r"or time=\['Date', 'Time'\] \(command line: --tim"):
+        load(renamed)
+    with pytest.raises(DataError, match=r"which is the time column"):
+        load(renamed, time=["Date", "Time"], columns={"T_amb": "Date"})
+    with pytest.raises(DataError, match=r"time= takes one column name or two"):
+        load(renamed, time=["Date", "Time", "T_zon"])
+
+
 def test_a_row_of_units_under_the_header_is_skipped(tmp_path) -> None:
     """Exports often put units under the names: that line is skipped with a warning, and the
     line numbers of later errors still point into the file. A first row that holds a number is

@@ -158,8 +158,15 @@ def test_config_from_toml(tmp_path):
     path.write_text(
         '[data]\ncounters = { Q_hea = "kWh" }\ntz = "Europe/Berlin"\n', encoding="utf-8"
     )
-    cfg = load_config(path)
-    assert cfg.load_options() == {"counters": {"Q_hea": "kWh"}, "tz": "Europe/Berlin"}
+    cfg = load_config(path, time=["date", "clock"], time_unit="ms")
+    assert cfg.load_options() == {
+        "time": ["date", "clock"],
+        "time_unit": "ms",
+        "counters": {"Q_hea": "kWh"},
+        "tz": "Europe/Berlin",
+    }
+    with pytest.raises(FleetError, match="data.time must be a column or"):
+        load_config(time=["date"])
     with pytest.raises(FleetError, match="data.tz must name a time zone"):
         load_config(tz=" ")
     path.write_text("[identify]\nstart = 3\n", encoding="utf-8")

@@ -556,6 +556,35 @@ def test_local_clock_time_read_with_tz(tmp_path):
         DataOptions(_args(data=["twinhouse_exp1:N2"], tz="UTC"))
 
 
+def test_time_options_of_the_command_line(tmp_path):
+    """--time DATE,CLOCK joins two columns, --time-unit and --epoch read numeric stamps; bad
+    values are usage errors before anything is loaded."""
+    from jaxbox.cli._common import UsageError
+    from jaxbox.cli._data import DataOptions, load_data
+
+    f = frame()
+    stamps = pd.DatetimeIndex(f.pop("time"))
+    f.insert(0, "clock", stamps.strftime("%H:%M"))
+    f.insert(0, "day", stamps.strftime("%d.%m.%Y"))
+    path = csv(tmp_path / "two.csv", f)
+    opts = DataOptions(_args(data=[str(path)], time="day, clock"))
+    assert opts.time == ["day", "clock"]
+    assert (load_data(str(path), opts).index == stamps).all()
+    g = frame()
+    g["time"] = (stamps - pd.Timestamp("1899-12-30")) / pd.Timedelta(days=1)
+    path = csv(tmp_path / "serial.csv", g)
+    opts = DataOptions(_args(data=[str(path)], time_unit="D", epoch="1899-12-30"))
+    data = load_data(str(path), opts)
+    assert np.all(np.abs(data.index - stamps) < pd.Timedelta("1ms"))
+    for bad, match in [
+        (dict(time="a,b,c"), "give one column, or two as DATE,CLOCK"),
+        (dict(time_unit="weeks"), "--time-unit 'weeks' is not one of s, ms"),
+        (dict(epoch="yesterday-ish"), "--epoch 'yesterday-ish' is not a time stamp"),
+    ]:
+        with pytest.raises(UsageError, match=match):
+            DataOptions(_args(data=[str(path)], **bad))
+
+
 def _args(**kw):
     import argparse
 

@@ -66,7 +66,19 @@ def add_data_arguments(p) -> None:
         "--time-column",
         dest="time",
         metavar="COLUMN",
-        help="name of the time column (default: time)",
+        help="name of the time column (default: time), or DATE,CLOCK for a date column and a "
+        "clock column",
+    )
+    p.add_argument(
+        "--time-unit",
+        metavar="UNIT",
+        help="unit of a numeric time column: s (default), ms, us, ns, min, h or D",
+    )
+    p.add_argument(
+        "--epoch",
+        metavar="STAMP",
+        help="time of 0 of a numeric time column (default 1970-01-01; 1899-12-30 with "
+        "--time-unit D for spreadsheet serial dates)",
     )
     p.add_argument(
         "--tz",
@@ -169,6 +181,31 @@ class DataOptions:
         self.time = args.time
         if self.time is not None and not self.time.strip():
             raise UsageError("--time is empty; give the name of the time column")
+        if self.time is not None and "," in self.time:
+            parts = [part.strip() for part in self.time.split(",")]
+            if len(parts) != 2 or not all(parts):
+                raise UsageError(
+                    f"--time {self.time!r}: give one column, or two as DATE,CLOCK (e.g. "
+                    "--time date,time)"
+                )
+            self.time = parts
+        self.time_unit = getattr(args, "time_unit", None)
+        if self.time_unit is not None:
+            from ..data._checks import TIME_UNITS
+
+            self.time_unit = self.time_unit.strip()
+            if self.time_unit not in TIME_UNITS:
+                raise UsageError(
+                    f"--time-unit {self.time_unit!r} is not one of {', '.join(TIME_UNITS)}"
+                )
+        self.epoch = getattr(args, "epoch", None)
+        if self.epoch is not None:
+            import pandas as pd
+
+            try:
+                pd.Timestamp(self.epoch)
+            except (ValueError, TypeError):
+                raise UsageError(f"--epoch {self.epoch!r} is not a time stamp") from None
         self.tz = getattr(args, "tz", None)
         if self.tz is not None and not self.tz.strip():
             raise UsageError("--tz is empty; give a time zone such as Europe/Berlin or UTC")
@@ -196,6 +233,8 @@ class DataOptions:
         return {
             "--map": self.columns,
             "--time": self.time,
+            "--time-unit": self.time_unit,
+            "--epoch": self.epoch,
             "--tz": self.tz,
             "--sep": self.sep,
             "--decimal": self.decimal,
@@ -282,6 +321,8 @@ def load_data(spec: str, opts: DataOptions | None = None):
         scale=opts.scale or None,
         counters=opts.counters or None,
         tz=opts.tz,
+        **({"time_unit": opts.time_unit} if opts.time_unit else {}),
+        **({"epoch": opts.epoch} if opts.epoch else {}),
     )
 
 

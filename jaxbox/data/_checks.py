@@ -68,17 +68,101 @@ def fmt_seconds(seconds: float) -> str:
     return f"{seconds} s"
 
 
+#: Units of a numeric time column: their length [s].
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0, "h": 3600.0, "D": 86400.0}
+_UNIT_NAMES = {
+    "s": "seconds",
+    "ms": "milliseconds",
+    "us": "microseconds",
+    "ns": "nanoseconds",
+    "min": "minutes",
+    "h": "hours",
+    "D": "days",
+}
+#: Years in which monitoring data plausibly lie, for guessing the unit of numeric time stamps.
+_PLAUSIBLE_YEARS = (1980, 2070)
+#: The epoch of spreadsheet serial dates (days since 1899-12-30).
+SPREADSHEET_EPOCH = pd.Timestamp("1899-12-30")
+
+
+def _years(first: float, last: float, unit: str, epoch: pd.Timestamp) -> tuple[float, float]:
+    """The years (fractional) of the first and last numbers read in ``unit`` since ``epoch``."""
+    base = epoch.year + (epoch.day_of_year - 1) / 365.25
+    scale = TIME_UNITS[unit] / (365.25 * 86400.0)
+    return base + first * scale, base + last * scale
+
+
+def _unit_guess(first: float, last: float) -> str | None:
+    """The option text of the first reading of numbers that puts them in plausible years."""
+    lo, hi = _PLAUSIBLE_YEARS
+    candidates = [("D", SPREADSHEET_EPOCH)] + [
+        (u, pd.Timestamp("1970-01-01")) for u in ("ms", "us", "ns", "min", "h")
+    ]
+    for unit, epoch in candidates:
+        a, b = _years(first, last, unit, epoch)
+        if lo <= a <= hi and lo <= b <= hi:
+            if epoch == SPREADSHEET_EPOCH:
+                return (
+                    "days since 1899-12-30 (spreadsheet serial dates): pass time_unit='D', "
+                    "epoch='1899-12-30' (command line: --time-unit D --epoch 1899-12-30)"
+                )
+            return (
+                f"{_UNIT_NAMES[unit]} since 1970-01-01: pass time_unit='{unit}' (command line: "
+                f"--time-unit {unit})"
+            )
+    return None
+
+
+def _numeric_time(
+    values: pd.Series, name: str, epoch: pd.Timestamp, unit: str, where: Where
+) -> pd.Series:
+    """Numbers of ``unit`` since ``epoch`` as time stamps; numbers that cannot be in that unit
+    (beyond the years pandas holds, or past 2200) are refused and a suspicious reading (before
+    1980 from the default epoch, where another unit gives plausible years) is a warning, both
+    naming the unit the numbers look like."""
+    if unit not in TIME_UNITS:
+        raise DataError(
+            f"unknown time_unit {unit!r}; use one of {', '.join(map(repr, TIME_UNITS))}."
+        )
+    numbers = values.to_numpy(dtype=np.float64, na_value=np.nan)
+    bad = np.flatnonzero(~np.isfinite(numbers))
+    if bad.size:
+        i = int(bad[0])
+        raise DataError(
+            f"the time column {name!r} has no valid value at {where(i)} ({values.iloc[i]!r}); "
+            "fill or drop that row."
+        )
+    first, last = float(np.min(numbers)), float(np.max(numbers))
+    years = _years(first, last, unit, epoch)
+    read = f"the numbers in the time column {name!r} read as {_UNIT_NAMES[unit]} since {epoch}"
+    guess = _unit_guess(first, last)
+    if max(years) > 2200 or min(years) < 1678:
+        raise DataError(
+            f"{read} reach the year {int(max(years) if max(years) > 2200 else min(years))}"
+            + (f"; they look like {guess}." if guess else "; give the right time_unit= or epoch=.")
+        )
+    if years[0] < _PLAUSIBLE_YEARS[0] and epoch == pd.Timestamp("1970-01-01") and guess:
+        warnings.warn(
+            f"{read} start in {int(years[0])}; if they are {guess}.",
+            DataWarning,
+            stacklevel=5,
+        )
+    return pd.Series(epoch + pd.to_timedelta(numbers * TIME_UNITS[unit], unit="s"))
+
+
 def parse_time(
     values: pd.Series,
     name: str,
     *,
     epoch: pd.Timestamp,
     where: Where = _position,
+    unit: str = "s",
 ) -> pd.DatetimeIndex:
     """Turn a column of time stamps into a DatetimeIndex named ``time`` (nanosecond unit).
 
-    Date-time strings (ISO 8601 or any format pandas can infer) and datetime values are parsed
-    as they are; numbers are seconds since ``epoch``.
+    Date-time strings (ISO 8601 or any format pandas can infer, day first where the order of
+    the stamps says so) and datetime values are parsed as they are; numbers are ``unit`` (a key
+    of :data:`TIME_UNITS`, default seconds) since ``epoch``.
     """
     if isinstance(values.dtype, pd.DatetimeTZDtype) or pd.api.types.is_datetime64_dtype(values):
         parsed = pd.Series(pd.DatetimeIndex(values))
@@ -87,15 +171,7 @@ def parse_time(
             f"the time column {name!r} holds booleans; give date-time strings or seconds."
         )
     elif pd.api.types.is_numeric_dtype(values):
-        seconds = values.to_numpy(dtype=np.float64, na_value=np.nan)
-        bad = np.flatnonzero(~np.isfinite(seconds))
-        if bad.size:
-            i = int(bad[0])
-            raise DataError(
-                f"the time column {name!r} has no valid value at {where(i)} ({values.iloc[i]!r}); "
-                "fill or drop that row."
-            )
-        parsed = pd.Series(epoch + pd.to_timedelta(seconds, unit="s"))
+        parsed = _numeric_time(values, name, epoch, unit, where)
     else:
         parsed = _parse_strings(values, name)
     missing = np.flatnonzero(parsed.isna().to_numpy())
@@ -119,13 +195,38 @@ def _parse_strings(values: pd.Series, name: str) -> pd.Series:
         iso = _one_offset(text, name)
     if not iso.isna().any():
         return iso
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            inferred = pd.to_datetime(text, errors="coerce")
-    except (ValueError, TypeError):
+    clock = text.str.strip().str.fullmatch(r"\d{1,2}:\d\d(:\d\d(\.\d*)?)?\s*([aApP][mM])?")
+    if clock.fillna(False).all():
+        raise DataError(
+            f"the time column {name!r} holds clock times without dates ({text.iloc[0]!r}); "
+            f"join the column of dates to it: time=['your_date_column', {name!r}] (command "
+            f"line: --time your_date_column,{name})."
+        )
+    readings = []
+    for dayfirst in (False, True):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)
+                readings.append(pd.to_datetime(text, errors="coerce", dayfirst=dayfirst))
+        except (ValueError, TypeError):
+            pass
+    if not readings:
         return iso
+    # day first (31/01/2024) where that reading is the one whose order and steps make sense:
+    # read month first, 02/01 is a month after 01/01 and the samples between are missing
+    inferred = min(readings, key=_disorder)
     return inferred if inferred.isna().sum() < iso.isna().sum() else iso
+
+
+def _disorder(stamps: pd.Series) -> tuple[int, int, int]:
+    """How badly parsed time stamps fit a time series: unparsed stamps, steps back, and steps
+    other than the median step."""
+    given = stamps.dropna()
+    steps = np.diff(pd.DatetimeIndex(given).as_unit("ns").asi8)
+    if steps.size == 0:
+        return int(stamps.isna().sum()), 0, 0
+    usual = np.median(steps)
+    return int(stamps.isna().sum()), int(np.sum(steps <= 0)), int(np.sum(steps != usual))
 
 
 def _one_offset(text: pd.Series, name: str) -> pd.Series:

@@ -11,7 +11,7 @@ import math
 import os
 import re
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -183,10 +183,26 @@ def _units_row(frame: pd.DataFrame, decimal: str) -> list[str] | None:
 
 
 def _time_values(
-    raw: pd.DataFrame, time: str | None, from_frame: bool
-) -> tuple[pd.Series | pd.Index, str, str | None]:
-    """Return (time values, their name, the column to drop or None when from the index)."""
+    raw: pd.DataFrame, time: str | Sequence[str] | None, from_frame: bool
+) -> tuple[pd.Series | pd.Index, str, str | list[str] | None]:
+    """Return (time values, their name, the column(s) to drop or None when from the index).
+    ``time`` may name a date column and a clock column, joined with a space."""
     names = [str(name) for name in raw.columns]
+    if isinstance(time, (list, tuple)):
+        if len(time) != 2 or not all(isinstance(t, str) for t in time):
+            raise DataError(
+                f"time= takes one column name or two, a date and a clock column, e.g. "
+                f"time=['date', 'time']; got {time!r}."
+            )
+        absent = [t for t in time if t not in names]
+        if absent:
+            raise DataError(
+                f"no time column {absent[0]!r}; columns: {list_names(names)}; pass time= with "
+                "the date and clock columns among them."
+            )
+        date, clock = time
+        joined = raw[date].astype("string").str.strip() + " " + raw[clock].astype("string")
+        return joined, f"{date} + {clock}", list(time)
     if time is not None:
         if time in names:
             return raw[time], time, time
@@ -210,14 +226,22 @@ def _time_values(
                 f"the data have one column {names[0][:60]!r}: a file separated by {option}? "
                 f"read it with sep={option} (command line: --sep {option})."
             )
+    dates = [n for n in likely if "date" in n.lower()]
+    clocks = [n for n in likely if "date" not in n.lower()]
+    pair = ""
+    if dates and clocks:  # the date and the clock in two columns
+        pair = (
+            f", or time=[{dates[0]!r}, {clocks[0]!r}] (command line: --time "
+            f"{dates[0]},{clocks[0]}) for a date and a clock column"
+        )
     raise DataError(
-        f"no time column found (tried {tried}{extra}); pass time='your_time_column'{hint}; "
-        f"columns: {list_names(names)}."
+        f"no time column found (tried {tried}{extra}); pass time='your_time_column'{hint}"
+        f"{pair}; columns: {list_names(names)}."
     )
 
 
 def _renaming(
-    columns: Mapping[str, str] | None, signals: list[str], time_name: str
+    columns: Mapping[str, str] | None, signals: list[str], time_names: Sequence[str]
 ) -> dict[str, str]:
     """Validate ``columns`` (canonical -> user name) and return user -> canonical."""
     if not columns:
@@ -229,7 +253,7 @@ def _renaming(
         )
     renaming: dict[str, str] = {}
     for canonical, user in columns.items():
-        if user == time_name:
+        if user in time_names:
             raise DataError(
                 f"columns maps {canonical!r} to {user!r}, which is the time column; map a "
                 "signal column instead."
@@ -290,11 +314,12 @@ def _factors(scale: Mapping[str, float] | None, names: list[str]) -> dict[str, f
 def load(
     source: str | os.PathLike[str] | pd.DataFrame,
     *,
-    time: str | None = None,
+    time: str | Sequence[str] | None = None,
     columns: Mapping[str, str] | None = None,
     resample: str | None = None,
     check: bool = True,
     epoch: str | pd.Timestamp = "1970-01-01",
+    time_unit: str = "s",
     sep: str | None = None,
     decimal: str | None = None,
     scale: Mapping[str, float] | None = None,
@@ -306,9 +331,12 @@ def load(
     Args:
         source: path of a CSV file (with a header; ``.gz`` etc. decompressed by extension) or a
             pandas DataFrame.
-        time: name of the time column. By default the column ``time``, or else the
-            DatetimeIndex of a DataFrame. Date-time strings are parsed (ISO 8601 preferred);
-            numbers are **seconds since** ``epoch`` (default 1970-01-01 00:00). Each time stamp
+        time: name of the time column, or the names of a date column and a clock column
+            (``["date", "time"]``, joined). By default the column ``time``, or else the
+            DatetimeIndex of a DataFrame. Date-time strings are parsed (ISO 8601 preferred;
+            31/01/2024 read day first where the order of the stamps says so); numbers are
+            ``time_unit`` since ``epoch`` (default **seconds** since 1970-01-01 00:00; numbers
+            that cannot be seconds are refused naming the unit they look like). Each time stamp
             should mark the end of its averaging interval.
         columns: canonical name -> your column name, e.g. ``{"T_zon": "living_T"}``; those
             columns are renamed, all others are kept as they are. Units must be those of the
@@ -320,7 +348,10 @@ def load(
             values are always required. Gaps (NaN) are kept and noted with a
             :class:`DataWarning`; they are judged in the windows used
             (:func:`jaxbox.data.prepare_window`).
-        epoch: time of ``0`` for a numeric time column.
+        epoch: time of ``0`` for a numeric time column (``"1899-12-30"`` with
+            ``time_unit="D"`` for spreadsheet serial dates).
+        time_unit: unit of a numeric time column: ``"s"``, ``"ms"``, ``"us"``, ``"ns"``,
+            ``"min"``, ``"h"`` or ``"D"``.
         sep: column separator of a CSV file (default ``","``; e.g. ``";"`` or ``"\\t"``). A
             file separated by semicolons or tabs read without it is refused with this advice.
         decimal: decimal mark of a CSV file (default ``"."``; ``","`` with ``sep=";"``).
@@ -371,17 +402,18 @@ def load(
         raise DataError(f"two columns are named {name!r} in {label}; rename or drop one of them.")
 
     values, time_name, time_column = _time_values(raw, time, from_frame)
-    signals = [str(name) for name in raw.columns if name != time_column]
-    renaming = _renaming(columns, signals, time_name)
+    dropped = [time_column] if isinstance(time_column, str) else list(time_column or [])
+    signals = [str(name) for name in raw.columns if name not in dropped]
+    renaming = _renaming(columns, signals, dropped or [time_name])
     try:
         origin = pd.Timestamp(epoch)
     except (ValueError, TypeError):
         raise DataError(f"cannot read epoch={epoch!r} as a time stamp.") from None
-    index = parse_time(pd.Series(values), time_name, epoch=origin, where=where)
+    index = parse_time(pd.Series(values), time_name, epoch=origin, where=where, unit=time_unit)
     if tz is not None:
         index = localize(index, tz, time_name, where)
 
-    frame = raw.drop(columns=[time_column]) if time_column is not None else raw
+    frame = raw.drop(columns=dropped) if dropped else raw
     frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)
     frame = frame.set_axis(index, axis=0)
     factors = _factors(scale, [str(name) for name in frame.columns])

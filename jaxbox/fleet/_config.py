@@ -4,7 +4,9 @@ A TOML file has up to four tables; every key is optional::
 
     [data]                      # how each building's file is read (see jaxbox.data.load)
     columns = { T_zon = "indoor", Q_hea = "heating_kW" }   # canonical name = your column
-    time = "timestamp"          # time column (default "time")
+    time = "timestamp"          # time column (default "time"), or ["date", "clock"]
+    time_unit = "s"             # unit of a numeric time column (s, ms, us, ns, min, h, D)
+    epoch = "1970-01-01"        # time 0 of a numeric time column
     resample = "1h"             # average onto this grid
     scale = { Q_hea = 1000 }    # factors (after renaming), e.g. kW -> W
     counters = { Q_hea = "kWh" }  # cumulative energy meters (after renaming) and their unit
@@ -68,7 +70,9 @@ class FleetConfig:
 
     Attributes:
         columns: canonical name -> column name in the files.
-        time: name of the time column (``None``: ``time``).
+        time: name of the time column (``None``: ``time``), or a date and a clock column.
+        time_unit, epoch: unit and time 0 of a numeric time column (``None``: seconds since
+            1970-01-01).
         resample: pandas frequency to average onto (``None``: as recorded).
         scale: canonical name -> factor.
         counters: canonical name -> energy unit of a cumulative meter (``"kWh"``…).
@@ -88,7 +92,9 @@ class FleetConfig:
     """
 
     columns: Mapping[str, str] = dataclasses.field(default_factory=dict)
-    time: str | None = None
+    time: str | tuple[str, str] | None = None
+    time_unit: str | None = None
+    epoch: str | None = None
     resample: str | None = None
     scale: Mapping[str, float] = dataclasses.field(default_factory=dict)
     counters: Mapping[str, str] = dataclasses.field(default_factory=dict)
@@ -146,6 +152,10 @@ class FleetConfig:
             raise FleetError(f"identify.margin must be in [0, 1), got {self.margin}")
         object.__setattr__(self, "columns", dict(self.columns))
         object.__setattr__(self, "scale", {k: float(v) for k, v in dict(self.scale).items()})
+        if isinstance(self.time, list | tuple):
+            if len(self.time) != 2 or not all(isinstance(t, str) and t for t in self.time):
+                raise FleetError(f"data.time must be a column or [date, clock], got {self.time!r}")
+            object.__setattr__(self, "time", tuple(self.time))
         object.__setattr__(self, "counters", {k: str(v) for k, v in dict(self.counters).items()})
         if self.tz is not None and (not isinstance(self.tz, str) or not self.tz.strip()):
             raise FleetError(
@@ -173,7 +183,9 @@ class FleetConfig:
         """Keyword arguments of :func:`jaxbox.data.load`."""
         out = {
             "columns": self.columns or None,
-            "time": self.time,
+            "time": list(self.time) if isinstance(self.time, tuple) else self.time,
+            "time_unit": self.time_unit,
+            "epoch": self.epoch,
             "resample": self.resample,
             "scale": self.scale or None,
             "counters": self.counters or None,
@@ -190,7 +202,18 @@ class FleetConfig:
 
 
 _TABLES = {
-    "data": ("columns", "time", "resample", "scale", "counters", "tz", "sep", "decimal"),
+    "data": (
+        "columns",
+        "time",
+        "time_unit",
+        "epoch",
+        "resample",
+        "scale",
+        "counters",
+        "tz",
+        "sep",
+        "decimal",
+    ),
     "windows": ("fraction", "train", "valid"),
     "identify": ("models", "starts", "seed", "max_steps", "criterion", "margin", "patience"),
     "run": ("partition_size", "reports"),

@@ -359,6 +359,28 @@ def test_dates_and_clock_times_in_two_columns() -> None:
         load(renamed, time=["Date", "Time", "T_zon"])
 
 
+def test_export_quirks_of_csv_files(tmp_path) -> None:
+    """Spaces around the names and a separator at the end of every line are tidied away; a
+    header repeated inside the file, a summary row at its end and a spreadsheet workbook are
+    refused, each saying what it is."""
+    body = frame(n=6)
+    text = body.to_csv(index=False)
+    path = tmp_path / "export.csv"
+    path.write_text(text.replace("time,T_zon,Q_hea", "time , T_zon,Q_hea ").replace("\n", ",\n"))
+    ds = load(path)
+    assert ds.columns == ("T_zon", "Q_hea") and len(ds) == 6
+    path.write_text(text + text.replace("2020", "2021"))
+    with pytest.raises(DataError, match=r"'time' .* \(line 8 of export.csv\): the header repeated"):
+        load(path)
+    path.write_text(text + "Total,120,3000\n")
+    with pytest.raises(DataError, match=r"'Total' .*, the last row: a summary line\? drop it"):
+        load(path)
+    book = tmp_path / "data.xlsx"
+    book.write_bytes(b"PK\x03\x04" + bytes(100))
+    with pytest.raises(DataError, match=r"spreadsheet workbook, not a CSV.*pd.read_excel"):
+        load(book)
+
+
 def test_a_row_of_units_under_the_header_is_skipped(tmp_path) -> None:
     """Exports often put units under the names: that line is skipped with a warning, and the
     line numbers of later errors still point into the file. A first row that holds a number is

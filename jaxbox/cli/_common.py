@@ -156,6 +156,7 @@ _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
         "save it as UTF-8 text",
     ),
     (re.compile(r",? or read it with pandas yourself and pass the DataFrame"), ""),
+    (re.compile(r",? or read it with pd\.read_excel\(\.\.\.\) and pass the DataFrame"), ""),
     (re.compile(r",? or parse the column yourself and pass a DataFrame with a DatetimeIndex"), ""),
     (re.compile(r"\(e\.g\. pd\.to_datetime\(\.\.\., utc=True\)\) and pass a DataFrame"), ""),
     (re.compile(r"\bcolumns=(?= \(canonical)"), "--map"),

@@ -177,11 +177,15 @@ def parse_time(
     missing = np.flatnonzero(parsed.isna().to_numpy())
     if missing.size:
         i = int(missing[0])
+        text = f"cannot parse the time stamp {values.iloc[i]!r} in column {name!r} at {where(i)}"
+        text += f" ({missing.size} unparseable in all)" if missing.size > 1 else ""
+        if str(values.iloc[i]).strip() == name:
+            raise DataError(f"{text}: the header repeated (files joined?); drop those lines.")
+        if missing.size == 1 and i == len(values) - 1 and len(values) > 2:
+            raise DataError(f"{text}, the last row: a summary line? drop it.")
         raise DataError(
-            f"cannot parse the time stamp {values.iloc[i]!r} in column {name!r} at {where(i)}"
-            f"{f' ({missing.size} unparseable in all)' if missing.size > 1 else ''}; use ISO 8601 "
-            "('2013-08-21 00:10:00') or parse the column yourself and pass a DataFrame with a "
-            "DatetimeIndex."
+            f"{text}; use ISO 8601 ('2013-08-21 00:10:00') or parse the column yourself and pass "
+            "a DataFrame with a DatetimeIndex."
         )
     index = pd.DatetimeIndex(parsed, name="time")
     return index.as_unit("ns")

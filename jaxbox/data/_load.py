@@ -114,6 +114,7 @@ def _read_csv(
             f"the column separator and the decimal mark are both {options['sep']!r}; with "
             "decimal=',' pass sep=';' (command line: --sep ';' --decimal ',')."
         )
+    _refuse_spreadsheet(path)
     _sniff(path, sep, decimal)
     try:
         names = pd.read_csv(path, header=None, nrows=1, dtype=str, **options)
@@ -151,6 +152,42 @@ def _read_csv(
         stacklevel=3,
     )
     return pd.read_csv(path, skiprows=[1], **options), 1
+
+
+#: The first bytes of spreadsheet workbooks: a zip archive (.xlsx, .ods) or an OLE2 file (.xls).
+_WORKBOOK_MAGIC = (b"PK\x03\x04", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1")
+
+
+def _refuse_spreadsheet(path: Path) -> None:
+    """A spreadsheet workbook given as the data is refused, saying how to read it."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+    except OSError:
+        return
+    if path.suffix.lower() in (".xlsx", ".xlsm", ".xls", ".ods") or head.startswith(
+        _WORKBOOK_MAGIC
+    ):
+        if path.suffix.lower() in (".gz", ".zip", ".bz2", ".xz") and head.startswith(b"PK"):
+            return  # a zipped CSV, which pandas reads
+        raise DataError(
+            f"{str(path)!r} is a spreadsheet workbook, not a CSV file; save the sheet as CSV "
+            "(UTF-8), or read it with pd.read_excel(...) and pass the DataFrame."
+        )
+
+
+def _tidy_header(raw: pd.DataFrame) -> pd.DataFrame:
+    """Column names of a CSV without the spaces around them (``time, T_zon``), and without the
+    empty columns of a separator at the end of every line (``Unnamed: 3``)."""
+    names = [str(name).strip() for name in raw.columns]
+    empty = [
+        name
+        for name, column in zip(raw.columns, names, strict=True)
+        if re.fullmatch(r"Unnamed: \d+", column) and raw[name].isna().all()
+    ]
+    return raw.drop(columns=empty).set_axis(
+        [n for name, n in zip(raw.columns, names, strict=True) if name not in empty], axis=1
+    )
 
 
 def _is_number(text: object, decimal: str) -> bool:
@@ -388,6 +425,7 @@ def load(
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
         raw, skipped = _read_csv(path, sep, decimal)
+        raw = _tidy_header(raw)
         label = path.name
 
         def where(i: int) -> str:

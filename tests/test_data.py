@@ -322,7 +322,11 @@ def test_epoch_numbers_in_a_coarser_unit_or_spreadsheet_days_are_a_warning() -> 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         ds = load(_seconds_frame(600.0 * np.arange(300)))
+        # hours 8 to 12 of an experiment: read as days since 1899 they are 1982 … 2021, but
+        # ten-minute steps are not 600 days
+        late = load(_seconds_frame(30000.0 + 600.0 * np.arange(25)))
     assert ds.index[0] == pd.Timestamp("1970-01-01") and ds.step == 600.0
+    assert late.step == 600.0
     with pytest.raises(DataError, match=r"unknown time_unit 'fortnight'"):
         load(_seconds_frame(UNIX_S), time_unit="fortnight")
 

@@ -92,15 +92,17 @@ def _years(first: float, last: float, unit: str, epoch: pd.Timestamp) -> tuple[f
     return base + first * scale, base + last * scale
 
 
-def _unit_guess(first: float, last: float) -> str | None:
-    """The option text of the first reading of numbers that puts them in plausible years."""
+def _unit_guess(first: float, last: float, step: float) -> str | None:
+    """The option text of the first reading of numbers (``step``: their median difference) that
+    puts them in plausible years with a plausible sampling step (0.1 s to a day)."""
     lo, hi = _PLAUSIBLE_YEARS
     candidates = [("D", SPREADSHEET_EPOCH)] + [
         (u, pd.Timestamp("1970-01-01")) for u in ("ms", "us", "ns", "min", "h")
     ]
     for unit, epoch in candidates:
         a, b = _years(first, last, unit, epoch)
-        if lo <= a <= hi and lo <= b <= hi:
+        seconds = step * TIME_UNITS[unit]
+        if lo <= a <= hi and lo <= b <= hi and (np.isnan(seconds) or 0.1 <= seconds <= 86400):
             if epoch == SPREADSHEET_EPOCH:
                 return (
                     "days since 1899-12-30 (spreadsheet serial dates): pass time_unit='D', "
@@ -135,7 +137,8 @@ def _numeric_time(
     first, last = float(np.min(numbers)), float(np.max(numbers))
     years = _years(first, last, unit, epoch)
     read = f"the numbers in the time column {name!r} read as {_UNIT_NAMES[unit]} since {epoch}"
-    guess = _unit_guess(first, last)
+    step = float(np.median(np.diff(numbers))) if numbers.size > 1 else float("nan")
+    guess = _unit_guess(first, last, step)
     if max(years) > 2200 or min(years) < 1678:
         raise DataError(
             f"{read} reach the year {int(max(years) if max(years) > 2200 else min(years))}"

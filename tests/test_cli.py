@@ -241,3 +241,22 @@ def test_select_writes_its_outputs_at_once(csv_file, capsys, tmp_path):
     assert doc["files"]["report"] == str(out / "report.html")
     back = GreyBox.load(out / "greybox")
     assert list(back.cases) == [row["case"] for row in doc["table"]]
+
+
+def test_a_warning_is_given_once_per_command(capsys):
+    """The same warning raised twice in one command (a window prepared twice) is one line."""
+    import importlib
+    import warnings
+
+    _main = importlib.import_module("jaxbox.cli._main")
+    _main._SHOWN.clear()
+    for _ in range(2):
+        _main._one_line_warning(UserWarning("gaps in 'T_amb'"), UserWarning, "x.py", 1)
+    _main._one_line_warning(UserWarning("gaps in 'T_zon'"), UserWarning, "x.py", 1)
+    assert capsys.readouterr().err.splitlines() == [
+        "warning: gaps in 'T_amb'",
+        "warning: gaps in 'T_zon'",
+    ]
+    with warnings.catch_warnings():  # a new command starts afresh
+        assert main(["models", "--json"]) == 0
+    assert not _main._SHOWN

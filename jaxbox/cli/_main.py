@@ -141,6 +141,7 @@ def _run(argv: list[str] | None) -> int:
         return 0
     from .. import enable_x64
 
+    _SHOWN.clear()
     with warnings.catch_warnings():
         warnings.showwarning = _one_line_warning
         enable_x64()
@@ -150,9 +151,17 @@ def _run(argv: list[str] | None) -> int:
     return code
 
 
+#: the warnings of this command given so far (each is given once)
+_SHOWN: set[str] = set()
+
+
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """Warnings as one line ``warning: …`` in command-line terms (no file, line, source)."""
-    print(f"warning: {cli_message(str(message))}", file=sys.stderr, flush=True)
+    """Warnings as one line ``warning: …`` in command-line terms (no file, line, source), each
+    once per command (a window prepared twice warns twice)."""
+    text = f"warning: {cli_message(str(message))}"
+    if text not in _SHOWN:
+        _SHOWN.add(text)
+        print(text, file=sys.stderr, flush=True)
 
 
 #: what diffrax says when an adaptive simulation runs out of steps

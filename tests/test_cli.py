@@ -189,7 +189,11 @@ def test_fit_several_files_in_one_batch(csv_file, capsys, tmp_path):
     frame.to_csv(gappy, index=False)
     assert main(["fit", str(csv_file), str(gappy), *common]) == 0  # an output gap is masked
     err = capsys.readouterr().err
-    assert err.startswith("warning: the data have gaps") and "'T_zon' (1, the first at " in err
+    # the warnings of several DATA name the file they are about
+    assert (
+        err.startswith(f"warning: {gappy}: the data have gaps") and "'T_zon' (1, the first" in err
+    )
+    assert all(line.startswith(f"warning: {gappy}: ") for line in err.splitlines()), err
 
 
 def test_command_line_keeps_a_persistent_compilation_cache(tmp_path):

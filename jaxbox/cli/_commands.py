@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ._common import (
     UsageError,
+    about,
     bounds,
     check_fixed_in_range,
     check_interrupted,
@@ -114,6 +115,7 @@ def models_command(args) -> int:
 def fit_command(args) -> int:
     """``jaxbox fit DATA… --model NAME``: fit, cross-validate, print (``--json``: one document)."""
     from ..fit import fit_batch
+    from ..fit._batch import fit_data
     from ..models import get_model
     from ..validate import validate
 
@@ -160,33 +162,40 @@ def fit_command(args) -> int:
         "homotopy": args.homotopy,
         "max_gap": opts.max_gap,
     }
+    # each identification window prepared here (its gaps interpolated or cut), so that the
+    # warnings name the DATA they are about; the fit finds nothing left to prepare
+    windows = []
+    for spec, _, ident, _ in sets:
+        with about(spec if len(sets) > 1 else None):
+            windows.append(fit_data(model, ident, opts.max_gap)[1])
     with Outputs() as outputs:
         staged = outputs.folder(plots) if plots is not None else None
         t0 = time.perf_counter()
-        results = fit_batch([{**request, "data": ident} for _, _, ident, _ in sets])
+        results = fit_batch([{**request, "data": window} for window in windows])
         t1 = time.perf_counter()
         check_interrupted()
         docs = []
         for (spec, _, ident, valid), result in zip(sets, results, strict=True):
-            t2 = time.perf_counter()
-            validation = validate(result, valid)
-            timing = {
-                **result.timing,
-                "total_fit_s": t1 - t0,
-                "validate_s": time.perf_counter() - t2,
-            }
-            doc = fit_json(
-                result,
-                validation,
-                timing=timing,
-                data_info=data_info(spec, ident, valid),
-                valid=valid,
-            )
-            if staged is not None:
-                sub = Path(slug(spec, opts.specs)) if len(sets) > 1 else Path()
-                doc["plots"] = _plots(result, valid, validation, staged, sub, plots)
-            check_interrupted()
-            docs.append((doc, result, validation))
+            with about(spec if len(sets) > 1 else None):
+                t2 = time.perf_counter()
+                validation = validate(result, valid)
+                timing = {
+                    **result.timing,
+                    "total_fit_s": t1 - t0,
+                    "validate_s": time.perf_counter() - t2,
+                }
+                doc = fit_json(
+                    result,
+                    validation,
+                    timing=timing,
+                    data_info=data_info(spec, ident, valid),
+                    valid=valid,
+                )
+                if staged is not None:
+                    sub = Path(slug(spec, opts.specs)) if len(sets) > 1 else Path()
+                    doc["plots"] = _plots(result, valid, validation, staged, sub, plots)
+                check_interrupted()
+                docs.append((doc, result, validation))
         outputs.commit()
     if args.json:
         if len(docs) == 1:

@@ -168,6 +168,28 @@ _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
 ]
 
 
+#: what the warnings given now are about (a DATA argument, among several), their prefix
+_ABOUT = [""]
+
+
+@contextmanager
+def about(spec: str | None):
+    """Warnings given inside name ``spec`` (``None``: as they are), for commands on several
+    DATA."""
+    before = _ABOUT[0]
+    _ABOUT[0] = f"{spec}: " if spec else ""
+    try:
+        yield
+    finally:
+        _ABOUT[0] = before
+
+
+def warning_line(message: object) -> str:
+    """A warning as the command line gives it: one line, in its terms, naming the DATA it is
+    about (see :func:`about`)."""
+    return f"warning: {_ABOUT[0]}{cli_message(str(message))}"
+
+
 def cli_message(message: str) -> str:
     """A library error message in command-line terms: options instead of keyword arguments."""
     text = " ".join(str(message).split())  # one line

@@ -12,15 +12,16 @@ from pathlib import Path
 
 from ._common import (
     UsageError,
+    about,
     bounds,
     check_interrupted,
-    cli_message,
     number,
     pairs,
     period,
     resample_rule,
     scale,
     separator,
+    warning_line,
 )
 from ._outputs import check_folder, reason
 
@@ -370,7 +371,7 @@ def check_windows(ident, valid, columns, ranges, stuck_hours: float | None) -> N
             stuck_hours=stuck_hours,
         )
         for note in notes:
-            print(f"warning: {cli_message(note)}", file=sys.stderr, flush=True)
+            print(warning_line(note), file=sys.stderr, flush=True)
 
 
 def load_all(args, opts: DataOptions | None = None, *, model=None):
@@ -382,13 +383,14 @@ def load_all(args, opts: DataOptions | None = None, *, model=None):
     out = []
     for spec in opts.specs:
         try:
-            data = load_data(spec, opts)
-            ident, valid = split_periods(data, opts)
-            columns = None
-            if model is not None:
-                columns = list(model.inputs) + list(model.outputs)
-                require_model_columns(ident, model)
-            check_windows(ident, valid, columns, opts.ranges, opts.stuck_hours)
+            with about(spec if len(opts.specs) > 1 else None):
+                data = load_data(spec, opts)
+                ident, valid = split_periods(data, opts)
+                columns = None
+                if model is not None:
+                    columns = list(model.inputs) + list(model.outputs)
+                    require_model_columns(ident, model)
+                check_windows(ident, valid, columns, opts.ranges, opts.stuck_hours)
         except (DataError, UsageError) as err:
             if len(opts.specs) == 1:
                 raise

@@ -18,7 +18,13 @@ import sys
 import warnings
 
 from ._commands import add_fit_arguments, fit_command, models_command
-from ._common import UsageError, check_interrupted, cli_message, install_interrupt_handler
+from ._common import (
+    UsageError,
+    check_interrupted,
+    cli_message,
+    install_interrupt_handler,
+    warning_line,
+)
 from ._design import add_design_arguments, design_command
 from ._estimate import add_estimate_arguments, estimate_command
 from ._fleet import add_fleet_arguments, fleet_command
@@ -158,7 +164,7 @@ _SHOWN: set[str] = set()
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings as one line ``warning: …`` in command-line terms (no file, line, source), each
     once per command (a window prepared twice warns twice)."""
-    text = f"warning: {cli_message(str(message))}"
+    text = warning_line(message)
     if text not in _SHOWN:
         _SHOWN.add(text)
         print(text, file=sys.stderr, flush=True)

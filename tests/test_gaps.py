@@ -475,3 +475,26 @@ def test_validation_carries_the_state_across_an_outage():
     x_ref = jaxbox.simulate_model(model, result.params, ref).x
     after = len(v.index_cross) - (n - back)  # the first validation sample after the outage
     np.testing.assert_allclose(v.x_cross[after, 1], x_ref[back, 1], rtol=0, atol=1e-8)
+
+
+def test_data_with_an_output_gap_batch_with_data_without_one():
+    """An output gap makes the weights a mask ([N, p] instead of [p]); the buildings still
+    share one batch, and each result is the one fitted alone."""
+    from jaxbox.fit import fit_batch, fit_model
+
+    truth = simulated(inputs(96, seed=3), INIT[0], "2020-01-01")
+    noise = 0.05 * np.random.default_rng(5).standard_normal(96)
+    clean = truth.with_columns(T_zon=truth["T_zon"] + noise)
+    frame = clean.frame
+    frame.iloc[40:43, frame.columns.get_loc("T_zon")] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)  # the gap, which it is about
+        gappy = jaxbox.load(frame)
+    requests = [dict(model=MODEL, data=d, starts=3, seed=2) for d in (clean, gappy)]
+    together = fit_batch(requests)
+    assert [r.timing["batch"] for r in together] == [2, 2]
+    for r, d in zip(together, (clean, gappy), strict=True):
+        alone = fit_model(MODEL, d, starts=3, seed=2)
+        assert r.cost == pytest.approx(alone.cost, rel=1e-6)
+        for k, v in alone.params.items():
+            assert r.params[k] == pytest.approx(v, rel=1e-5), k

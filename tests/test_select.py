@@ -231,11 +231,17 @@ def test_select_command_on_two_buildings(data, tmp_path, capsys):
     paths = []
     for name, d in (("a", data), ("b", synthetic(seed=4))):
         paths.append(tmp_path / f"{name}.csv")
-        d.frame.reset_index().to_csv(paths[-1], index=False)
+        frame = d.frame.reset_index()
+        if name == "b":
+            frame.loc[len(frame) - 5, "T_zon"] = float("nan")  # a gap in validation: warned
+        frame.to_csv(paths[-1], index=False)
     out = tmp_path / "o"
     args = ["select", *map(str, paths), "--models", "Zon,ZonWal", "--starts", "4", "--seed", "1"]
     assert main([*args, "--json", "--out", str(out)]) == 0
-    doc = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    warned = [line for line in captured.err.splitlines() if line.startswith("warning: ")]
+    assert warned and all(line.startswith(f"warning: {paths[1]}: ") for line in warned), warned
+    doc = json.loads(captured.out)
     assert [b["dataset"] for b in doc["buildings"]] == [str(p) for p in paths]
     assert [b["accepted"] for b in doc["buildings"]] == ["ZonWal", "ZonWal"]
     assert all(row["timing"]["batch"] == 2 for b in doc["buildings"] for row in b["table"])

@@ -14,6 +14,7 @@ from pathlib import Path
 from .._io import atomic_write_json
 from ._common import (
     UsageError,
+    about,
     check_interrupted,
     check_run_options,
     data_info,
@@ -189,11 +190,12 @@ def _run_selection(sets, args, candidates, ranges, max_gap, stuck_hours: float |
         for gb in boxes:
             if len(boxes) > 1:
                 say(f"== {gb.name}")
-            selections.append(
-                structure_search(
-                    gb, criterion=args.criterion, beam=args.beam, progress=say, **common
+            with about(gb.name if len(boxes) > 1 else None):  # its warnings name the file
+                selections.append(
+                    structure_search(
+                        gb, criterion=args.criterion, beam=args.beam, progress=say, **common
+                    )
                 )
-            )
             check_interrupted()
         return list(zip(boxes, selections, strict=True))
     selections = forward_selection_many(
@@ -290,11 +292,12 @@ def select_command(args) -> int:
         elapsed = time.perf_counter() - t0
         docs = []
         for (spec, _, ident, valid), (gb, sel) in zip(sets, outcomes, strict=True):
-            doc = _document(gb, sel, spec, ident, valid)
-            doc["elapsed_s"] = elapsed
-            if out is not None:
-                folder = out if len(sets) == 1 else out / slug(spec, opts.specs)
-                _stage_outputs(outputs, gb, sel, doc, folder)
+            with about(spec if len(sets) > 1 else None):
+                doc = _document(gb, sel, spec, ident, valid)
+                doc["elapsed_s"] = elapsed
+                if out is not None:
+                    folder = out if len(sets) == 1 else out / slug(spec, opts.specs)
+                    _stage_outputs(outputs, gb, sel, doc, folder)
             docs.append(doc)
         outputs.commit()
     if args.json:

@@ -352,17 +352,15 @@ def fit_batch(
             len(problem.model.states),
             problem.model.segments,
             tuple(problem.output_states),
-            *(np.shape(a) for a in arrays),
+            # the weights broadcast to the outputs' shape (solve_jobs): data with an output gap
+            # (weights [N, p]) batch with data without one (weights [p])
+            *(np.shape(a) for a in arrays[:3]),
         )
         fused = solver[3] is None or isinstance(solver[3], LevenbergMarquardt)
         structure = None if problem.simulator == "exact" and fused else _problem_key(problem)
         if structure is None:  # variants of any size share a compiled solve (padded)
-            t, _, y, w = arrays
-            shape = (
-                problem.model.segments,
-                tuple(problem.output_states),
-                *map(np.shape, (t, y, w)),
-            )
+            t, _, y, _ = arrays
+            shape = (problem.model.segments, tuple(problem.output_states), *map(np.shape, (t, y)))
         key = (*solver[:3], solver_key(solver[3]), *solver[4:])
         groups.setdefault((key, shape, problem.simulator, structure), []).append(item)
     for members in groups.values():

@@ -361,6 +361,9 @@ def test_dates_and_clock_times_in_two_columns() -> None:
         load(renamed, time=["Date", "Time"], columns={"T_amb": "Date"})
     with pytest.raises(DataError, match=r"time= takes one column name or two"):
         load(renamed, time=["Date", "Time", "T_zon"])
+    german = renamed.rename(columns={"Date": "Datum", "Time": "Uhrzeit"})
+    with pytest.raises(DataError, match=r"or time=\['Datum', 'Uhrzeit'\]"):
+        load(german)
 
 
 def test_export_quirks_of_csv_files(tmp_path) -> None:

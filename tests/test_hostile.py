@@ -636,7 +636,7 @@ def import_s():
 
 #: Ctrl-C delays [s]: (after the process starts, after `import jaxbox` is done)
 DELAYS = [(0.3, None), (1.0, None), (3.0, None)]
-DELAYS += [(None, 0.2), (None, 2.0), (None, 4.0), (None, 7.0)]
+DELAYS += [(None, 0.2), (None, 2.0), (None, 4.0), (None, 6.0)]
 
 
 @pytest.mark.slow
@@ -675,7 +675,10 @@ def _interrupt(argv, folder, delay):
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=300)
-    if proc.returncode == 0:  # finished before the signal: the outputs are complete
+    # finished before the signal, or the signal came while the interpreter shut down after the
+    # command had finished (Python restores the default handler then; a shell reports 130
+    # either way): the outputs are complete
+    if proc.returncode in (0, -signal.SIGINT):
         assert json.loads(out)
         pytest.skip("the command finished before Ctrl-C")
     assert proc.returncode == 130, err

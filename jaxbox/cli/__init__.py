@@ -15,11 +15,14 @@ def main(argv: list[str] | None = None) -> int:
     crash it (the signal handler itself ends it; see ``jaxbox.cli._common._on_sigint``).
     """
     code = _main(argv, exit_at_once=True)
+    # what the command printed reaches its reader before the interpreter shuts down (a Ctrl-C
+    # during the shutdown, when Python has restored the default handler, ends the process
+    # before the buffers would be flushed)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
     if code == 130:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
         os._exit(130)
     raise SystemExit(code)

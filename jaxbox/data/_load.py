@@ -27,6 +27,10 @@ from ._signals import signal_base
 __all__ = ["as_dataset", "load"]
 
 _TIME_NAMES = ("time",)
+#: Words in the names of time and date columns (English, German, Dutch, French, Spanish
+#: exports), for the hint when no time column is found.
+_TIME_WORDS = ("time", "stamp", "zeit", "tijd", "heure", "hora", "clock")
+_DATE_WORDS = ("date", "datum", "fecha", "dato")
 
 
 def _head_lines(path: Path, n: int = 20) -> list[str]:
@@ -255,7 +259,7 @@ def _time_values(
         return raw.index, str(raw.index.name or "index"), None
     tried = ", ".join(repr(name) for name in _TIME_NAMES)
     extra = " and the DataFrame index (not a DatetimeIndex)" if from_frame else ""
-    likely = [name for name in names if any(k in name.lower() for k in ("time", "date", "stamp"))]
+    likely = [name for name in names if any(k in name.lower() for k in _TIME_WORDS + _DATE_WORDS)]
     hint = f" (perhaps {list_names(likely, 5)}?)" if likely else ""
     for char, option in ((";", "';'"), ("\t", "'\\t'")):
         if len(names) == 1 and char in names[0]:
@@ -263,8 +267,8 @@ def _time_values(
                 f"the data have one column {names[0][:60]!r}: a file separated by {option}? "
                 f"read it with sep={option} (command line: --sep {option})."
             )
-    dates = [n for n in likely if "date" in n.lower()]
-    clocks = [n for n in likely if "date" not in n.lower()]
+    dates = [n for n in likely if any(k in n.lower() for k in _DATE_WORDS)]
+    clocks = [n for n in likely if n not in dates]
     pair = ""
     if dates and clocks:  # the date and the clock in two columns
         pair = (

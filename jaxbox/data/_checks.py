@@ -209,6 +209,8 @@ def _parse_strings(values: pd.Series, name: str) -> pd.Series:
             f"join the column of dates to it: time=['your_date_column', {name!r}] (command "
             f"line: --time your_date_column,{name})."
         )
+    # day first (31/01/2024) where that reading is the one whose order and steps make sense:
+    # read month first, 02/01 is a month after 01/01 and the samples between are missing
     readings = []
     for dayfirst in (False, True):
         try:
@@ -216,11 +218,11 @@ def _parse_strings(values: pd.Series, name: str) -> pd.Series:
                 warnings.simplefilter("ignore", UserWarning)
                 readings.append(pd.to_datetime(text, errors="coerce", dayfirst=dayfirst))
         except (ValueError, TypeError):
-            pass
+            continue
+        if _disorder(readings[-1]) == (0, 0, 0):  # a regular series: no reading does better
+            break
     if not readings:
         return iso
-    # day first (31/01/2024) where that reading is the one whose order and steps make sense:
-    # read month first, 02/01 is a month after 01/01 and the samples between are missing
     inferred = min(readings, key=_disorder)
     return inferred if inferred.isna().sum() < iso.isna().sum() else iso
 

@@ -183,15 +183,12 @@ def _refuse_spreadsheet(path: Path) -> None:
 def _tidy_header(raw: pd.DataFrame) -> pd.DataFrame:
     """Column names of a CSV without the spaces around them (``time, T_zon``), and without the
     empty columns of a separator at the end of every line (``Unnamed: 3``)."""
-    names = [str(name).strip() for name in raw.columns]
     empty = [
         name
-        for name, column in zip(raw.columns, names, strict=True)
-        if re.fullmatch(r"Unnamed: \d+", column) and raw[name].isna().all()
+        for name in raw.columns
+        if re.fullmatch(r"Unnamed: \d+", str(name)) and raw[name].isna().all()
     ]
-    return raw.drop(columns=empty).set_axis(
-        [n for name, n in zip(raw.columns, names, strict=True) if name not in empty], axis=1
-    )
+    return raw.drop(columns=empty).rename(columns=lambda name: str(name).strip())
 
 
 def _is_number(text: object, decimal: str) -> bool:

@@ -8,7 +8,7 @@ import pytest
 import scipy.linalg as sla
 
 import jaxbox
-from jaxbox.data import Dataset
+from jaxbox.data import Dataset, DataWarning
 from jaxbox.fit import FitError
 from jaxbox.models import RCNetwork
 from jaxbox.stochastic import (
@@ -289,3 +289,62 @@ def test_bad_input_names_the_problem(tite, short):
     bad.iloc[4, 0] = np.nan
     with pytest.raises(FitError, match="T_amb.*row 4"):
         estimate_states(tite, TITE, Dataset(bad, check=False))
+
+
+def test_time_stamps_that_jump_are_refused(tite, short):
+    """The filter discretises the model for one step: periods joined with a jump between them,
+    or a first step twice as long as the others, are refused with the row, not filtered as if
+    the samples were evenly spaced."""
+    from jaxbox.data import concat_periods
+    from jaxbox.stochastic import fit_ml
+
+    joined = concat_periods([short.slice(None, short.index[5]), short.slice(short.index[9])])
+    assert len(joined.segments) == 2
+    with pytest.raises(FitError, match=r"row 6\) is 7200 s.*one segment"):
+        estimate_states(tite, TITE, joined)
+    with pytest.raises(FitError, match=r"row 6\)"):
+        fit_ml(tite, joined, starts=1)
+    with pytest.raises(FitError, match=r"row 6\)"):
+        simulate_sde(tite, TITE, joined)
+    late = Dataset(short.frame.drop(short.index[1]), check=False)  # the first step is 1 h
+    with pytest.raises(FitError, match=r"row 1\) is 3600 s"):
+        estimate_states(tite, TITE, late)
+
+
+def test_data_of_the_wrong_type_is_named(tite, short):
+    """A DataFrame is taken as data (as everywhere in jaxbox); a list, None or one dataset
+    where a list of them is expected is a TypeError naming the argument."""
+    from jaxbox.stochastic import fit_ml_many
+
+    with pytest.warns(DataWarning, match="gaps"):  # loaded: its output gaps are reported
+        est = estimate_states(tite, TITE, short.frame)
+    assert est.nll == pytest.approx(estimate_states(tite, TITE, short).nll, rel=1e-12)
+    for bad in (None, [1, 2, 3], short.frame.to_numpy()):
+        with pytest.raises(TypeError, match="data must be a jaxbox Dataset"):
+            estimate_states(tite, TITE, bad)
+        with pytest.raises(TypeError, match="data must be a jaxbox Dataset"):
+            make_stochastic_problem(tite, bad)
+    with pytest.raises(TypeError, match="datasets must be a list of datasets, got one Dataset"):
+        fit_ml_many(tite, short, starts=1)
+    with pytest.raises(TypeError, match=r"datasets\[1\] must be a jaxbox Dataset"):
+        fit_ml_many(tite, [short, None], starts=1)
+
+
+def test_initial_state_spread_is_checked_by_the_state_estimator(tite, short):
+    """estimate_states checks x0_std as the fit does (0 is allowed: states known exactly):
+    a negative, NaN or overflowing spread, an unknown state or a string is named, not squared
+    away or turned into a NaN likelihood."""
+    assert np.isfinite(estimate_states(tite, TITE, short, x0_std=0.0).nll)
+    for bad, match in (
+        (-1.0, "x0_std must be finite and ≥ 0"),
+        (float("nan"), "x0_std must be finite"),
+        (1e200, "x0_std must be finite"),
+        ({"T_foo": 1.0}, "no state.*T_foo; its states are T_zon, T_wal"),
+        ({"T_zon": "a"}, "x0_std of T_zon must be a number"),
+        ("a", "x0_std must be a number"),
+        ([1.0, 2.0], "x0_std must be a number"),
+    ):
+        with pytest.raises(FitError, match=match):
+            estimate_states(tite, TITE, short, x0_std=bad)
+    with pytest.raises(FitError, match="x0_std must be finite and > 0"):
+        make_stochastic_problem(tite, short, x0_std=1e200)

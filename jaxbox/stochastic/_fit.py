@@ -40,6 +40,7 @@ from ..fit._starts import sample_starts
 from ..fit._transforms import Transform, to_physical_coded
 from ..models import get_model
 from ._arrays import KEYS, has_array_form, ml_arrays, padded_sizes, system_from_arrays
+from ._checks import as_data, as_datasets
 from ._kalman import kalman_scan
 from ._problem import (
     StochasticProblem,
@@ -516,7 +517,7 @@ def fit_ml(
     """
     return fit_ml_many(
         model,
-        [data],
+        [as_data(data)],
         free=free,
         fixed=fixed,
         bounds=bounds,
@@ -555,7 +556,7 @@ def fit_ml_many(
     (every start of every dataset under one ``vmap``). Returns one result per dataset."""
     require_x64()
     model = get_model(model)
-    datasets = list(datasets)
+    datasets = as_datasets(datasets)
     if not datasets:
         raise FitError("fit_ml_many needs at least one dataset")
     jobs, all_starts, arrays_list, problems = [], [], [], []

@@ -18,6 +18,7 @@ import numpy as np
 from ..fit._problem import FitError, Problem, make_problem
 from ..fit._transforms import Transform, make_transform
 from ..models import RCModel
+from ._checks import as_data, regular_step, x0_stds
 from ._kalman import HOLDS, discretize, kalman_scan
 from ._noise import diffusion_names, measurement_names, noise_parameters
 
@@ -219,6 +220,7 @@ def make_stochastic_problem(
 
     Args are those of :func:`jaxbox.stochastic.fit_ml`.
     """
+    data = as_data(data)
     specs = {p.name: p for p in noise_parameters(model)}
     noise = set(specs)
     names = model.param_names + tuple(specs)
@@ -300,21 +302,7 @@ def make_stochastic_problem(
         (n, float(fixed_n[n]) if n in fixed_n else g[free_n.index(n)]) for n in specs
     )
     # initial covariance
-    states = model.states
-    if x0_std is None:
-        x0 = (DEFAULT_X0_STD,) * len(states)
-    elif isinstance(x0_std, Mapping):
-        bad = [k for k in x0_std if k not in states]
-        if bad:
-            raise FitError(
-                f"x0_std: {model.name} has no state(s) {', '.join(bad)}; its states are "
-                f"{', '.join(states)}"
-            )
-        x0 = tuple(float(x0_std.get(s, DEFAULT_X0_STD)) for s in states)
-    else:
-        x0 = (float(x0_std),) * len(states)
-    if any(not (np.isfinite(v) and v > 0) for v in x0):
-        raise FitError(f"x0_std must be finite and > 0 [K], got {x0}")
+    x0 = x0_stds(model, x0_std, DEFAULT_X0_STD)
     pri = []
     for n, ms in (priors or {}).items():
         if n not in free_all:
@@ -339,7 +327,9 @@ def make_stochastic_problem(
 
 
 def stochastic_arrays(model: RCModel, data) -> tuple[float, np.ndarray, np.ndarray]:
-    """``(dt [s], u [N, m], y [N, p])`` of a dataset for a model; y may hold NaN (missing)."""
+    """``(dt [s], u [N, m], y [N, p])`` of a dataset for a model; y may hold NaN (missing).
+    The data must be sampled at one regular step (:func:`~._checks.regular_step`)."""
+    data = as_data(data)
     data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     u = np.asarray(data.array(list(model.inputs)), dtype=float)
     y = np.asarray(data.array(list(model.outputs)), dtype=float)
@@ -354,6 +344,4 @@ def stochastic_arrays(model: RCModel, data) -> tuple[float, np.ndarray, np.ndarr
         )
     if not np.isfinite(y).any():
         raise FitError("every output value is missing (NaN); nothing to estimate from")
-    t = np.asarray(data.t, dtype=float)
-    dt = float(t[1] - t[0])
-    return dt, u, y
+    return regular_step(data), u, y

@@ -8,6 +8,7 @@ import numpy as np
 from scipy import stats
 
 from ..fit._result import StartReport
+from ._checks import as_data
 from ._problem import StochasticProblem
 
 __all__ = ["MLResult", "likelihood_ratio_test"]
@@ -244,7 +245,7 @@ class MLResult:
         """Open-loop simulation RMSE [K] per output (no filtering), comparable to output error."""
         from ..simulate import simulate_model
 
-        data = self.data if data is None else data
+        data = self.data if data is None else as_data(data)
         phys = {n: self.params[n] for n in self.model.param_names}
         sim = simulate_model(self.model, phys, data)
         e = data.array(list(self.model.outputs)) - sim.y

@@ -11,6 +11,7 @@ import numpy as np
 from .. import _compiled
 from .._compiled import jit
 from ..models import get_model
+from ._checks import as_data, regular_step
 from ._problem import DEFAULT_X0_STD, system
 from ._states import _check_params
 
@@ -37,9 +38,10 @@ def simulate_sde(
     ``[R, N, …]`` of independent replications.
     """
     model = get_model(model)
+    data = as_data(data)
     theta = _check_params(model, params)
     u = np.asarray(data.array(list(model.inputs)), dtype=float)
-    dt = float(data.step)
+    dt = regular_step(data)
     std = DEFAULT_X0_STD if x0_std is None else float(x0_std)
     fn = _compiled.cached(
         ("stochastic", "system", model.structure, hold),

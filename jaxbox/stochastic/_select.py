@@ -9,6 +9,7 @@ import numpy as np
 from ..fit._starts import sample_starts
 from ..fit._transforms import two_sided
 from ..models import get_model
+from ._checks import as_data
 from ._fit import DEFAULT_ML_STARTS, fit_ml
 from ._problem import StochasticProblem, make_stochastic_problem
 from ._result import MLResult, likelihood_ratio_test
@@ -57,6 +58,7 @@ def forward_selection_lr(
         raise ValueError("forward_selection_lr needs at least one model")
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    data = as_data(data)
     current: MLResult | None = None
     accepted = ""
     table, fits = [], {}

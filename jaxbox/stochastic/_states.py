@@ -20,6 +20,7 @@ from .. import _compiled
 from .._compiled import jit
 from ..fit._problem import FitError
 from ..models import RCModel, get_model
+from ._checks import as_data, x0_stds
 from ._kalman import HOLDS, kalman_scan, rts_scan
 from ._noise import noise_names
 from ._problem import DEFAULT_X0_STD, stochastic_arrays, system
@@ -151,18 +152,15 @@ def estimate_states(
         data: a :class:`~jaxbox.data.Dataset` with the model's inputs and outputs (outputs may
             be NaN where missing when the dataset allows it).
         hold: ``"foh"`` or ``"zoh"``, as in the fit.
-        x0_std: standard deviation [K] of the initial states (default 1 K).
+        x0_std: standard deviation [K] of the initial states (default 1 K; 0: known exactly),
+            one value or per state name.
     """
     model = get_model(model)
+    data = as_data(data)
     theta = _check_params(model, params)
     if hold not in HOLDS:
         raise FitError(f"unknown hold {hold!r}; choose one of {', '.join(HOLDS)}")
-    if x0_std is None:
-        x0 = (DEFAULT_X0_STD,) * model.n_states
-    elif isinstance(x0_std, Mapping):
-        x0 = tuple(float(x0_std.get(s, DEFAULT_X0_STD)) for s in model.states)
-    else:
-        x0 = (float(x0_std),) * model.n_states
+    x0 = x0_stds(model, x0_std, DEFAULT_X0_STD, zero=True)
     dt, u, y = stochastic_arrays(model, data)
     fn = _filter_fn(model, hold, (u.shape, y.shape))
     th = {k: jnp.asarray(v) for k, v in theta.items()}

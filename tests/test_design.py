@@ -250,6 +250,48 @@ def test_bad_input_is_named():
         design.plan("ZonWal", PRIOR, days=400)
 
 
+# ---- singular Fisher information: unidentifiable parameters are named, never NaN ---------------
+
+
+def test_singular_information_is_reported_as_such(planned):
+    """No heating (or a negligible one): the heat flows have no scale, C, 1/R and gA are only
+    seen together; their std and every criterion are inf (not NaN, nor a std of 0 from a
+    negative variance), and the parameters are named."""
+    ctx = planned.context
+    for u in (np.zeros(ctx.n), np.full(ctx.n, 1e-3)):
+        rep = ctx.report(u)
+        assert rep["unidentifiable"] == ["C_zon", "C_wal", "R_wal", "gA"]
+        assert all(v == np.inf for v in rep["loss"].values())
+        assert all(rep["std"][n] == np.inf for n in rep["unidentifiable"])
+        assert np.isfinite(rep["std"]["T_zon0"]) and rep["hlc_std"] == np.inf
+    # a PRBS baseline of no energy: compared as infinitely bad, not as NaN
+    base = design.baseline_schedules(ctx, 0.0, 3000.0, 0.0)
+    assert all(ctx.report(u)["loss"]["hlc"] == np.inf for u in base.values())
+    assert planned.reports["designed"]["unidentifiable"] == []
+    with pytest.warns(UserWarning, match="C_zon, C_wal, R_wal, gA unidentifiable"):
+        design.evaluate(np.zeros(ctx.n), "ZonWal", PRIOR)
+
+
+def test_parameter_the_outputs_do_not_see():
+    """Weather without sun: gA is unidentifiable, the others are as precise as with gA fixed
+    (its column of the sensitivities is zero); a plan with gA free is refused, naming it."""
+    weather = jaxbox.datasets.twinhouse_exp1("N2")
+    dark = weather.with_columns(I_glo_hor=np.zeros(len(weather)))
+    u = np.full(DAYS * 24, 1000.0)
+    with pytest.warns(UserWarning, match="gA"):
+        rep = design.evaluate(u, "ZonWal", PRIOR, weather=dark)
+    fixed = design.evaluate(
+        u, "ZonWal", PRIOR, weather=dark, free=["C_zon", "C_wal", "R_wal", "T_zon0", "T_wal0"]
+    )
+    assert rep["unidentifiable"] == ["gA"] and rep["std"]["gA"] == np.inf
+    assert rep["loss"]["D"] == np.inf and rep["loss"]["A"] == np.inf
+    for name, sd in fixed["std"].items():
+        assert rep["std"][name] == pytest.approx(sd, rel=1e-8), name
+    assert rep["loss"]["hlc"] == pytest.approx(fixed["loss"]["hlc"], rel=1e-8)
+    with pytest.raises(ModelError, match="gA of ZonWal unidentifiable"):
+        design.plan("ZonWal", PRIOR, weather=dark, days=DAYS, starts=2, max_steps=5)
+
+
 # ---- Monte Carlo: predicted vs observed spread of repeated fits --------------------------------
 
 

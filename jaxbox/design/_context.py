@@ -4,6 +4,7 @@ predicts (standard deviations of every parameter and of the HLC, comfort, energy
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import jax
 import jax.numpy as jnp
@@ -108,35 +109,127 @@ class Context:
         Returns a dict: ``loss`` (every criterion, see :mod:`~jaxbox.design._fisher`; robust
         designs average it over the prior samples), ``std`` and ``rel_std`` of every free
         parameter [SI and fraction], ``hlc`` [W/K] and ``hlc_std`` [W/K], ``energy_kwh``,
-        ``mean_power`` [W], ``t_min``/``t_max`` of the predicted outputs [°C], and the outputs.
+        ``mean_power`` [W], ``t_min``/``t_max`` of the predicted outputs [°C], the outputs, and
+        ``unidentifiable``: the free parameters the schedule leaves unidentifiable (its Fisher
+        information is singular along them, at the nominal prior). Their standard deviations
+        are ``inf``, and so is every criterion they enter (for every prior sample where that
+        holds): a singular design is never silently NaN, nor compared as a finite one.
         """
         power = np.asarray(power, dtype=float)
         if power.shape != (self.n,):
             raise ValueError(f"a schedule of {self.n} samples is needed, got shape {power.shape}")
         fn = _report_fn(self.setup)
-        losses, F, y = fn(*self.args(), jnp.asarray(power))
-        F, y = np.asarray(F), np.asarray(y)
-        c, hlc = np.asarray(self.linear[2][0]), float(self.linear[3][0])
-        cov = np.linalg.inv(0.5 * (F + F.T))
-        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        losses, Fs, y = fn(*self.args(), jnp.asarray(power))
+        losses, Fs, y = np.array(losses), np.asarray(Fs), np.asarray(y)
+        if not (np.all(np.isfinite(Fs)) and np.all(np.isfinite(y))):
+            raise ModelError(
+                f"the predicted outputs of {self.setup.model.name} are not finite for this "
+                "schedule; check the prior values, the power and the weather"
+            )
+        c_all = np.asarray(self.linear[2])
+        inverses = [_Inverse.of(F) for F in Fs]
+        for s, inv in enumerate(inverses):  # the criteria of a singular sample, exactly
+            if inv.singular:
+                losses[s] = [inv.criterion(k, self.setup.interest, c_all[s]) for k in CRITERIA]
+        inv, c, hlc = inverses[0], c_all[0], float(self.linear[3][0])
         th = self.theta(0)
         std, rel = {}, {}
         for i, (name, lg) in enumerate(zip(self.setup.free, self.setup.log, strict=True)):
-            std[name] = float(th[name] * sd[i]) if lg else float(sd[i])
-            rel[name] = float(sd[i]) if lg else float(sd[i] / abs(th[name]) if th[name] else np.inf)
-        var_log_hlc = float(c @ cov @ c)
+            sd = float(np.sqrt(inv.variance(np.eye(len(self.setup.free))[i])))
+            std[name] = float(th[name] * sd) if lg else sd
+            rel[name] = sd if lg else float(sd / abs(th[name]) if th[name] else np.inf)
         return {
-            "loss": {k: float(v) for k, v in zip(CRITERIA, np.asarray(losses), strict=True)},
+            "loss": {k: float(v) for k, v in zip(CRITERIA, losses.mean(axis=0), strict=True)},
             "std": std,
             "rel_std": rel,
             "hlc": float(hlc),
-            "hlc_std": float(hlc) * float(np.sqrt(max(var_log_hlc, 0.0))),
+            "hlc_std": float(hlc) * float(np.sqrt(inv.variance(c))),
+            "unidentifiable": [n for n, u in zip(self.setup.free, inv.unseen, strict=True) if u],
             "energy_kwh": float(np.sum(power) * self.step / 3.6e6),
             "mean_power": float(np.mean(power)),
             "t_min": float(np.min(y)),
             "t_max": float(np.max(y)),
             "outputs": y,
         }
+
+
+#: eigenvalues of the Jacobi-scaled Fisher information (unit diagonal) below this fraction of
+#: the largest are taken as zero: directions of the parameters that the outputs do not see
+_RCOND = 1e-10
+#: a linear function of the parameters whose (scaled) weight along such a direction exceeds
+#: this fraction of its norm has an infinite variance
+_NULL_WEIGHT = 1e-3
+
+
+@dataclasses.dataclass(frozen=True)
+class _Inverse:
+    """The covariance ``F⁻¹`` of the design coordinates from a Fisher information that may be
+    singular: on the directions the outputs see, the pseudo-inverse; along the others, an
+    infinite variance.
+
+    Attributes:
+        d: ``√F_ii`` of the parameters the outputs see, 0 for the others [p].
+        pinv: pseudo-inverse of the Jacobi-scaled information ``F_ij / (d_i d_j)`` [p, p].
+        null: the directions it does not see, in scaled coordinates [p, k].
+        unseen: per parameter, True when its variance is infinite.
+    """
+
+    d: np.ndarray
+    pinv: np.ndarray
+    null: np.ndarray
+    unseen: np.ndarray
+
+    @property
+    def singular(self) -> bool:
+        return bool(self.unseen.any() or self.null.shape[1])
+
+    @classmethod
+    def of(cls, F: np.ndarray) -> _Inverse:
+        F = 0.5 * (F + F.T)
+        p = F.shape[0]
+        diag = np.diag(F)
+        seen = diag > 1e-20 * max(float(diag.max()), 0.0)
+        d = np.where(seen, np.sqrt(np.where(seen, diag, 1.0)), 0.0)
+        ix = np.flatnonzero(seen)
+        pinv, null = np.zeros((p, p)), np.zeros((p, 0))
+        if len(ix):
+            lam, V = np.linalg.eigh(F[np.ix_(ix, ix)] / np.outer(d[ix], d[ix]))
+            zero = lam <= _RCOND * lam.max()
+            W = V[:, ~zero]
+            pinv[np.ix_(ix, ix)] = (W / lam[~zero]) @ W.T
+            null = np.zeros((p, int(zero.sum())))
+            null[ix] = V[:, zero]
+        unseen = ~seen | (np.abs(null) > _NULL_WEIGHT).any(axis=1)
+        return cls(d=d, pinv=pinv, null=null, unseen=unseen)
+
+    def variance(self, w) -> float:
+        """Variance of ``wᵀφ`` (w [p] in design coordinates): ``inf`` when the information
+        does not see it."""
+        w = np.asarray(w, dtype=float)
+        if np.any((self.d == 0) & (w != 0)):
+            return math.inf
+        ws = np.divide(w, self.d, out=np.zeros_like(w), where=self.d > 0)
+        norm = float(np.linalg.norm(ws))
+        if norm == 0.0:
+            return 0.0
+        if np.any(np.abs(ws @ self.null) > _NULL_WEIGHT * norm):
+            return math.inf
+        return max(float(ws @ self.pinv @ ws), 0.0)
+
+    def criterion(self, name: str, interest, c) -> float:
+        """A design loss as :meth:`~jaxbox.design._fisher.Setup.criterion` computes it, ``inf``
+        where the information does not see what it measures."""
+        if name == "hlc":
+            var = self.variance(c)
+            return math.log(var) if var > 0 else -math.inf
+        idx = np.asarray(interest)
+        if self.unseen[idx].any():
+            return math.inf
+        s = np.divide(1.0, self.d[idx], out=np.zeros(len(idx)), where=self.d[idx] > 0)
+        sub = self.pinv[np.ix_(idx, idx)] * np.outer(s, s)
+        if name == "D":
+            return float(np.linalg.slogdet(sub)[1])
+        return math.log(float(np.trace(sub)))
 
 
 def _report_fn(setup: Setup):
@@ -148,7 +241,7 @@ def _report_fn(setup: Setup):
                 lambda f, cc: jnp.stack([setup.criterion(k, f, cc) for k in CRITERIA])
             )(F, c)
             nominal = jax.tree_util.tree_map(lambda a: a[0], mats)
-            return jnp.mean(losses, axis=0), F[0], setup.simulate(nominal, U)
+            return losses, F, setup.simulate(nominal, U)
 
         return jit(fn)
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+import warnings
 from collections.abc import Mapping
 
 import jax
@@ -129,6 +130,12 @@ class Design:
             lines.append(
                 f"on/off rounding changed the criterion by {self.rounding_loss:+.3g} (log units)"
             )
+        for name, rep in self.reports.items():
+            if rep["unidentifiable"]:
+                lines.append(
+                    f"the {name} schedule leaves {', '.join(rep['unidentifiable'])} "
+                    "unidentifiable (singular Fisher information): their std is inf"
+                )
         names = list(t.columns)
         lines.append(f"{'predicted std':<16}" + "".join(f"{n:>12}" for n in names))
         for row, values in t.iterrows():
@@ -199,6 +206,27 @@ def _starts(n: int, count: int, seed: int, step_s: float) -> np.ndarray:
     while len(Z) < count:
         Z.append(rng.uniform(-1.5, 1.5, n))
     return np.asarray(Z[:count])
+
+
+def _unidentifiable(ctx: Context, powers) -> list[str]:
+    """The free parameters that none of the schedules ``powers`` [k, N] [W] identifies (empty
+    when one of them identifies every parameter)."""
+    common = None
+    for u in powers:
+        names = ctx.report(u)["unidentifiable"]
+        common = names if common is None else [n for n in common if n in names]
+        if not common:
+            return []
+    return common or []
+
+
+def _unidentifiable_error(ctx: Context, names, what: str) -> ModelError:
+    return ModelError(
+        f"{what} leaves {', '.join(names)} of {ctx.setup.model.name} unidentifiable (the "
+        "outputs do not depend on them, or only in a combination: the Fisher information is "
+        "singular); leave them out of the free parameters (free=), or give weather and power "
+        "bounds that excite them"
+    )
 
 
 # ---- baselines ---------------------------------------------------------------------------------
@@ -378,7 +406,9 @@ def evaluate(
     """What a heating schedule ``power`` [W per sample] predicts: :meth:`Context.report`
     (standard deviations of every free parameter and of the HLC, energy, temperatures).
 
-    The other arguments as in :func:`plan`; the horizon is the schedule's length.
+    The other arguments as in :func:`plan`; the horizon is the schedule's length. A schedule
+    that leaves parameters unidentifiable (``report["unidentifiable"]``) gets a warning naming
+    them.
     """
     power = np.asarray(power, dtype=float)
     days = len(power) * step / 86400.0
@@ -394,7 +424,15 @@ def evaluate(
         comfort=None,
         start_temperature=start_temperature,
     )
-    return ctx.report(power)
+    rep = ctx.report(power)
+    if rep["unidentifiable"]:
+        warnings.warn(
+            f"the schedule leaves {', '.join(rep['unidentifiable'])} unidentifiable (singular "
+            "Fisher information): their standard deviations, and the criteria they enter, are "
+            "inf",
+            stacklevel=2,
+        )
+    return rep
 
 
 def plan(
@@ -457,6 +495,11 @@ def plan(
     Returns:
         :class:`Design`: the schedule, its predicted standard deviations and those of the
         baselines (PRBS, ROLBS, step) of equal length and energy.
+
+    Raises:
+        ModelError: bad arguments; or free parameters that no start schedule, or the designed
+            one, identifies (named; a baseline that leaves some unidentifiable is reported
+            with an infinite criterion instead).
     """
     if criterion not in CRITERIA:
         raise ModelError(f"unknown criterion {criterion!r}; choose one of {', '.join(CRITERIA)}")
@@ -498,6 +541,9 @@ def plan(
             seed=seed,
         )
         Z = jnp.asarray(_starts(ctx.n, starts, seed, ctx.step))
+        unseen = _unidentifiable(ctx, lo + (hi - lo) * 0.5 * (1.0 + np.sin(np.asarray(Z))))
+        if unseen:
+            raise _unidentifiable_error(ctx, unseen, "every start schedule of the optimiser")
         t0 = time.perf_counter()
         solve, built = _solver_fn(
             setup, criterion, max_steps, Z, _args(ctx, lo, hi, tlo, thi, emax, _RHO0, 0.0)
@@ -512,6 +558,9 @@ def plan(
             best = (score, temperature, prior, setup, ctx, one)
     _, start_temperature, prior, setup, ctx, one = best
     designed, relaxed, rounding_loss = one["designed"], one["relaxed"], one["rounding_loss"]
+    unseen = ctx.report(designed)["unidentifiable"]
+    if unseen:
+        raise _unidentifiable_error(ctx, unseen, "the designed schedule")
     design_s = time.perf_counter() - t1 - compile_s
     energy = float(np.sum(designed) * ctx.step)
     schedules = {"designed": designed}

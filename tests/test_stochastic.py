@@ -348,3 +348,32 @@ def test_initial_state_spread_is_checked_by_the_state_estimator(tite, short):
             estimate_states(tite, TITE, short, x0_std=bad)
     with pytest.raises(FitError, match="x0_std must be finite and > 0"):
         make_stochastic_problem(tite, short, x0_std=1e200)
+
+
+def test_state_estimator_parameters_are_checked(tite, short):
+    """Parameters that are not a mapping, not numbers, unknown to the model, physically
+    impossible (a capacity ≤ 0) or so extreme that the filter overflows are named, not
+    returned as a NaN likelihood or a traceback from float()."""
+    for change, match in (
+        ({"C_zon": -1e6}, "C_zon is -1e\\+06; resistances and capacities must be > 0"),
+        ({"R_wal": 0.0}, "R_wal is 0"),
+        ({"gA": "x"}, "parameter gA must be a number, got 'x'"),
+        ({"gA": None}, "parameter gA must be a number, got None"),
+        ({"R_int": 1e-2}, "has no parameter\\(s\\) R_int.*another model"),
+        ({"C_zon": 1e300, "C_wal": 1e300, "sigma_zon": 1e200}, "not finite from row 1"),
+    ):
+        with pytest.raises(FitError, match=match):
+            estimate_states(tite, {**TITE, **change}, short)
+    with pytest.raises(TypeError, match="params must be a mapping"):
+        estimate_states(tite, list(TITE.values()), short)
+
+
+def test_smoother_of_states_known_exactly_is_finite(tite, short):
+    """No diffusion and initial states known exactly: every predicted covariance is 0, which
+    has no Cholesky factor; the smoother's gain is then 0 (nothing to smooth), not NaN."""
+    quiet = {**TITE, "sigma_zon": 0.0, "sigma_wal": 0.0}
+    est = estimate_states(tite, quiet, short, x0_std=0.0)
+    assert np.all(est.predicted_cov == 0.0)
+    assert np.all(np.isfinite(est.smoothed)) and np.all(np.isfinite(est.smoothed_cov))
+    np.testing.assert_allclose(est.smoothed, est.filtered, rtol=0, atol=1e-12)
+    assert np.all(est.smoothed_cov == 0.0)

@@ -196,11 +196,30 @@ def kalman_scan(mats, Cm, D, r, m0, P0, u, y, *, full: bool = False):
     )
 
 
+def _smoother_gain(PhiPf, Pp1):
+    """``G = Pf Φᵀ Pp1⁻¹`` through a Cholesky solve of the symmetric ``Pp1``. A singular
+    ``Pp1`` (states without diffusion whose initial spread has vanished, or was 0: known
+    exactly) has no Cholesky factor; there the pseudo-inverse (eigenvalues below ``n·ε`` of
+    the largest dropped) gives the gain, zero in the directions that carry no uncertainty,
+    instead of NaN."""
+    n = Pp1.shape[0]
+    L = jnp.linalg.cholesky(Pp1)
+    ok = jnp.all(jnp.isfinite(L))
+    eye = jnp.eye(n, dtype=Pp1.dtype)
+    G = jax.scipy.linalg.cho_solve((jnp.where(ok, L, eye), True), PhiPf).T
+    w, V = jnp.linalg.eigh(Pp1)
+    keep = w > n * jnp.finfo(Pp1.dtype).eps * jnp.maximum(jnp.max(w), 0.0)
+    winv = jnp.where(keep, 1.0 / jnp.where(keep, w, 1.0), 0.0)
+    G_pinv = ((V * winv[None, :]) @ V.T @ PhiPf).T
+    return jnp.where(ok, G, G_pinv)
+
+
 def rts_scan(Phi, drive, m_pred, P_pred, m_filt, P_filt):
     """Rauch–Tung–Striebel smoother over the outputs of :func:`kalman_scan` (``full``).
 
     ``G_k = P_{k|k} Φᵀ P_{k+1|k}⁻¹``, ``x̂_{k|N} = x̂_{k|k} + G_k (x̂_{k+1|N} − x̂_{k+1|k})``,
-    ``P_{k|N} = P_{k|k} + G_k (P_{k+1|N} − P_{k+1|k}) G_kᵀ``. ``drive`` is unused (the predicted
+    ``P_{k|N} = P_{k|k} + G_k (P_{k+1|N} − P_{k+1|k}) G_kᵀ`` (a singular ``P_{k+1|k}``: its
+    pseudo-inverse, :func:`_smoother_gain`). ``drive`` is unused (the predicted
     means carry it) and kept for symmetry with the filter's arguments.
     """
     del drive
@@ -208,9 +227,7 @@ def rts_scan(Phi, drive, m_pred, P_pred, m_filt, P_filt):
     def step(carry, data):
         ms, Ps = carry
         mf, Pf, mp1, Pp1 = data
-        # G = Pf Φᵀ Pp1⁻¹ through a Cholesky solve of the symmetric Pp1
-        L = jnp.linalg.cholesky(Pp1)
-        G = jax.scipy.linalg.cho_solve((L, True), Phi @ Pf).T
+        G = _smoother_gain(Phi @ Pf, Pp1)
         m = mf + G @ (ms - mp1)
         P = _sym(Pf + G @ (Ps - Pp1) @ G.T)
         return (m, P), (m, P)

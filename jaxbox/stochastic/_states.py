@@ -20,7 +20,7 @@ from .. import _compiled
 from .._compiled import jit
 from ..fit._problem import FitError
 from ..models import RCModel, get_model
-from ._checks import as_data, x0_stds
+from ._checks import as_data, number, x0_stds
 from ._kalman import HOLDS, kalman_scan, rts_scan
 from ._noise import noise_names
 from ._problem import DEFAULT_X0_STD, stochastic_arrays, system
@@ -100,23 +100,55 @@ class StateEstimate:
 
 
 def _check_params(model: RCModel, params: Mapping) -> dict:
+    """Every physical and noise parameter of the stochastic form of ``model`` from ``params``
+    (SI), checked: a mapping with every name and no other, finite numbers, resistances and
+    capacities > 0, ``sigma_* ≥ 0`` and ``sigma_y_* > 0``."""
     names = model.param_names + noise_names(model)
+    if not isinstance(params, Mapping):
+        raise TypeError(
+            f"params must be a mapping {{name: value}} (SI) over {', '.join(names)}, e.g. "
+            f"MLResult.params; got {type(params).__name__}"
+        )
     missing = [n for n in names if n not in params]
     if missing:
         raise FitError(
             f"parameters of the stochastic form of {model.name} missing: {', '.join(missing)} "
             "(give every physical and noise parameter, e.g. from an ML fit)"
         )
+    extra = [str(n) for n in params if n not in names]
+    if extra:
+        raise FitError(
+            f"params: the stochastic form of {model.name} has no parameter(s) "
+            f"{', '.join(extra)}; its parameters are {', '.join(names)} (were they estimated "
+            "with another model?)"
+        )
     out = {}
     for n in names:
-        v = float(params[n])
+        v = number(params[n], f"parameter {n}")
         if not np.isfinite(v):
             raise FitError(f"parameter {n} is {v}; give a finite number")
+        if n.startswith(("R_", "C_")) and not v > 0:
+            raise FitError(f"parameter {n} is {v:g}; resistances and capacities must be > 0")
         out[n] = v
     for n in noise_names(model):
         if out[n] < 0 or (n.startswith("sigma_y_") and out[n] <= 0):
             raise FitError(f"noise parameter {n} = {out[n]:g}; sigma_* ≥ 0 and sigma_y_* > 0")
     return out
+
+
+def _check_finite(out: dict, index, theta: dict) -> None:
+    """A likelihood that is not finite (parameters finite but so extreme that the discretised
+    model or the filter overflows) is named with the first sample where it is not."""
+    bad = ~np.isfinite(out["nll_k"])
+    if not bad.any():
+        return
+    k = int(np.flatnonzero(bad)[0])
+    values = ", ".join(f"{n}={v:.4g}" for n, v in theta.items())
+    raise FitError(
+        f"the Kalman filter's likelihood is not finite from row {k} ({index[k]}) on: the "
+        f"parameters ({values}) make the discrete model degenerate; check their values "
+        "(e.g. against the bounds of fit_ml)"
+    )
 
 
 def _filter_fn(model: RCModel, hold: str, shapes):
@@ -166,6 +198,7 @@ def estimate_states(
     th = {k: jnp.asarray(v) for k, v in theta.items()}
     out, ms, Ps, mats = fn(th, jnp.asarray(x0), dt, jnp.asarray(u), jnp.asarray(y))
     out = {k: np.asarray(v) for k, v in out.items()}
+    _check_finite(out, data.index, theta)
     return StateEstimate(
         model=model,
         index=data.index,

@@ -250,6 +250,30 @@ def test_bad_input_is_named():
         design.plan("ZonWal", PRIOR, days=400)
 
 
+def test_missing_power_or_weather_is_named():
+    """A NaN in the schedule or a gap in the weather within the horizon: an error naming the
+    sample or the column and time stamp, not NaN criteria (or a 'check the prior values')."""
+    u = np.full(DAYS * 24, 1000.0)
+    u[5] = np.nan
+    with pytest.raises(ModelError, match="first at sample 5"):
+        design.evaluate(u, "ZonWal", PRIOR)
+    with pytest.raises(ModelError, match="at least 4 samples"):
+        design.evaluate([1000.0, 0.0], "ZonWal", PRIOR)
+    weather = jaxbox.datasets.twinhouse_exp1("N2")
+    for k in (3, 30):  # in the preconditioning day, and later
+        frame = weather.frame
+        frame.iloc[k, frame.columns.get_loc("T_amb")] = np.nan
+        gappy = jaxbox.Dataset(frame)
+        with pytest.raises(jaxbox.DataError, match=f"'T_amb' has 1 missing.*{weather.index[k]}"):
+            design.evaluate(np.full(DAYS * 24, 1000.0), "ZonWal", PRIOR, weather=gappy)
+    # a gap after the horizon does not matter
+    frame = weather.frame
+    frame.iloc[100, frame.columns.get_loc("T_amb")] = np.nan
+    design.evaluate(np.full(DAYS * 24, 1000.0), "ZonWal", PRIOR, weather=jaxbox.Dataset(frame))
+    with pytest.raises(TypeError, match="weather must be a jaxbox Dataset"):
+        design.evaluate(np.full(DAYS * 24, 1000.0), "ZonWal", PRIOR, weather=weather.frame)
+
+
 # ---- singular Fisher information: unidentifiable parameters are named, never NaN ---------------
 
 

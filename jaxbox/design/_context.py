@@ -38,6 +38,11 @@ def default_weather(step: float) -> Dataset:
 
 def weather_arrays(weather: Dataset, names, n: int, step: float):
     """The first ``n`` samples of the weather inputs ``names`` [n, len(names)] and their times."""
+    if not isinstance(weather, Dataset):
+        raise TypeError(
+            f"weather must be a jaxbox Dataset, got {type(weather).__name__}; load it with "
+            "jaxbox.data.load (a file or a DataFrame)"
+        )
     if abs(weather.step - step) > 1e-6 * step:
         if step > weather.step and abs(step / weather.step - round(step / weather.step)) < 1e-9:
             weather = weather.resample(pd.Timedelta(seconds=step))
@@ -53,7 +58,20 @@ def weather_arrays(weather: Dataset, names, n: int, step: float):
             "a longer weather file or a shorter horizon"
         )
     values = weather.array(list(names))[:n] if names else np.zeros((n, 0))
+    _check_gaps(values, names, weather.index[:n])
     return values, weather.index[:n]
+
+
+def _check_gaps(values: np.ndarray, names, index: pd.DatetimeIndex) -> None:
+    """Refuse missing weather [n, len(names)] within the horizon, naming the column and when."""
+    for j, name in enumerate(names):
+        missing = np.flatnonzero(~np.isfinite(values[:, j]))
+        if len(missing):
+            raise DataError(
+                f"the weather column {name!r} has {len(missing)} missing value(s) within the "
+                f"horizon, the first at {index[missing[0]]}; fill them (e.g. "
+                "DataFrame.interpolate) or give weather without gaps"
+            )
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -118,6 +136,12 @@ class Context:
         power = np.asarray(power, dtype=float)
         if power.shape != (self.n,):
             raise ValueError(f"a schedule of {self.n} samples is needed, got shape {power.shape}")
+        bad = np.flatnonzero(~np.isfinite(power))
+        if len(bad):
+            raise ModelError(
+                f"the power has {len(bad)} non-finite value(s) (NaN or inf), the first at sample "
+                f"{bad[0]}; give a finite heating power [W] for every sample"
+            )
         fn = _report_fn(self.setup)
         losses, Fs, y = fn(*self.args(), jnp.asarray(power))
         losses, Fs, y = np.array(losses), np.asarray(Fs), np.asarray(y)

@@ -391,6 +391,28 @@ def _prepare(
     return prior, setup, ctx
 
 
+def _schedule(power) -> np.ndarray:
+    """A heating schedule [W] as a 1-D float array of at least 4 finite samples."""
+    try:
+        power = np.asarray(power, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(
+            f"power must be a sequence of numbers (heating [W] per sample), got "
+            f"{type(power).__name__}"
+        ) from None
+    if power.ndim != 1 or len(power) < 4:
+        raise ModelError(
+            f"power must be a 1-D schedule of at least 4 samples [W], got shape {power.shape}"
+        )
+    bad = np.flatnonzero(~np.isfinite(power))
+    if len(bad):
+        raise ModelError(
+            f"the power has {len(bad)} non-finite value(s) (NaN or inf), the first at sample "
+            f"{bad[0]}; give a finite heating power [W] for every sample"
+        )
+    return power
+
+
 def evaluate(
     power,
     model=None,
@@ -410,7 +432,7 @@ def evaluate(
     that leaves parameters unidentifiable (``report["unidentifiable"]``) gets a warning naming
     them.
     """
-    power = np.asarray(power, dtype=float)
+    power = _schedule(power)
     days = len(power) * step / 86400.0
     _, _, ctx = _prepare(
         model,

@@ -73,7 +73,7 @@ def _multistart(counts: list[int], repeats: int, cpu_slots: bool) -> list[dict]:
             best = float(np.nanmin(cost))
             row = {
                 "starts": S,
-                "slots": _fit.default_slots(S) if slots is None else slots,
+                "slots": r.timing.get("slots", slots),
                 "compile_s": first.timing["compile_s"],
                 "first_call_s": first_wall,
                 "fit_s": min(fits),
@@ -303,8 +303,9 @@ def _markdown(doc: dict) -> str:
         lines += [
             "",
             "*slots*: starts iterated together (a finished start hands its slot to the next); "
-            "the default runs every start at once on a GPU (up to 16384) and at most 128 together "
-            "on a CPU; the rows with 128 slots show the CPU grouping on the GPU. "
+            "the default on a GPU runs 257 to 1024 starts in 256 slots where such a batch runs "
+            "parallel in time and every start at once otherwise (up to 16384), and at most 128 "
+            "together on a CPU; the rows with 128 slots show the CPU grouping on the GPU. "
             "*CPU*: the same call with `JAX_PLATFORMS=cpu` (default slots).",
             "",
         ]

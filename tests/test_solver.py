@@ -137,6 +137,14 @@ def test_default_slots_fill_a_cpu_in_groups_and_an_accelerator_at_once():
     assert [default_slots(n, "cpu") for n in (1, 8, 64, 1024, 8192)] == [1, 8, 16, 128, 128]
     assert [default_slots(n, "gpu") for n in (1, 64, 8192)] == [1, 64, 8192]
     assert default_slots(10**6, "gpu") == 16384  # bounded by memory
+    # where a narrow batch runs parallel in time, up to 1024 starts share 256 refilling slots
+    assert [default_slots(n, "gpu", parallel=True) for n in (64, 300, 1024, 1025)] == [
+        64,
+        256,
+        256,
+        1025,
+    ]
+    assert default_slots(1024, "cpu", parallel=True) == 128  # never on a CPU
     assert default_slots(64) == default_slots(64, jax.default_backend())
 
 

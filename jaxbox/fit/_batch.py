@@ -228,7 +228,8 @@ def fit_many(
 
     Returns:
         One :class:`~jaxbox.fit.FitResult` per dataset: a list, or a dict with the same keys.
-        Their ``timing`` is that of the whole batch (``batch`` holds the number of datasets).
+        Their ``timing`` is that of the whole batch (``batch`` holds the number of datasets;
+        ``slots``, the starts iterated together in each of ``parts`` queues).
 
     Raises:
         FitError: no dataset, datasets of different lengths or steps, a problem that differs
@@ -376,7 +377,13 @@ def fit_batch(
             release=release,
             bucket=bucket,
         )
-        timing = {"compile_s": out["compile_s"], "fit_s": out["fit_s"], "batch": len(members)}
+        timing = {
+            "compile_s": out["compile_s"],
+            "fit_s": out["fit_s"],
+            "batch": len(members),
+            "slots": out["slots"],
+            "parts": out["parts"],
+        }
         first = 0
         for i, problem, data, x0, _, _ in members:
             sl = slice(first, first + len(x0))

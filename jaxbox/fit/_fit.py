@@ -55,6 +55,7 @@ from jaxtyping import Float
 
 from .. import _compiled
 from .._compiled import jit
+from ..simulate._parallel import _PARALLEL_BATCH, normal_equations_auto, prefer_parallel
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS
 from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
@@ -124,22 +125,31 @@ def check_homotopy(gains) -> tuple[float, ...]:
 
 #: most starts iterated together on an accelerator (memory: a slot holds its normal equations)
 _ACCELERATOR_SLOTS = 16384
+#: starts iterated together on an accelerator where the fit runs parallel in time
+_ACCELERATOR_NARROW = 256
 
 
-def default_slots(n_starts: int, platform: str | None = None) -> int:
+def default_slots(n_starts: int, platform: str | None = None, *, parallel: bool = False) -> int:
     """Starts iterated together.
 
     On a CPU: enough to use the vector units, few enough that a start that has terminated soon
-    hands its slot to the next one instead of idling (16 to 128). On a GPU or TPU an iteration
-    costs about the same for 1 or 10⁴ slots (it is bound by the sequential scan over time, not
-    by arithmetic), so every start runs at once, up to 16384 slots.
+    hands its slot to the next one instead of idling (16 to 128). On a GPU or TPU the
+    sequential scan over time costs about the same for 1 or 10⁴ slots, so every start runs at
+    once, up to 16384 slots; but where the normal equations of :data:`_ACCELERATOR_NARROW`
+    members run parallel in time (``parallel``, see
+    :func:`~jaxbox.simulate._parallel.prefer_parallel`), an iteration's cost grows with the
+    slots, and up to 1024 starts go through that many slots that refill (on an H100, 1024 starts
+    of the 14-parameter model in 1.40 s against 1.85 s all at once, ``benchmarks/GPU.md``).
 
     Args:
         n_starts: starts in the batch.
         platform: ``"cpu"``, ``"gpu"``, ``"tpu"``; default: JAX's default backend.
+        parallel: whether a batch of :data:`_ACCELERATOR_NARROW` members runs parallel in time.
     """
     platform = jax.default_backend() if platform is None else platform
     if platform != "cpu":
+        if parallel and n_starts <= _PARALLEL_BATCH:
+            return int(max(1, min(n_starts, _ACCELERATOR_NARROW)))
         return int(max(1, min(n_starts, _ACCELERATOR_SLOTS)))
     return int(min(n_starts, max(16, min(128, n_starts // 8))))
 
@@ -620,9 +630,6 @@ def _build(
         raise FitError("model variants can only be batched with the exact simulator")
     if len({p.output_states for p, _ in groups}) > 1:
         raise FitError("model variants batched together must measure the same states")
-    # in time order, or parallel in time where that pays (an accelerator, a narrow batch)
-    from ..simulate._parallel import normal_equations_auto
-
     style = groups[0][0].transform.style
 
     def solve(z0, bounded, anchor, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
@@ -798,7 +805,8 @@ def solve_jobs(
     Returns a dict with per member (all starts of all jobs, in order): ``job`` [B], ``z``, ``p``
     [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s] and
     ``memory_bytes``, the compiled solve's arguments, outputs and scratch memory (-1 if the
-    backend does not report it).
+    backend does not report it); ``slots``, the starts iterated together in each of ``parts``
+    queues that run side by side.
     """
     if not jobs:
         raise FitError("no job to solve")
@@ -911,7 +919,13 @@ def solve_jobs(
     if rc is not None:  # one program for every variant: the key holds no structure
         pads = ("rc", problems[0].transform.style, problems[0].output_states)
     n_total = len(args[0])
-    n_slots = default_slots(n_total) if slots is None else max(1, int(slots))
+    if slots is None:
+        narrow = min(n_total, _ACCELERATOR_NARROW)
+        n_states = max(len(p.model.states) for p in problems)
+        parallel = prefer_parallel(len(data[0]), narrow, n_states, z0.shape[1])
+        n_slots = default_slots(n_total, parallel=parallel)
+    else:
+        n_slots = max(1, int(slots))
     slot_counts = tuple(min(c, max(1, round(n_slots * c / n_total))) for _, c in groups)
     if solver is None:
         solver = LevenbergMarquardt(rtol=rtol, atol=atol)
@@ -989,6 +1003,8 @@ def solve_jobs(
         "compile_s": compile_s,
         "fit_s": fit_s,
         "memory_bytes": memory,
+        "slots": int(sum(slot_counts)),
+        "parts": len(parts),
     }
 
 

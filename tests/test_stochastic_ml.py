@@ -254,3 +254,49 @@ def test_a_start_ends_when_its_objective_stalls():
     plain, stalled = (solve(bowl, s, jnp.zeros(2)) for s in (False, True))
     assert int(plain.stats["num_steps"]) == int(stalled.stats["num_steps"]) < 50
     np.testing.assert_array_equal(np.asarray(plain.value), np.asarray(stalled.value))
+
+
+def test_fit_settings_are_checked_before_the_solve(ti, data):
+    """starts, seed, concentration, max_steps and the tolerances are checked and named before
+    anything is compiled: a bool or a float as a number of starts, an empty or 3-D array, an
+    explicit start outside its bounds (it would fail as 'nonfinite'), max_steps 0 (a result
+    that never moved), a string seed or a negative concentration."""
+    sp = make_stochastic_problem(ti, data)
+    guess = np.asarray([sp.guess_dict[n] for n in sp.free])
+    outside = guess.copy()
+    outside[sp.free.index("R_wal")] = -1.0
+    for kwargs, match in (
+        ({"starts": True}, "starts must be a number of starts"),
+        ({"starts": 2.5}, "starts must be a number of starts"),
+        ({"starts": "4"}, "starts must be a number of starts"),
+        ({"starts": np.zeros((0, 6))}, "explicit starts hold no row"),
+        ({"starts": np.ones((2, 6, 1))}, "one column per free parameter.*\\(2, 6, 1\\)"),
+        ({"starts": np.vstack([guess, outside])}, "explicit start 1: R_wal = -1 is not"),
+        ({"starts": np.full(6, np.nan)}, "explicit start 0: C_zon = nan"),
+        ({"max_steps": 0}, "max_steps must be at least 1"),
+        ({"max_steps": 2.5}, "max_steps must be an integer"),
+        ({"seed": "x"}, "seed must be an integer or None"),
+        ({"concentration": -1.0}, "concentration must be finite and ≥ 0"),
+        ({"rtol": float("nan")}, "rtol must be finite"),
+        ({"atol": -1.0}, "atol must be finite and ≥ 0"),
+    ):
+        with pytest.raises(FitError, match=match):
+            fit_ml(ti, data, **{"starts": 1, **kwargs})
+
+
+def test_forward_selection_checks_every_entry_before_the_first_fit(data):
+    """A misspelt model, a bad pair or an unknown option in the last entry is named before the
+    first model is fitted (minutes of fits are not spent on a selection that then fails); a
+    string is not taken as a list of one-letter model names."""
+    from jaxbox.models import ModelError
+
+    with pytest.raises(TypeError, match="models must be a list of models"):
+        forward_selection_lr("BM_Ti", data, starts=1)
+    with pytest.raises(TypeError, match=r"models\[1\] must be a model or a pair"):
+        forward_selection_lr(["BM_Ti", ("BM_TiTe", 3)], data, starts=1)
+    with pytest.raises(TypeError, match=r"models\[1\]: unknown fit option\(s\) fixd"):
+        forward_selection_lr(["BM_Ti", ("BM_TiTe", {"fixd": {}})], data, starts=1)
+    with pytest.raises(TypeError, match=r"unknown fit option\(s\) start;"):
+        forward_selection_lr(["BM_Ti"], data, start=1)
+    with pytest.raises(ModelError, match="BM_TiXe"):
+        forward_selection_lr(["BM_Ti", "BM_TiXe"], data, starts=1)

@@ -40,7 +40,7 @@ from ..fit._starts import sample_starts
 from ..fit._transforms import Transform, to_physical_coded
 from ..models import get_model
 from ._arrays import KEYS, has_array_form, ml_arrays, padded_sizes, system_from_arrays
-from ._checks import as_data, as_datasets
+from ._checks import as_data, as_datasets, number
 from ._kalman import kalman_scan
 from ._problem import (
     StochasticProblem,
@@ -472,6 +472,75 @@ def _result(sp, data, arrays, starts, out, sl, settings, timing) -> MLResult:
     )
 
 
+def _is_count(starts) -> bool:
+    """Whether ``starts`` is a number of starts (an integer, not a bool) rather than an array
+    of explicit starts."""
+    return isinstance(starts, int | np.integer) and not isinstance(starts, bool | np.bool_)
+
+
+def _check_settings(starts, seed, concentration, max_steps, rtol, atol) -> None:
+    """The settings of :func:`fit_ml`, checked before anything is built: a number of starts
+    ≥ 1 (or an array, :func:`_explicit_starts`), an integer seed or None, a concentration
+    ≥ 0, an integer ``max_steps`` ≥ 1 and finite tolerances ≥ 0."""
+    if _is_count(starts):
+        if starts < 1:
+            raise FitError(f"starts must be at least 1, got {starts}")
+    elif isinstance(starts, bool | np.bool_ | str | bytes | float | np.floating) or (
+        starts is None
+    ):
+        raise FitError(
+            "starts must be a number of starts (an integer ≥ 1) or an array [S, k] of explicit "
+            f"starts (physical values, one column per free parameter), got {starts!r}"
+        )
+    if seed is not None and (not isinstance(seed, int | np.integer) or isinstance(seed, bool)):
+        raise FitError(f"seed must be an integer or None, got {seed!r}")
+    kappa = number(concentration, "concentration")
+    if not (np.isfinite(kappa) and kappa >= 0):
+        raise FitError(
+            f"concentration must be finite and ≥ 0 (0: uniform starts), got {concentration!r}"
+        )
+    if not isinstance(max_steps, int | np.integer) or isinstance(max_steps, bool):
+        raise FitError(f"max_steps must be an integer ≥ 1, got {max_steps!r}")
+    if max_steps < 1:
+        raise FitError(f"max_steps must be at least 1, got {max_steps}")
+    for name, tol in (("rtol", rtol), ("atol", atol)):
+        v = number(tol, name)
+        if not (np.isfinite(v) and v >= 0):
+            raise FitError(f"{name} must be finite and ≥ 0, got {tol!r}")
+
+
+def _explicit_starts(sp: StochasticProblem, starts) -> np.ndarray:
+    """Explicit starts [S, k] (physical values, columns in ``sp.free`` order; one row may be
+    given as a vector), checked: numbers, at least one row, one column per free parameter,
+    every value finite and within its bounds (a start outside them has no coordinate in the
+    bound transform, and would fail)."""
+    try:
+        x0s = np.asarray(starts, dtype=float)
+    except (TypeError, ValueError):
+        raise FitError(
+            "explicit starts must be an array of numbers [S, k] (physical values, one column "
+            f"per free parameter: {', '.join(sp.free)})"
+        ) from None
+    if x0s.ndim == 1:
+        x0s = x0s[None, :]
+    if x0s.ndim != 2 or x0s.shape[1] != len(sp.free):
+        raise FitError(
+            "explicit starts need one column per free parameter "
+            f"({', '.join(sp.free)}), got shape {x0s.shape}"
+        )
+    if len(x0s) == 0:
+        raise FitError("explicit starts hold no row; give at least one start, or a number")
+    lo, hi = np.asarray(sp.transform.lower), np.asarray(sp.transform.upper)
+    bad = ~np.isfinite(x0s) | (x0s < lo) | (x0s > hi)
+    if bad.any():
+        row, col = (int(i) for i in np.argwhere(bad)[0])
+        raise FitError(
+            f"explicit start {row}: {sp.free[col]} = {x0s[row, col]:g} is not a number within "
+            f"its bounds [{lo[col]:g}, {hi[col]:g}]; move it inside or widen bounds="
+        )
+    return x0s
+
+
 def fit_ml(
     model,
     data,
@@ -555,6 +624,7 @@ def fit_ml_many(
     """:func:`fit_ml` on several datasets of the same length and step, in one compiled call
     (every start of every dataset under one ``vmap``). Returns one result per dataset."""
     require_x64()
+    _check_settings(starts, seed, concentration, max_steps, rtol, atol)
     model = get_model(model)
     datasets = as_datasets(datasets)
     if not datasets:
@@ -573,17 +643,10 @@ def fit_ml_many(
             x0_std=x0_std,
         )
         arrays = stochastic_arrays(model, data)
-        if isinstance(starts, int | np.integer):
-            if starts < 1:
-                raise FitError(f"starts must be at least 1, got {starts}")
+        if _is_count(starts):
             x0s = sample_starts(sp, data, int(starts), seed, concentration)
         else:
-            x0s = np.atleast_2d(np.asarray(starts, dtype=float))
-            if x0s.shape[1] != len(sp.free):
-                raise FitError(
-                    "explicit starts need one column per free parameter "
-                    f"({', '.join(sp.free)}), got shape {x0s.shape}"
-                )
+            x0s = _explicit_starts(sp, starts)
         jobs.append((sp, x0s, arrays))
         all_starts.append(x0s)
         arrays_list.append(arrays)

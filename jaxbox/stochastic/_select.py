@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import inspect
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -54,18 +55,15 @@ def forward_selection_lr(
         ``model``, ``n_free``, ``loglik``, ``aic``, ``bic``, the LR ``statistic``, ``df`` and
         ``pvalue`` against the model accepted before it, and ``accepted``.
     """
-    if not models:
-        raise ValueError("forward_selection_lr needs at least one model")
+    entries = _entries(models, fit_options)
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must be in (0, 1), got {alpha}")
     data = as_data(data)
     current: MLResult | None = None
     accepted = ""
     table, fits = [], {}
-    for i, entry in enumerate(models):
-        m, extra = entry if isinstance(entry, tuple) else (entry, {})
-        model = get_model(m)
-        options = {**fit_options, **dict(extra)}
+    for i, (model, extra) in enumerate(entries):
+        options = {**fit_options, **extra}
         if current is not None:
             options["starts"] = _with_parent_start(model, data, current, options)
         fit = fit_ml(model, data, **options)
@@ -94,6 +92,41 @@ def forward_selection_lr(
             current, accepted = fit, name
         table.append(row)
     return {"accepted": accepted, "table": table, "fits": fits}
+
+
+def _entries(models, fit_options: dict) -> list[tuple]:
+    """``[(model, options), …]`` of :func:`forward_selection_lr`, every entry checked before
+    the first fit: a model (name or :class:`~jaxbox.models.RCModel`) or a pair ``(model,
+    {option: value})``, and only options :func:`fit_ml` takes (here and in ``fit_options``)."""
+    if isinstance(models, str) or not isinstance(models, Sequence):
+        raise TypeError(
+            f"models must be a list of models, simplest first (e.g. ['BM_Ti', 'BM_TiTe']), got "
+            f"{models!r}"
+        )
+    if not models:
+        raise ValueError("forward_selection_lr needs at least one model")
+    known = set(inspect.signature(fit_ml).parameters) - {"model", "data"}
+    bad = sorted(set(fit_options) - known)
+    if bad:
+        raise TypeError(
+            f"unknown fit option(s) {', '.join(bad)}; fit_ml takes {', '.join(sorted(known))}"
+        )
+    out = []
+    for i, entry in enumerate(models):
+        if isinstance(entry, tuple) and (len(entry) != 2 or not isinstance(entry[1], Mapping)):
+            raise TypeError(
+                f"models[{i}] must be a model or a pair (model, {{option: value}}), e.g. "
+                f"('BM_Ti', {{'fixed': {{'sigma_zon': 0}}}}), got {entry!r}"
+            )
+        m, extra = entry if isinstance(entry, tuple) else (entry, {})
+        bad = sorted(set(extra) - known)
+        if bad:
+            raise TypeError(
+                f"models[{i}]: unknown fit option(s) {', '.join(map(str, bad))}; fit_ml takes "
+                f"{', '.join(sorted(known))}"
+            )
+        out.append((get_model(m), dict(extra)))
+    return out
 
 
 def parent_guess(problem: StochasticProblem, parent: MLResult) -> dict[str, float]:

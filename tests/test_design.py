@@ -250,6 +250,35 @@ def test_bad_input_is_named():
         design.plan("ZonWal", PRIOR, days=400)
 
 
+def test_bad_prior_values_are_named(tmp_path):
+    """Every prior value is checked, fixed ones included (a negative fixed R gave an HLC
+    criterion of -inf), and a free gA must be > 0 (its coordinate is log gA)."""
+    cases = [
+        ({"R_wal": -1.0}, ["C_zon", "gA"], "R_wal is -1; resistances"),
+        ({"R_wal": np.nan}, ["C_zon", "gA"], "R_wal is nan"),
+        ({"gA": 0.0}, None, "gA is 0; a free gA .* needs a value > 0"),
+        ({"R_wal": "abc"}, None, "R_wal is 'abc'; give a number"),
+        (PRIOR, ["R_foo"], "no parameter.*R_foo; its parameters are C_zon"),
+    ]
+    for params, free, words in cases:
+        with pytest.raises(ModelError, match=words):
+            design.load_prior("ZonWal", params, free)
+    assert design.load_prior("ZonWal", {"gA": 0.0}, ["C_zon", "R_wal"]).theta["gA"] == 0.0
+    with pytest.raises(TypeError, match="free must be a list of parameter names"):
+        design.load_prior("ZonWal", PRIOR, "R_wal")
+    with pytest.raises(TypeError, match="params must be a mapping"):
+        design.load_prior("ZonWal", [("R_wal", 0.01)])
+    fit = {"model": "ZonWal", "params": {n: {"value": v} for n, v in PRIOR.items()}}
+    fit["params"]["T_zon0"] = {"value": None}
+    fit["params"]["T_wal0"] = {"value": 20.0, "std": "n/a"}
+    path = tmp_path / "fit.json"
+    path.write_text(json.dumps(fit))
+    with pytest.raises(ModelError, match="fit.json: prior value of T_zon0 is None"):
+        design.load_prior(params=str(path))
+    with pytest.raises(ModelError, match="no parameter.*R_foo"):
+        design.prior_samples(design.load_prior("ZonWal"), ["R_foo"], 3, 0.3)
+
+
 def test_missing_power_or_weather_is_named():
     """A NaN in the schedule or a gap in the weather within the horizon: an error naming the
     sample or the column and time stamp, not NaN criteria (or a 'check the prior values')."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +45,10 @@ def _from_json(path: Path, model: RCModel | None) -> Prior:
         raise ModelError(
             f"{path}: not a JSON document ({err.msg}); give the output of `jaxbox fit --json`"
         ) from None
+    except UnicodeDecodeError:
+        raise ModelError(
+            f"{path}: not a text file; give the output of `jaxbox fit --json`"
+        ) from None
     if not isinstance(doc, dict) or "params" not in doc or "model" not in doc:
         raise ModelError(f"{path}: no 'model' and 'params'; give the output of `jaxbox fit --json`")
     fitted = get_model(doc["model"])
@@ -51,17 +56,28 @@ def _from_json(path: Path, model: RCModel | None) -> Prior:
         raise ModelError(f"{path} holds a fit of {fitted.name}, not of {model.name}")
     model = model or fitted
     params = doc["params"]
-    missing = [n for n in model.param_names if n not in params]
+    if not isinstance(params, dict):
+        raise ModelError(
+            f"{path}: 'params' is not an object; give the output of `jaxbox fit --json`"
+        )
+    missing = [
+        n
+        for n in model.param_names
+        if not isinstance(params.get(n), dict) or "value" not in params[n]
+    ]
     if missing:
         raise ModelError(f"{path}: no value for parameter(s) {', '.join(missing)}")
-    theta = {n: float(params[n]["value"]) for n in model.param_names}
-    free = [n for n in doc.get("free", model.param_names) if n in theta]
+    theta = {n: _value(params[n]["value"], n, f"{path}: ") for n in model.param_names}
+    free = doc.get("free", model.param_names)
+    if not isinstance(free, list):
+        raise ModelError(f"{path}: 'free' is not a list of parameter names")
+    free = [n for n in free if n in theta]
     # covariance of log θ from the fit's standard deviations and correlations
     names = [
         n
         for n in free
         if n.startswith(("R_", "C_", "gA", "fra_"))
-        and params[n].get("std") is not None
+        and isinstance(params[n].get("std"), int | float)
         and theta[n] > 0
         and math.isfinite(params[n]["std"])
     ]
@@ -73,10 +89,38 @@ def _from_json(path: Path, model: RCModel | None) -> Prior:
         for i, a in enumerate(names):
             for j, b in enumerate(names):
                 v = (table.get(a) or {}).get(b)
-                if i != j and v is not None and math.isfinite(v):
+                if i != j and isinstance(v, int | float) and math.isfinite(v):
                     corr[i, j] = v
         log_cov = corr * np.outer(rel, rel)
     return Prior(model, theta, free, log_cov, names, source=str(path))
+
+
+def _value(v, name: str, where: str = "") -> float:
+    """A prior value as a float, or a ModelError naming the parameter."""
+    if isinstance(v, bool):
+        v = None
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        raise ModelError(f"{where}prior value of {name} is {v!r}; give a number [SI]") from None
+
+
+def _check_values(prior: Prior) -> None:
+    """Every value finite, resistances and capacities > 0, and every free parameter whose
+    design coordinate is ``log θ`` > 0."""
+    from ._fisher import RATIO_PREFIXES
+
+    for n, v in prior.theta.items():
+        if not math.isfinite(v):
+            raise ModelError(f"prior value of {n} is {v}; give a finite number")
+        if n.startswith(("R_", "C_")) and not v > 0:
+            raise ModelError(f"prior value of {n} is {v:g}; resistances and capacities are > 0")
+        if n in prior.free and n.startswith(RATIO_PREFIXES) and not v > 0:
+            raise ModelError(
+                f"prior value of {n} is {v:g}; a free {n} is designed for in relative terms "
+                f"(log {n}) and needs a value > 0; give one, or leave {n} out of the free "
+                "parameters"
+            )
 
 
 def load_prior(model=None, params=None, free=None) -> Prior:
@@ -93,27 +137,39 @@ def load_prior(model=None, params=None, free=None) -> Prior:
     model = None if model is None else get_model(model)
     if isinstance(params, str | Path):
         prior = _from_json(Path(params), model)
+    elif params is not None and not isinstance(params, Mapping):
+        raise TypeError(
+            "params must be a mapping name -> value [SI], the path of a fit JSON, or None, got "
+            f"{type(params).__name__}"
+        )
     else:
         if model is None:
             raise ModelError("give a model (or the JSON of a fit, which names it)")
         theta = model.defaults()
         if params is not None:
-            bad = [k for k in params if k not in theta]
+            bad = [str(k) for k in params if k not in theta]
             if bad:
                 raise ModelError(
                     f"model {model.name} has no parameter(s) {', '.join(bad)}; its parameters "
                     f"are {', '.join(model.param_names)}"
                 )
-            theta.update({k: float(v) for k, v in params.items()})
+            theta.update({k: _value(v, k) for k, v in params.items()})
         prior = Prior(model, theta, model.param_names, source="values" if params else "defaults")
     if free is not None:
-        prior.free = tuple(free)
-    for n in prior.free:
-        v = prior.theta.get(n)
-        if v is None or not math.isfinite(v):
-            raise ModelError(f"prior value of {n} is {v}; give a finite number")
-        if n.startswith(("R_", "C_")) and not v > 0:
-            raise ModelError(f"prior value of {n} is {v:g}; resistances and capacities are > 0")
+        if isinstance(free, str) or not isinstance(free, Iterable):
+            raise TypeError(
+                f"free must be a list of parameter names, got {free!r}; e.g. free=['R_wal', "
+                "'C_zon']"
+            )
+        free = tuple(free)
+        bad = [str(n) for n in free if n not in prior.theta]
+        if bad:
+            raise ModelError(
+                f"model {prior.model.name} has no parameter(s) {', '.join(bad)}; its parameters "
+                f"are {', '.join(prior.model.param_names)}"
+            )
+        prior.free = free
+    _check_values(prior)
     return prior
 
 
@@ -123,6 +179,12 @@ def prior_samples(prior: Prior, names, n: int, spread: float | None, seed: int =
     ``spread``: standard deviation of ``log θ`` of every parameter (a log-normal prior, e.g.
     0.3 for about ±30 %), or ``None`` for the fit's covariance (which must be known).
     """
+    bad = [str(k) for k in names if k not in prior.theta]
+    if bad:
+        raise ModelError(
+            f"model {prior.model.name} has no parameter(s) {', '.join(bad)}; its parameters are "
+            f"{', '.join(prior.model.param_names)}"
+        )
     mean = np.log([prior.theta[k] for k in names])
     if n <= 1:
         return mean[None, :]

@@ -377,3 +377,27 @@ def test_smoother_of_states_known_exactly_is_finite(tite, short):
     assert np.all(np.isfinite(est.smoothed)) and np.all(np.isfinite(est.smoothed_cov))
     np.testing.assert_allclose(est.smoothed, est.filtered, rtol=0, atol=1e-12)
     assert np.all(est.smoothed_cov == 0.0)
+
+
+def test_problem_values_that_are_not_numbers_are_named(tite, short):
+    """fixed, guess, bounds and priors: a value that is not a number, a bound with a third
+    entry, a NaN guess, a mapping argument given as a string and free given as one name are
+    named (or taken as that name), not left to float() or cut to their first items."""
+    for kwargs, match in (
+        ({"fixed": {"sigma_zon": "abc"}}, "fixed value of sigma_zon must be a number, got 'abc'"),
+        ({"fixed": {"C_zon": None}}, "fixed value of C_zon must be a number, got None"),
+        ({"guess": {"sigma_y_zon": "x"}}, "guess of sigma_y_zon must be a number"),
+        ({"guess": {"sigma_zon": float("nan")}}, "guess of sigma_zon is nan; give a finite"),
+        ({"bounds": {"sigma_zon": (1e-6, 1.0, 2.0)}}, "bounds of sigma_zon must be a pair"),
+        ({"bounds": {"R_wal": (1e-3, 1.0, 2.0)}}, "bounds of R_wal must be a pair"),
+        ({"bounds": {"gA": "ab"}}, "bounds of gA must be a pair"),
+        ({"priors": {"gA": (1.0, "x")}}, "priors of gA must be a number"),
+    ):
+        with pytest.raises(FitError, match=match):
+            make_stochastic_problem(tite, short, **kwargs)
+    with pytest.raises(TypeError, match="fixed must be a mapping"):
+        make_stochastic_problem(tite, short, fixed="sigma_zon")
+    with pytest.raises(TypeError, match="free must be a list of parameter names"):
+        make_stochastic_problem(tite, short, free=3)
+    sp = make_stochastic_problem(tite, short, free="C_zon")
+    assert sp.free == ("C_zon",)

@@ -15,10 +15,11 @@ from collections.abc import Mapping, Sequence
 import jax.numpy as jnp
 import numpy as np
 
+from ..data import check_mapping
 from ..fit._problem import FitError, Problem, make_problem
 from ..fit._transforms import Transform, make_transform
 from ..models import RCModel
-from ._checks import as_data, regular_step, x0_stds
+from ._checks import as_data, number, regular_step, x0_stds
 from ._kalman import HOLDS, discretize, kalman_scan
 from ._noise import diffusion_names, measurement_names, noise_parameters
 
@@ -192,7 +193,9 @@ def system(model: RCModel, theta, dt, hold: str = "foh", x0_std=None):
 
 
 def _split(d: Mapping | None, noise: set, what: str, names: Sequence[str], model) -> tuple:
-    d = dict(d or {})
+    """``(physical, noise)``: the entries of the mapping ``d`` (the argument ``what``) split
+    by kind, every name checked against the parameters ``names`` of the stochastic form."""
+    d = check_mapping(d, what, _EXAMPLES[what])
     bad = [k for k in d if k not in names]
     if bad:
         raise FitError(
@@ -202,6 +205,43 @@ def _split(d: Mapping | None, noise: set, what: str, names: Sequence[str], model
     return {k: v for k, v in d.items() if k not in noise}, {
         k: v for k, v in d.items() if k in noise
     }
+
+
+#: an example of each mapping argument, for the message of a misuse
+_EXAMPLES = {
+    "fixed": "{'sigma_zon': 0.0}",
+    "bounds": "{'sigma_zon': (1e-6, 1e-2)}",
+    "guess": "{'sigma_y_zon': 0.1}",
+    "priors": "{'gA': (2.0, 0.5)}",
+}
+
+
+def _numbers(d: dict, what: str) -> dict:
+    """The values of ``fixed`` or ``guess`` as floats (NaN kept for the range checks); a value
+    that is not a number is named: ``fixed value of sigma_zon must be a number, got 'abc'``."""
+    return {n: number(v, f"{what} of {n}") for n, v in d.items()}
+
+
+def _pairs(d: dict, what: str) -> dict:
+    """The values of ``bounds`` or ``priors``: each a pair of numbers (a third entry, a string
+    or a scalar is named, not cut to its first two items or left to float())."""
+    out = {}
+    for n, v in d.items():
+        shape = "(lower, upper)" if what == "bounds" else "(mean, sd) in SI"
+        if isinstance(v, str | bytes | Mapping) or not hasattr(v, "__len__") or len(v) != 2:
+            raise FitError(f"{what} of {n} must be a pair {shape}, got {v!r}")
+        out[n] = tuple(number(x, f"{what} of {n}") for x in v)
+    return out
+
+
+def _free_names(free) -> list | None:
+    """``free`` as a list of names: one name given as a string is that name (not its
+    letters); anything but a string or a sequence of strings is a ``TypeError``."""
+    if free is None or isinstance(free, str):
+        return None if free is None else [free]
+    if isinstance(free, Mapping) or not isinstance(free, Sequence | set | frozenset):
+        raise TypeError(f"free must be a list of parameter names, got {free!r}")
+    return list(free)
 
 
 def make_stochastic_problem(
@@ -224,10 +264,16 @@ def make_stochastic_problem(
     specs = {p.name: p for p in noise_parameters(model)}
     noise = set(specs)
     names = model.param_names + tuple(specs)
-    fixed_p, fixed_n = _split(fixed, noise, "fixed", names, model)
-    bounds_p, bounds_n = _split(bounds, noise, "bounds", names, model)
-    guess_p, guess_n = _split(guess, noise, "guess", names, model)
+    split = {
+        what: _split(arg, noise, what, names, model)
+        for what, arg in (("fixed", fixed), ("bounds", bounds), ("guess", guess))
+    }
+    fixed_p, fixed_n = (_numbers(d, "fixed value") for d in split["fixed"])
+    bounds_p, bounds_n = (_pairs(d, "bounds") for d in split["bounds"])
+    guess_p, guess_n = (_numbers(d, "guess") for d in split["guess"])
     _split(priors, noise, "priors", names, model)
+    priors = _pairs(check_mapping(priors, "priors"), "priors")
+    free = _free_names(free)
     free_p = None
     free_n = [n for n in specs if n not in fixed_n]
     if free is not None:
@@ -282,6 +328,8 @@ def make_stochastic_problem(
                 "diffusion to 0 with fixed= instead of a zero lower bound"
             )
         gn = float(guess_n.get(n, spec.default))
+        if not np.isfinite(gn):
+            raise FitError(f"guess of {n} is {gn}; give a finite number")
         if not blo <= gn <= bhi:
             if n in guess_n:
                 raise FitError(f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]")

@@ -169,6 +169,10 @@ def test_config_from_toml(tmp_path):
         load_config(time=["date"])
     with pytest.raises(FleetError, match="data.tz must name a time zone"):
         load_config(tz=" ")
+    cfg = load_config(thousands=".", decimal=",", sep=";")
+    assert cfg.load_options() == {"sep": ";", "decimal": ",", "thousands": "."}
+    with pytest.raises(FleetError, match="data.thousands must be one of"):
+        load_config(thousands=".")
     path.write_text("[identify]\nstart = 3\n", encoding="utf-8")
     with pytest.raises(FleetError, match="unknown key 'start' in \\[identify\\]"):
         load_config(path)

@@ -115,6 +115,13 @@ def semicolons(decimal_comma: bool):
     return make
 
 
+def grouped(folder: Path) -> Path:
+    """Heating power written with a thousands separator, as spreadsheets export it."""
+    f = frame()
+    f["Q_hea"] = [f"{q:,.1f}" for q in f["Q_hea"] + 1000]
+    return csv(folder / "data.csv", f)
+
+
 def folder_as_data(folder: Path) -> Path:
     (folder / "data.csv").mkdir()
     return folder / "data.csv"
@@ -245,6 +252,9 @@ CASES = [
     ("semicolons and decimal commas", semicolons(True), [*FIT, "--sep", ";"], ["--decimal"]),
     ("--sep of two characters", good, [*FIT, "--sep", "ab"], ["--sep"]),
     ("--decimal not . or ,", good, [*FIT, "--decimal", "x"], ["--decimal"]),
+    ("digits grouped in thousands", grouped, FIT, ["Q_hea", "'1,500.0'", "--thousands ','"]),
+    ("--thousands the decimal mark", good, [*FIT, "--thousands", "."], ["--thousands"]),
+    ("--thousands not a separator", good, [*FIT, "--thousands", "x"], ["--thousands"]),
     ("--sep and --decimal the same", good, [*FIT, "--sep", ",", "--decimal", ","], ["--sep"]),
     ("--scale without =", good, [*FIT, "--scale", "Q_hea"], ["--scale"]),
     ("--scale not a number", good, [*FIT, "--scale", "Q_hea=abc"], ["--scale", "abc"]),
@@ -515,6 +525,39 @@ def test_semicolons_decimal_commas_and_kilowatts_read_with_options(tmp_path, mon
     assert DataOptions(args).sep == "\t"
 
 
+def test_thousands_separators_read_with_thousands(tmp_path):
+    """Digits grouped in thousands, as exported with ',' (quoted) or '.' beside a decimal
+    comma, with a row of units: refused naming the option, read with it."""
+    from jaxbox.cli._data import DataOptions, load_data
+    from jaxbox.data import DataError, load
+
+    power = np.asarray(frame()["Q_hea"] + 1000.25)
+    us = frame()
+    us["Q_hea"] = [f"{q:,.2f}" for q in power]
+    path = csv(tmp_path / "us.csv", us)
+    with pytest.raises(DataError, match="thousands=','"):
+        load(path)
+    np.testing.assert_allclose(load(path, thousands=",")["Q_hea"], power)
+    options = DataOptions(_args(data=[str(path)], thousands=","))
+    np.testing.assert_allclose(load_data(str(path), options)["Q_hea"], power)
+
+    de = frame().astype(object)
+    for name in ("T_zon", "T_amb", "I_glo_hor"):
+        de[name] = [f"{v:.6f}".replace(".", ",") for v in frame()[name]]
+    de["Q_hea"] = [f"{q:,.2f}".replace(",", " ").replace(".", ",").replace(" ", ".") for q in power]
+    units = {"time": "", "T_zon": "°C", "T_amb": "°C", "Q_hea": "W", "I_glo_hor": "W/m²"}
+    path = csv(tmp_path / "de.csv", pd.concat([pd.DataFrame([units]), de]), sep=";")
+    with pytest.raises(DataError, match="thousands='.', decimal=','"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the row of units
+        load(path, sep=";", decimal=",")
+    with pytest.warns(UserWarning, match="units"):
+        data = load(path, sep=";", decimal=",", thousands=".")
+    np.testing.assert_allclose(data["Q_hea"], power)
+    np.testing.assert_allclose(data["T_zon"], frame()["T_zon"], atol=1e-6)
+    with pytest.raises(DataError, match="decimal mark are both '.'"):
+        load(path, sep=";", thousands=".")
+
+
 def test_an_energy_meter_read_with_counter(tmp_path):
     """A heat meter in kWh is refused with the option that reads it, and read with it."""
     from jaxbox.cli._common import cli_message
@@ -596,6 +639,7 @@ def _args(**kw):
         tz=None,
         sep=None,
         decimal=None,
+        thousands=None,
         scale=[],
         counter=[],
         resample=None,

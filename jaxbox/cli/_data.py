@@ -92,6 +92,12 @@ def add_data_arguments(p) -> None:
         "--decimal", metavar="CHAR", help="decimal mark of the CSV: '.' (default) or ','"
     )
     p.add_argument(
+        "--thousands",
+        metavar="CHAR",
+        help="thousands separator of the CSV's numbers: ',' (1,234.5), '.' with --decimal ',' "
+        '(1.234,5), "\'" or space (default none)',
+    )
+    p.add_argument(
         "--scale",
         action="append",
         default=[],
@@ -217,6 +223,14 @@ class DataOptions:
             raise UsageError(
                 f"--sep and --decimal are both {self.sep!r}; with --decimal ',' use --sep ';'"
             )
+        from ..data._load import THOUSANDS
+
+        self.thousands = separator(getattr(args, "thousands", None), "--thousands", THOUSANDS)
+        if self.thousands is not None and self.thousands == (self.decimal or "."):
+            raise UsageError(
+                f"--thousands and --decimal are both {self.thousands!r}; with --thousands '.' "
+                "use --decimal ','"
+            )
         self.scale = scale(args.scale)
         self.counters = pairs(args.counter, "--counter", "Q_hea=kWh")
         self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
@@ -239,6 +253,7 @@ class DataOptions:
             "--tz": self.tz,
             "--sep": self.sep,
             "--decimal": self.decimal,
+            "--thousands": self.thousands,
             "--scale": self.scale,
             "--counter": self.counters,
         }
@@ -319,6 +334,7 @@ def load_data(spec: str, opts: DataOptions | None = None):
         resample=opts.resample,
         sep=opts.sep,
         decimal=opts.decimal,
+        thousands=opts.thousands,
         scale=opts.scale or None,
         counters=opts.counters or None,
         tz=opts.tz,

@@ -38,6 +38,8 @@ __all__ = [
 Where = Callable[[int], str]
 
 _COMMA_NUMBER = re.compile(r"^\s*[-+]?\d*,\d+\s*$")
+#: A number with its digits grouped in thousands (``1,234.5``, ``1.234,5``, ``1'234``).
+_GROUPED_NUMBER = re.compile(r"^\s*[-+]?\d{1,3}(?:([,.' _])\d{3})+(?:([.,])\d+)?\s*$")
 
 #: Relative tolerance on the sampling step (float seconds round to the nanosecond).
 _STEP_RTOL = 1e-6
@@ -467,12 +469,7 @@ def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:
         if bad.size:
             i = int(bad[0])
             value = column.iloc[i]
-            hint = (
-                " (a decimal comma? pass decimal=',', on the command line --decimal ',', with "
-                "sep=';' / --sep ';' when commas also separate the columns)"
-                if isinstance(value, str) and _COMMA_NUMBER.match(value)
-                else ""
-            )
+            hint = _number_hint(value)
             raise DataError(
                 f"column {name!r} has a non-numeric value {value!r} at {where(i)}{hint}; fix or "
                 "drop that value, or drop the column before loading."
@@ -485,6 +482,35 @@ def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:
             stacklevel=4,
         )
     return pd.DataFrame(out, index=frame.index, columns=[n for n in frame.columns if n in out])
+
+
+def _number_hint(value: object) -> str:
+    """What a text cell that looks like a number asks for: a decimal comma, or thousands."""
+    if not isinstance(value, str):
+        return ""
+    if _COMMA_NUMBER.match(value):
+        either = (
+            "; or, if the comma groups thousands, thousands=',' / --thousands ','"
+            if _GROUPED_NUMBER.match(value)
+            else ""
+        )
+        return (
+            " (a decimal comma? pass decimal=',', on the command line --decimal ',', with "
+            f"sep=';' / --sep ';' when commas also separate the columns{either})"
+        )
+    grouped = _GROUPED_NUMBER.match(value)
+    if grouped is None or grouped.group(1) == grouped.group(2):
+        return ""
+    mark, point = grouped.group(1), grouped.group(2) or ("," if grouped.group(1) == "." else ".")
+    if point == ",":
+        return (
+            f" (digits grouped in thousands? pass thousands={mark!r}, decimal=',', on the "
+            f"command line --thousands {mark!r} --decimal ',')"
+        )
+    return (
+        f" (digits grouped in thousands? pass thousands={mark!r}, on the command line "
+        f"--thousands {mark!r})"
+    )
 
 
 def check_missing(frame: pd.DataFrame) -> None:

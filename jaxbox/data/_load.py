@@ -101,10 +101,37 @@ def _sniff(path: Path, sep: str | None, decimal: str | None) -> None:
                 )
 
 
+#: Thousands separators a CSV file may group its digits with (one byte each, as pandas reads).
+THOUSANDS = (",", ".", "'", " ", "_")
+
+
+def _check_thousands(thousands: str | None, sep: str, decimal: str) -> None:
+    """Refuse a thousands separator that cannot be told from the decimal mark or a column."""
+    if thousands is None:
+        return
+    if thousands not in THOUSANDS:
+        raise DataError(
+            f"thousands={thousands!r} is not a thousands separator; give one of "
+            f"{', '.join(map(repr, THOUSANDS))} (command line: --thousands)."
+        )
+    if thousands == decimal:
+        raise DataError(
+            f"the thousands separator and the decimal mark are both {decimal!r}: with "
+            "thousands='.' pass decimal=',' (command line: --thousands '.' --decimal ',')."
+        )
+    if thousands == sep and sep != ",":
+        raise DataError(
+            f"the thousands separator and the column separator are both {sep!r}; give the "
+            "file's column separator with sep= (command line: --sep)."
+        )
+
+
 def _read_csv(
-    path: Path, sep: str | None = None, decimal: str | None = None
+    path: Path, sep: str | None = None, decimal: str | None = None, thousands: str | None = None
 ) -> tuple[pd.DataFrame, int]:
-    """The CSV at ``path`` and the number of lines skipped below its header (a row of units)."""
+    """The CSV at ``path`` and the number of lines skipped below its header (a row of units).
+    A thousands separator equal to the comma between columns groups the digits of quoted
+    fields (``"1,234.5"``)."""
     if not path.exists():
         raise DataError(
             f"file not found: {str(path)!r} (relative paths are taken from the current "
@@ -118,6 +145,9 @@ def _read_csv(
             f"the column separator and the decimal mark are both {options['sep']!r}; with "
             "decimal=',' pass sep=';' (command line: --sep ';' --decimal ',')."
         )
+    _check_thousands(thousands, options["sep"], options["decimal"])
+    if thousands is not None:
+        options["thousands"] = thousands
     _refuse_spreadsheet(path)
     _sniff(path, sep, decimal)
     try:
@@ -145,7 +175,7 @@ def _read_csv(
                 "in the file."
             )
         seen.add(column)
-    units = _units_row(frame, options["decimal"])
+    units = _units_row(frame, options["decimal"], thousands)
     if units is None:
         return frame, 0
     warnings.warn(
@@ -191,29 +221,33 @@ def _tidy_header(raw: pd.DataFrame) -> pd.DataFrame:
     return raw.drop(columns=empty).rename(columns=lambda name: str(name).strip())
 
 
-def _is_number(text: object, decimal: str) -> bool:
+def _is_number(text: object, decimal: str, thousands: str | None = None) -> bool:
+    text = str(text).strip()
+    if thousands:
+        text = text.replace(thousands, "")
     try:
-        float(str(text).strip().replace(decimal, "."))
+        float(text.replace(decimal, "."))
     except ValueError:
         return False
     return True
 
 
-def _units_row(frame: pd.DataFrame, decimal: str) -> list[str] | None:
+def _units_row(frame: pd.DataFrame, decimal: str, thousands: str | None = None) -> list[str] | None:
     """The cells of the first row when it names units rather than values: no cell of it is a
     number, some are text, and at least half the cells of each of the next rows are numbers."""
     if len(frame) < 3:
         return None
     first = frame.iloc[0].tolist()
     text = [str(v).strip() for v in first if isinstance(v, str) and str(v).strip()]
-    if not text or any(_is_number(v, decimal) for v in first if isinstance(v, str)):
+    if not text or any(_is_number(v, decimal, thousands) for v in first if isinstance(v, str)):
         return None
     if any(isinstance(v, int | float) and not pd.isna(v) for v in first):
         return None
     for _, row in frame.iloc[1:3].iterrows():
         cells = row.tolist()
         numbers = sum(
-            _is_number(v, decimal) if isinstance(v, str) else not pd.isna(v) for v in cells
+            _is_number(v, decimal, thousands) if isinstance(v, str) else not pd.isna(v)
+            for v in cells
         )
         if numbers < len(cells) / 2:
             return None
@@ -360,6 +394,7 @@ def load(
     time_unit: str = "s",
     sep: str | None = None,
     decimal: str | None = None,
+    thousands: str | None = None,
     scale: Mapping[str, float] | None = None,
     counters: Mapping[str, str] | None = None,
     tz: str | None = None,
@@ -393,6 +428,9 @@ def load(
         sep: column separator of a CSV file (default ``","``; e.g. ``";"`` or ``"\\t"``). A
             file separated by semicolons or tabs read without it is refused with this advice.
         decimal: decimal mark of a CSV file (default ``"."``; ``","`` with ``sep=";"``).
+        thousands: thousands separator of a CSV file's numbers (default none): ``","`` for
+            ``1,234.5`` (quoted in a comma-separated file), ``"."`` with ``decimal=","`` for
+            ``1.234,5``, ``"'"`` or ``" "``.
         scale: canonical column name (after ``columns``) -> factor multiplying its values,
             e.g. ``{"Q_hea": 1000}`` for heating power logged in kW. Applied before the checks.
         counters: canonical column name (after ``columns``) -> energy unit (``"kWh"``, ``"MWh"``,
@@ -425,7 +463,7 @@ def load(
 
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
-        raw, skipped = _read_csv(path, sep, decimal)
+        raw, skipped = _read_csv(path, sep, decimal, thousands)
         raw = _tidy_header(raw)
         label = path.name
 

@@ -13,6 +13,7 @@ A TOML file has up to four tables; every key is optional::
     tz = "Europe/Berlin"        # time zone of stamps without a UTC offset (local clock time)
     sep = ","
     decimal = "."
+    # thousands = ","         # digits grouped in thousands (1,234.5); default none
 
     [windows]                   # identification / validation periods of every building
     fraction = 0.5              # first share identifies, the rest validates (default halves)
@@ -77,7 +78,7 @@ class FleetConfig:
         scale: canonical name -> factor.
         counters: canonical name -> energy unit of a cumulative meter (``"kWh"``…).
         tz: time zone of the time stamps (``None``: as written; see :func:`jaxbox.data.load`).
-        sep, decimal: CSV separator and decimal mark.
+        sep, decimal, thousands: CSV separator, decimal mark and thousands separator.
         fraction: identification share of each building's data (without ``train``).
         train, valid: absolute (start, end) periods, the same for every building.
         models: ``"search"`` (the structure search, default), one model name (fitted as
@@ -101,6 +102,7 @@ class FleetConfig:
     tz: str | None = None
     sep: str | None = None
     decimal: str | None = None
+    thousands: str | None = None
     fraction: float = 0.5
     train: tuple[str, str] | None = None
     valid: tuple[str, str] | None = None
@@ -161,6 +163,14 @@ class FleetConfig:
             raise FleetError(
                 f"data.tz must name a time zone such as 'Europe/Berlin', got {self.tz!r}"
             )
+        if self.thousands is not None:
+            from ..data._load import THOUSANDS
+
+            if self.thousands not in THOUSANDS or self.thousands == (self.decimal or "."):
+                raise FleetError(
+                    f"data.thousands must be one of {', '.join(map(repr, THOUSANDS))} and differ "
+                    f"from the decimal mark ('.' with decimal = ','), got {self.thousands!r}"
+                )
 
     @property
     def fixed_model(self) -> str | None:
@@ -192,6 +202,7 @@ class FleetConfig:
             "tz": self.tz,
             "sep": self.sep,
             "decimal": self.decimal,
+            "thousands": self.thousands,
         }
         return {k: v for k, v in out.items() if v is not None}
 
@@ -213,6 +224,7 @@ _TABLES = {
         "tz",
         "sep",
         "decimal",
+        "thousands",
     ),
     "windows": ("fraction", "train", "valid"),
     "identify": ("models", "starts", "seed", "max_steps", "criterion", "margin", "patience"),

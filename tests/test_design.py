@@ -250,6 +250,53 @@ def test_bad_input_is_named():
         design.plan("ZonWal", PRIOR, days=400)
 
 
+@pytest.mark.parametrize(
+    "kwargs, error, words",
+    [
+        ({"days": np.nan}, ModelError, "days must be a horizon > 0"),
+        ({"days": np.inf}, ModelError, "days must be a horizon > 0"),
+        ({"days": "2"}, TypeError, "days must be a number"),
+        ({"days": 1.01}, ModelError, r"24.24 steps of 3600 s; give a whole number"),
+        ({"step": 7 * 3600.0}, ModelError, "6.857 steps of 25200 s"),
+        ({"seed": -1}, ModelError, "seed must be an integer ≥ 0"),
+        ({"starts": 2.5}, TypeError, "starts must be an integer"),
+        ({"robust": -3}, ModelError, "robust must be an integer ≥ 0"),
+        ({"robust": 2.5, "spread": 0.3}, TypeError, "robust must be an integer"),
+        ({"prbs_clock": 0}, ModelError, "prbs_clock must be an integer ≥ 1"),
+        ({"power": (0.0, 10.0, 20.0)}, ModelError, "power must be a pair"),
+        ({"power": {"lo": 0, "hi": 10}}, ModelError, "power must be a pair"),
+        ({"comfort": (15.0, 35.0, 40.0)}, ModelError, "comfort must be a pair"),
+        ({"binary": "no"}, TypeError, "binary must be True"),
+        ({"start_temperature": np.nan}, ModelError, "start_temperature must be a finite"),
+        ({"sigma": "0.05"}, TypeError, "sigma must be a number"),
+        # the minimum power alone exceeds the energy budget: a design could only break it
+        (
+            {"power": (1000.0, 3000.0), "max_energy": 10 * 3.6e6},
+            ModelError,
+            r"max_energy .* \(10 kWh\) is below .* minimum power 1000 W .* \(48 kWh\)",
+        ),
+        # the HLC does not depend on the free parameters: nothing to minimise
+        ({"free": ["C_zon", "C_wal", "gA"]}, ModelError, "HLC of ZonWal depends on no free"),
+    ],
+)
+def test_bad_plan_arguments_are_named(kwargs, error, words):
+    with pytest.raises(error, match=words):
+        design.plan("ZonWal", PRIOR, **{"days": DAYS, "starts": 1, "max_steps": 5, **kwargs})
+
+
+def test_bad_sequence_arguments_are_named():
+    with pytest.raises(TypeError, match="prbs needs an integer n"):
+        design.prbs(2.5)
+    with pytest.raises(TypeError, match="rolbs needs an integer longest"):
+        design.rolbs(100, 1, float("nan"))
+    with pytest.raises(ValueError, match="seed ≥ 0"):
+        design.rolbs(100, 1, 10, 3, seed=-1)
+    with pytest.raises(ValueError, match="step needs n ≥ 1"):
+        design.step(-1)
+    with pytest.raises(ModelError, match="seed must be an integer ≥ 0"):
+        design.prior_samples(design.load_prior("ZonWal"), ["R_wal"], 3, 0.3, seed=-1)
+
+
 def test_bad_prior_values_are_named(tmp_path):
     """Every prior value is checked, fixed ones included (a negative fixed R gave an HLC
     criterion of -inf), and a free gA must be > 0 (its coordinate is log gA)."""
@@ -452,6 +499,9 @@ def test_cli_design_writes_schedule(tmp_path, capsys):
         (["--params", "/nonexistent/fit.json"], "no such file"),
         (["--model", "NoSuchModel"], "NoSuchModel"),
         (["--model", "ZonWal", "--max-energy", "-3kWh"], "--max-energy"),
+        (["--model", "ZonWal", "--seed", "-1"], "--seed"),
+        (["--model", "ZonWal", "--start-temperature", "nan"], "--start-temperature"),
+        (["--model", "ZonWal", "--days", "1", "--step", "7h"], "whole number of steps"),
     ],
 )
 def test_cli_bad_input_exits_2(tmp_path, capsys, args, words):

@@ -131,6 +131,12 @@ def design_command(args) -> int:
         raise UsageError(f"--starts must be at least 1, got {args.starts}")
     if args.robust < 0:
         raise UsageError(f"--robust must be ≥ 0, got {args.robust}")
+    if args.seed < 0:
+        raise UsageError(f"--seed must be ≥ 0, got {args.seed}")
+    if args.start_temperature is not None and not math.isfinite(args.start_temperature):
+        raise UsageError(
+            f"--start-temperature must be a finite number [°C], got {args.start_temperature}"
+        )
     out = _check_out(args.out)
     weather = None
     if args.weather is not None:

@@ -345,13 +345,57 @@ def _design_one(ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_e
 
 
 def _check_pair(name, pair, unit):
+    if isinstance(pair, str | bytes | Mapping) or not hasattr(pair, "__len__") or len(pair) != 2:
+        raise ModelError(f"{name} must be a pair (low, high) in {unit}, got {pair!r}")
     try:
         a, b = (float(pair[0]), float(pair[1]))
-    except (TypeError, ValueError, IndexError):
+    except (TypeError, ValueError):
         raise ModelError(f"{name} must be a pair (low, high) in {unit}, got {pair!r}") from None
     if not (math.isfinite(a) and math.isfinite(b) and a < b):
         raise ModelError(f"{name} must be finite with low < high [{unit}], got ({a:g}, {b:g})")
     return a, b
+
+
+def _real(name: str, value, unit: str) -> float:
+    """A number argument as a float (a TypeError naming it otherwise); finiteness is checked
+    by the caller."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise TypeError(f"{name} must be a number [{unit}], got {value!r}")
+    return float(value)
+
+
+def _count(name: str, value, minimum: int) -> int:
+    """A whole-number argument ≥ ``minimum`` (a TypeError or ModelError naming it otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
+    if value < minimum:
+        raise ModelError(f"{name} must be an integer ≥ {minimum}, got {value}")
+    return int(value)
+
+
+def _step(step) -> float:
+    """The sample step [s]: a number > 0."""
+    step = _real("step", step, "s")
+    if not (math.isfinite(step) and step > 0):
+        raise ModelError(f"step must be > 0 [s], got {step}")
+    return step
+
+
+def _horizon(days, step_s: float) -> int:
+    """The number of samples of ``days`` [days] at ``step_s`` [s]: a whole number, ≥ 4."""
+    days = _real("days", days, "days")
+    if not (math.isfinite(days) and days > 0):
+        raise ModelError(f"days must be a horizon > 0 [days], got {days}")
+    steps = days * 86400.0 / step_s
+    n = round(steps)
+    if abs(steps - n) > 1e-6 * max(steps, 1.0):
+        raise ModelError(
+            f"the horizon of {days:g} days is {steps:.4g} steps of {step_s:g} s; give a whole "
+            f"number of steps (e.g. days={max(n, 1) * step_s / 86400:.6g})"
+        )
+    if n < 4:
+        raise ModelError(f"the horizon of {days:g} days holds {n} steps of {step_s:g} s; give ≥ 4")
+    return n
 
 
 def _prepare(
@@ -371,13 +415,19 @@ def _prepare(
     seed=0,
 ):
     require_x64()
+    sigma = _real("sigma", sigma, "K")
     if not (math.isfinite(sigma) and sigma > 0):
         raise ModelError(f"sigma must be a noise standard deviation > 0 [K], got {sigma}")
-    if not (math.isfinite(step_s) and step_s > 0):
-        raise ModelError(f"step must be > 0 [s], got {step_s}")
-    n = int(round(days * 86400.0 / step_s))
-    if not (math.isfinite(days) and n >= 4):
-        raise ModelError(f"the horizon of {days} days holds {n} steps of {step_s:g} s; give ≥ 4")
+    step_s = _step(step_s)
+    n = _horizon(days, step_s)
+    if start_temperature is not None:
+        start_temperature = _real("start_temperature", start_temperature, "°C")
+        if not math.isfinite(start_temperature):
+            raise ModelError(
+                f"start_temperature must be a finite number [°C], got {start_temperature}"
+            )
+    robust = _count("robust", robust, 0)
+    seed = _count("seed", seed, 0)
     prior = load_prior(model, params, free)
     setup = make_setup(prior.model, prior.free, heating)
     weather = default_weather(step_s) if weather is None else weather
@@ -525,6 +575,12 @@ def plan(
     """
     if criterion not in CRITERIA:
         raise ModelError(f"unknown criterion {criterion!r}; choose one of {', '.join(CRITERIA)}")
+    if not isinstance(binary, bool | np.bool_):
+        raise TypeError(f"binary must be True (an on/off heater) or False, got {binary!r}")
+    starts, max_steps = _count("starts", starts, 1), _count("max_steps", max_steps, 1)
+    seed, robust = _count("seed", seed, 0), _count("robust", robust, 0)
+    if prbs_clock is not None:
+        prbs_clock = _count("prbs_clock", prbs_clock, 1)
     lo, hi = _check_pair("power", power, "W")
     if lo < 0:
         raise ModelError(f"power bounds must be ≥ 0 W (a heater), got {lo:g}")
@@ -532,15 +588,22 @@ def plan(
         comfort = _check_pair("comfort", comfort, "°C")
         if comfort[1] - comfort[0] <= 2 * _MARGIN:
             raise ModelError(f"the comfort band {comfort} is narrower than {2 * _MARGIN} K")
-    if max_energy is not None and not (math.isfinite(max_energy) and max_energy > 0):
-        raise ModelError(f"max_energy must be > 0 [J], got {max_energy}")
-    if starts < 1 or max_steps < 1:
-        raise ModelError("starts and max_steps must be ≥ 1")
+    if max_energy is not None:
+        max_energy = _real("max_energy", max_energy, "J")
+        if not (math.isfinite(max_energy) and max_energy > 0):
+            raise ModelError(f"max_energy must be > 0 [J], got {max_energy}")
+        least = lo * _horizon(days, _step(step)) * step
+        if least > max_energy:
+            raise ModelError(
+                f"max_energy {max_energy:.4g} J ({max_energy / 3.6e6:.4g} kWh) is below the "
+                f"energy of the minimum power {lo:g} W over the horizon ({least / 3.6e6:.4g} "
+                "kWh); raise max_energy or lower the minimum power"
+            )
     if start_temperature is None:
         band = comfort or (15.0, 30.0)
         temperatures = list(np.linspace(band[0] + 1.0, band[1] - 1.0, _START_GRID))
     else:
-        temperatures = [float(start_temperature)]
+        temperatures = [start_temperature]
     tlo, thi = (comfort[0] + _MARGIN, comfort[1] - _MARGIN) if comfort else (-1e9, 1e9)
     emax = max_energy if max_energy is not None else math.inf
     compile_s = 0.0
@@ -562,6 +625,13 @@ def plan(
             spread=spread,
             seed=seed,
         )
+        # ∂ log HLC/∂φ: rounding only (~1e-17) when the HLC depends on no free parameter
+        if criterion == "hlc" and np.max(np.abs(np.asarray(ctx.linear[2][0]))) < 1e-9:
+            raise ModelError(
+                f"the HLC of {setup.model.name} depends on no free parameter (the "
+                "resistances are fixed): criterion 'hlc' has nothing to minimise; free them or "
+                "choose criterion 'D' or 'A'"
+            )
         Z = jnp.asarray(_starts(ctx.n, starts, seed, ctx.step))
         unseen = _unidentifiable(ctx, lo + (hi - lo) * 0.5 * (1.0 + np.sin(np.asarray(Z))))
         if unseen:

@@ -201,9 +201,13 @@ def prior_samples(prior: Prior, names, n: int, spread: float | None, seed: int =
                 if a in idx and b in idx:
                     cov[i, j] = prior.log_cov[idx[a], idx[b]]
     else:
+        if isinstance(spread, bool) or not isinstance(spread, int | float | np.number):
+            raise TypeError(f"spread must be a number ≥ 0 (std of log θ), got {spread!r}")
         if not (math.isfinite(spread) and spread >= 0):
             raise ModelError(f"spread must be a finite number ≥ 0, got {spread}")
         cov = np.eye(len(names)) * spread**2
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise ModelError(f"seed must be an integer ≥ 0, got {seed!r}")
     rng = np.random.default_rng(seed)
     w, V = np.linalg.eigh(0.5 * (cov + cov.T))
     L = V * np.sqrt(np.clip(w, 0.0, None))

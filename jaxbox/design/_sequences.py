@@ -42,12 +42,20 @@ _TAPS = {
 }
 
 
+def _whole(name: str, value, where: str) -> int:
+    """An integer argument of ``where`` (a TypeError naming it otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"{where} needs an integer {name}, got {value!r}")
+    return int(value)
+
+
 def prbs(n: int, clock: int = 1, seed: int = 1) -> np.ndarray:
     """Maximum-length PRBS of ``n`` samples, ``clock`` samples per bit (0/1 floats).
 
     The register is as short as allows ``2ᵏ − 1 ≥ n / clock`` bits (at least 2); ``seed``
     (≥ 1) sets its initial state, i.e. the phase of the sequence.
     """
+    n, clock, seed = (_whole(k, v, "prbs") for k, v in (("n", n), ("clock", clock), ("seed", seed)))
     if n < 1 or clock < 1:
         raise ValueError(f"prbs needs n ≥ 1 and clock ≥ 1, got n={n}, clock={clock}")
     bits_needed = -(-n // clock)
@@ -73,10 +81,20 @@ def rolbs(
     """ROLBS of ``n`` samples (0/1 floats): switching durations log-spaced in
     ``[shortest, longest]`` samples (``durations`` of them), each once on and once off per
     cycle, in random order (``seed``)."""
-    if n < 1 or shortest < 1 or longest < shortest or durations < 1:
+    n, shortest, longest, durations, seed = (
+        _whole(k, v, "rolbs")
+        for k, v in (
+            ("n", n),
+            ("shortest", shortest),
+            ("longest", longest),
+            ("durations", durations),
+            ("seed", seed),
+        )
+    )
+    if n < 1 or shortest < 1 or longest < shortest or durations < 1 or seed < 0:
         raise ValueError(
-            "rolbs needs n ≥ 1, 1 ≤ shortest ≤ longest and durations ≥ 1, got "
-            f"n={n}, shortest={shortest}, longest={longest}, durations={durations}"
+            "rolbs needs n ≥ 1, 1 ≤ shortest ≤ longest, durations ≥ 1 and seed ≥ 0, got "
+            f"n={n}, shortest={shortest}, longest={longest}, durations={durations}, seed={seed}"
         )
     d = np.unique(np.round(np.geomspace(shortest, longest, durations)).astype(int))
     rng = np.random.default_rng(seed)
@@ -90,6 +108,9 @@ def rolbs(
 
 def step(n: int) -> np.ndarray:
     """Constant on: ``n`` ones (the co-heating test)."""
+    n = _whole("n", n, "step")
+    if n < 1:
+        raise ValueError(f"step needs n ≥ 1, got n={n}")
     return np.ones(n)
 
 

@@ -401,3 +401,29 @@ def test_problem_values_that_are_not_numbers_are_named(tite, short):
         make_stochastic_problem(tite, short, free=3)
     sp = make_stochastic_problem(tite, short, free="C_zon")
     assert sp.free == ("C_zon",)
+
+
+def test_views_and_sampling_arguments_are_checked(tite, short):
+    """k of the k-step errors, which of to_frame, replications, hold, x0_std and missing inputs
+    of simulate_sde: named at the boundary, not iterated, truncated or turned into NaN."""
+    est = estimate_states(tite, TITE, short)
+    for k in (2.5, "2", True, None):
+        with pytest.raises(ValueError, match="k must be a whole number of samples"):
+            est.k_step_errors(k)
+    assert list(est.k_step_errors(np.asarray([1, 3]))) == [1, 3]
+    with pytest.raises(ValueError, match="which: no estimate 'smooth'; choose from"):
+        est.to_frame(("filtered", "smooth"))
+    assert "T_zon_filtered" in est.to_frame("filtered").columns
+    for kwargs, match in (
+        ({"replications": 0}, "replications must be an integer ≥ 1"),
+        ({"hold": "xoh"}, "unknown hold 'xoh'"),
+        ({"x0_std": -1.0}, "x0_std must be finite and ≥ 0"),
+    ):
+        with pytest.raises(FitError, match=match):
+            simulate_sde(tite, TITE, short, **kwargs)
+    bad = short.frame.copy()
+    bad.iloc[2, 1] = np.nan
+    with pytest.raises(FitError, match="input Q_hea is missing \\(NaN\\) at row 2"):
+        simulate_sde(tite, TITE, Dataset(bad, check=False))
+    y, x = simulate_sde(tite, TITE, short, x0_std={"T_wal": 0.0})
+    assert x[0, 1] == TITE["T_wal0"] and x[0, 0] != TITE["T_zon0"]

@@ -300,3 +300,15 @@ def test_forward_selection_checks_every_entry_before_the_first_fit(data):
         forward_selection_lr(["BM_Ti"], data, start=1)
     with pytest.raises(ModelError, match="BM_TiXe"):
         forward_selection_lr(["BM_Ti", "BM_TiXe"], data, starts=1)
+
+
+def test_result_views_check_their_arguments(fit):
+    """A confidence level or significance outside (0, 1) gave NaN intervals or a test at any
+    level; a likelihood-ratio test against something else than a fit raised AttributeError."""
+    for level in (0.0, 1.0, 95):
+        with pytest.raises(ValueError, match="level must be in \\(0, 1\\)"):
+            fit.intervals(level)
+    with pytest.raises(ValueError, match="alpha must be in \\(0, 1\\)"):
+        fit.innovation_tests(alpha=2.0)
+    with pytest.raises(TypeError, match="large must be an MLResult.*got dict"):
+        likelihood_ratio_test(fit, fit.params)

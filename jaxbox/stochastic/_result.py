@@ -167,6 +167,8 @@ class MLResult:
 
     def intervals(self, level: float = 0.95) -> dict[str, tuple[float, float]]:
         """``level`` confidence interval of each free estimate: ``θ ± t_{(1+level)/2} sd``."""
+        if not 0 < level < 1:
+            raise ValueError(f"level must be in (0, 1) (e.g. 0.95), got {level}")
         q = stats.t.ppf(0.5 + level / 2, self.dof)
         sd = self.sd
         return {n: (self.params[n] - q * sd[n], self.params[n] + q * sd[n]) for n in self.free}
@@ -289,6 +291,8 @@ def innovation_tests(est, alpha: float = 0.05):
     innovations of a :class:`StateEstimate`, missing samples left out, with the inputs."""
     from ..validate._residuals import analyse_residuals
 
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must be in (0, 1) (e.g. 0.05), got {alpha}")
     e = est.standardized_innovations
     keep = np.all(np.isfinite(e), axis=1)
     return analyse_residuals(
@@ -307,6 +311,11 @@ def likelihood_ratio_test(small: MLResult, large: MLResult) -> dict:
     extra parameters of ``large`` are not needed. Returns ``statistic``, ``df``, ``pvalue``
     (small ``pvalue``: the larger model is significantly better).
     """
+    for name, fit in (("small", small), ("large", large)):
+        if not isinstance(fit, MLResult):
+            raise TypeError(
+                f"{name} must be an MLResult (a fit_ml result), got {type(fit).__name__}"
+            )
     if small.n_obs != large.n_obs:
         raise ValueError(
             f"the two fits use {small.n_obs} and {large.n_obs} observations; a likelihood-ratio "

@@ -10,8 +10,10 @@ import numpy as np
 
 from .. import _compiled
 from .._compiled import jit
+from ..fit._problem import FitError
 from ..models import get_model
-from ._checks import as_data, regular_step
+from ._checks import as_data, regular_step, x0_stds
+from ._kalman import HOLDS
 from ._problem import DEFAULT_X0_STD, system
 from ._states import _check_params
 
@@ -25,14 +27,15 @@ def simulate_sde(
     *,
     seed: int | None = 0,
     hold: str = "foh",
-    x0_std: float | None = None,
+    x0_std: float | Mapping[str, float] | None = None,
     replications: int | None = None,
 ):
     """Sample states and outputs of the SDE at the samples of ``data`` (its inputs).
 
     The transition from one sample to the next is drawn exactly (Φ, Γ, Q of
     :func:`~jaxbox.stochastic.discretize`), the initial state from ``N(T_*0, x0_std²)``
-    (default: ``DEFAULT_X0_STD`` K; ``0`` starts exactly at ``T_*0``).
+    (default: ``DEFAULT_X0_STD`` K; ``0`` starts exactly at ``T_*0``; one value or per state
+    name). The inputs must be complete and the samples regularly spaced.
 
     Returns ``(y [N, p], x [N, n])`` [°C], or with ``replications`` arrays with a leading axis
     ``[R, N, …]`` of independent replications.
@@ -40,9 +43,23 @@ def simulate_sde(
     model = get_model(model)
     data = as_data(data)
     theta = _check_params(model, params)
+    if hold not in HOLDS:
+        raise FitError(f"unknown hold {hold!r}; choose one of {', '.join(HOLDS)}")
+    if replications is not None and (
+        not isinstance(replications, int | np.integer)
+        or isinstance(replications, bool)
+        or replications < 1
+    ):
+        raise FitError(f"replications must be an integer ≥ 1 or None, got {replications!r}")
+    std = np.asarray(x0_stds(model, x0_std, DEFAULT_X0_STD, zero=True))
     u = np.asarray(data.array(list(model.inputs)), dtype=float)
+    if not np.isfinite(u).all():
+        row, col = (int(i) for i in np.argwhere(~np.isfinite(u))[0])
+        raise FitError(
+            f"input {model.inputs[col]} is missing (NaN) at row {row}; the simulation needs "
+            "every input; fill or drop those rows"
+        )
     dt = regular_step(data)
-    std = DEFAULT_X0_STD if x0_std is None else float(x0_std)
     fn = _compiled.cached(
         ("stochastic", "system", model.structure, hold),
         lambda: jit(lambda th, dt: system(model, th, dt, hold)),

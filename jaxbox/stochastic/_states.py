@@ -28,6 +28,10 @@ from ._problem import DEFAULT_X0_STD, stochastic_arrays, system
 __all__ = ["StateEstimate", "estimate_states", "k_step_errors"]
 
 
+#: the estimates a :class:`StateEstimate` holds, each with its covariance
+_VIEWS = ("predicted", "filtered", "smoothed")
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class StateEstimate:
     """Filtered and smoothed states of a stochastic model over a dataset.
@@ -75,6 +79,12 @@ class StateEstimate:
     def to_frame(self, which: Sequence[str] = ("filtered", "smoothed")) -> pd.DataFrame:
         """A table per sample: each state's estimate and standard deviation [K] for ``which``
         (``predicted``, ``filtered``, ``smoothed``), and each output's innovation."""
+        which = [which] if isinstance(which, str) else list(which)
+        bad = [w for w in which if w not in _VIEWS]
+        if bad:
+            raise ValueError(
+                f"which: no estimate {', '.join(map(repr, bad))}; choose from {', '.join(_VIEWS)}"
+            )
         cols = {}
         for w in which:
             mean, cov = getattr(self, w), getattr(self, f"{w}_cov")
@@ -219,6 +229,21 @@ def estimate_states(
     )
 
 
+def _horizons(k) -> list[int]:
+    """``k`` of :func:`k_step_errors` as a list of whole numbers of samples: one integer or a
+    sequence of them (a float, a string or a bool is named, not iterated or truncated)."""
+
+    def whole(h) -> bool:
+        return isinstance(h, int | np.integer) and not isinstance(h, bool | np.bool_)
+
+    items = [k] if whole(k) else k
+    if isinstance(items, str | bytes) or not isinstance(items, Sequence | np.ndarray):
+        items = None
+    if items is None or not all(whole(h) for h in items):
+        raise ValueError(f"k must be a whole number of samples ≥ 1 or a list of them, got {k!r}")
+    return [int(h) for h in items]
+
+
 def k_step_errors(est: StateEstimate, k: int | Sequence[int] = (1, 2, 4, 8)) -> dict:
     """k-step-ahead prediction errors: from the filtered state at each sample ``i``, the model
     predicts the outputs at ``i + k`` with the measured inputs and no measurement in between —
@@ -227,7 +252,7 @@ def k_step_errors(est: StateEstimate, k: int | Sequence[int] = (1, 2, 4, 8)) -> 
     Returns ``{k: {"errors": [N−k, p] (y − ŷ, K), "rmse": {output: K}}}``. For ``k = 1`` the
     errors are the innovations from the second sample on.
     """
-    ks = [k] if isinstance(k, int | np.integer) else list(k)
+    ks = _horizons(k)
     Phi, G0, G1, _, C, D = est.matrices
     u, y = est.inputs, est.measured
     n_samples = len(u)
@@ -235,7 +260,6 @@ def k_step_errors(est: StateEstimate, k: int | Sequence[int] = (1, 2, 4, 8)) -> 
     drive = u @ G0.T + du @ G1.T
     out = {}
     for h in ks:
-        h = int(h)
         if not 1 <= h < n_samples:
             raise ValueError(f"k = {h} must be between 1 and {n_samples - 1} samples")
         m = est.filtered[: n_samples - h].copy()

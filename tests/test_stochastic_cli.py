@@ -107,3 +107,17 @@ def test_select_method_ml_by_likelihood_ratio(csv_file, capsys):
     assert "accepted: BM_Ti" in capsys.readouterr().out
     code = main([*argv, "--out", "somewhere"])
     assert code == 2 and "--out" in capsys.readouterr().err
+
+
+def test_estimate_with_initial_spreads_of_another_model_is_one_line(csv_file, tmp_path, capsys):
+    """A fit document whose x0_std has one value per state of another model was zipped
+    against the states and failed with zip()'s message; it names the counts now."""
+    doc = tmp_path / "p.json"
+    doc.write_text(json.dumps({"params": dict(TI), "x0_std": [1.0, 1.0]}))
+    code = main(
+        ["estimate", str(csv_file), "--model", "BM_Ti", "--params", str(doc)]
+        + ["--out", str(tmp_path / "s.csv")]
+    )
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "x0_std holds 2 value(s) but BM_Ti has 1 state(s)" in err[0]

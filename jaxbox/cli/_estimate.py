@@ -218,6 +218,12 @@ def estimate_command(args) -> int:
     data = load_data(opts.specs[0], opts)
     data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     x0 = fit["x0_std"]
+    if isinstance(x0, list) and len(x0) != model.n_states:
+        raise UsageError(
+            f"--params {args.params}: x0_std holds {len(x0)} value(s) but {model.name} has "
+            f"{model.n_states} state(s) ({', '.join(model.states)}); was it fitted with another "
+            "model?"
+        )
     try:
         est = estimate_states(
             model,

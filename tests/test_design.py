@@ -275,6 +275,7 @@ def test_bad_input_is_named():
             ModelError,
             r"max_energy .* \(10 kWh\) is below .* minimum power 1000 W .* \(48 kWh\)",
         ),
+        ({"heating": "T_amb"}, ModelError, "heating='T_amb' is not a heat flow input"),
         # the HLC does not depend on the free parameters: nothing to minimise
         ({"free": ["C_zon", "C_wal", "gA"]}, ModelError, "HLC of ZonWal depends on no free"),
     ],
@@ -282,6 +283,21 @@ def test_bad_input_is_named():
 def test_bad_plan_arguments_are_named(kwargs, error, words):
     with pytest.raises(error, match=words):
         design.plan("ZonWal", PRIOR, **{"days": DAYS, "starts": 1, "max_steps": 5, **kwargs})
+
+
+def test_unmet_constraints_are_warned():
+    """100 W cannot hold the zone at 40 °C: the design breaks the comfort band, and says so."""
+    with pytest.warns(UserWarning, match="30.7–41 °C leaves the comfort band 40–45 °C"):
+        d = design.plan(
+            "ZonWal",
+            PRIOR,
+            days=DAYS,
+            power=(0.0, 100.0),
+            comfort=(40.0, 45.0),
+            start_temperature=41.0,
+            starts=STARTS,
+        )
+    assert d.reports["designed"]["t_min"] < 40.0
 
 
 def test_bad_sequence_arguments_are_named():

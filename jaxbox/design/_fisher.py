@@ -214,6 +214,12 @@ def make_setup(model: RCModel, free, heating: str | None = None) -> Setup:
         raise ModelError(
             f"model {model.name} has no input {heating!r}; its inputs are {', '.join(model.inputs)}"
         )
+    if not heating.startswith("Q_"):
+        heat = [u for u in model.inputs if u.startswith("Q_")]
+        raise ModelError(
+            f"heating={heating!r} is not a heat flow input of {model.name} (Q_*, [W]); name one "
+            f"of {', '.join(heat) or 'none'}"
+        )
     log = tuple(n.startswith(RATIO_PREFIXES) for n in free)
     interest = tuple(i for i, n in enumerate(free) if not model.parameter(n).is_initial_state)
     if not interest:

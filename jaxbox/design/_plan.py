@@ -341,6 +341,27 @@ def _design_one(ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_e
     }
 
 
+def _warn_violation(rep: dict, comfort, max_energy, lo: float, hi: float) -> None:
+    """Warn that the designed schedule breaks a constraint, saying which and by how much."""
+    broken = []
+    if comfort and (rep["t_min"] < comfort[0] - 1e-6 or rep["t_max"] > comfort[1] + 1e-6):
+        broken.append(
+            f"the predicted temperature {rep['t_min']:.3g}–{rep['t_max']:.3g} °C leaves the "
+            f"comfort band {comfort[0]:g}–{comfort[1]:g} °C"
+        )
+    if max_energy is not None and rep["energy_kwh"] * 3.6e6 > max_energy * (1 + 1e-6):
+        broken.append(
+            f"it uses {rep['energy_kwh']:.4g} kWh of the {max_energy / 3.6e6:.4g} kWh allowed"
+        )
+    if broken:
+        warnings.warn(
+            f"no schedule within the power bounds {lo:g}–{hi:g} W met the constraints: "
+            f"{'; '.join(broken)}; widen the comfort band, raise the power bounds or the energy "
+            "budget, or change the start temperature",
+            stacklevel=3,
+        )
+
+
 # ---- the front end -----------------------------------------------------------------------------
 
 
@@ -653,6 +674,8 @@ def plan(
     unseen = ctx.report(designed)["unidentifiable"]
     if unseen:
         raise _unidentifiable_error(ctx, unseen, "the designed schedule")
+    if one["violation"] > 1e-6:
+        _warn_violation(ctx.report(designed), comfort, max_energy, lo, hi)
     design_s = time.perf_counter() - t1 - compile_s
     energy = float(np.sum(designed) * ctx.step)
     schedules = {"designed": designed}

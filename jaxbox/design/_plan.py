@@ -224,8 +224,8 @@ def _unidentifiable_error(ctx: Context, names, what: str) -> ModelError:
     return ModelError(
         f"{what} leaves {', '.join(names)} of {ctx.setup.model.name} unidentifiable (the "
         "outputs do not depend on them, or only in a combination: the Fisher information is "
-        "singular); leave them out of the free parameters (free=), or give weather and power "
-        "bounds that excite them"
+        "singular); leave them out of the free parameters (free=, or the 'free' list of the fit "
+        "JSON), or give weather and power bounds that excite them"
     )
 
 

@@ -171,6 +171,43 @@ def test_resistances_and_capacities_must_be_positive(zonwal_data, kwargs, match)
         make_problem(get_model("ZonWal"), zonwal_data, **kwargs)
 
 
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        ({"fixed": {"R_wal": "abc"}}, FitError, "fixed value of R_wal must be a number"),
+        ({"fixed": {"R_wal": None}}, FitError, "fixed value of R_wal must be a number"),
+        ({"fixed": {"R_wal": True}}, FitError, "fixed value of R_wal must be a number"),
+        ({"fixed": {"R_wal": np.ones(2)}}, FitError, "fixed value of R_wal must be a number"),
+        ({"guess": {"C_zon": [1e6, 2e6]}}, FitError, "guess of C_zon must be a number"),
+        ({"bounds": {"R_wal": (1e-3, 1.0, 3.0)}}, FitError, "R_wal must be a pair.*3 values"),
+        ({"bounds": {"R_wal": (1e-3, "high")}}, FitError, "upper bound of R_wal must be"),
+        ({"free": 5}, FitError, "free must be a parameter name"),
+        ({"free": ["R_wal", 5]}, FitError, "free must hold parameter names"),
+        ({"fixed": "R_wal"}, TypeError, "fixed must be a mapping"),
+        ({"bounds": [1e-3, 1.0]}, TypeError, "bounds must be a mapping"),
+    ],
+)
+def test_parameter_settings_are_checked_and_named(zonwal_data, kwargs, error, match):
+    with pytest.raises(error, match=match):
+        make_problem("ZonWal", zonwal_data, **kwargs)
+
+
+def test_one_free_name_a_model_name_and_the_start_sampling_settings(zonwal_data):
+    p = make_problem("ZonWal", zonwal_data, free="C_zon")  # one name, not its letters
+    assert p.free == ("C_zon",) and p.model.name == "ZonWal"
+    with pytest.raises(TypeError, match="model must be an RCModel"):
+        make_problem(3, zonwal_data)
+    for kwargs, match in [
+        ({"seed": -1}, "seed must be an integer"),
+        ({"seed": "x"}, "seed must be an integer"),
+        ({"seed": 1.5}, "seed must be an integer"),
+        ({"concentration": -1.0}, "concentration must be a finite number"),
+        ({"concentration": float("nan")}, "concentration must be a finite number"),
+    ]:
+        with pytest.raises(FitError, match=match):
+            fit_model("ZonWal", zonwal_data, starts=3, **kwargs)
+
+
 def test_one_set_of_defaults_in_python_the_selection_and_the_command_line():
     import inspect
 

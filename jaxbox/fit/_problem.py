@@ -16,7 +16,8 @@ from collections.abc import Mapping, Sequence
 import jax
 import numpy as np
 
-from ..models import RCModel
+from ..data._args import check_mapping
+from ..models import RCModel, get_model
 from ..simulate import simulate_arrays
 from ..simulate._exact import discretize_foh_rc, normal_equations
 from ._guess import initial_guess
@@ -176,8 +177,30 @@ def _positive(name: str) -> bool:
     return name.startswith(("R_", "C_"))
 
 
+def _number(value, what: str) -> float:
+    """A real number given for ``what`` (a Python or NumPy scalar; not a bool or a list)."""
+    if isinstance(value, bool | np.bool_) or np.ndim(value) != 0:
+        raise FitError(f"{what} must be a number, got {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise FitError(f"{what} must be a number, got {value!r}") from None
+
+
+def _names(value, what: str) -> list[str]:
+    """Parameter names given as one name or a sequence of names."""
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, Mapping) or not isinstance(value, Sequence | set | frozenset):
+        raise FitError(f"{what} must be a parameter name or a list of them, got {value!r}")
+    bad = [v for v in value if not isinstance(v, str)]
+    if bad:
+        raise FitError(f"{what} must hold parameter names, got {bad[0]!r}")
+    return list(value)
+
+
 def make_problem(
-    model: RCModel,
+    model: RCModel | str,
     data,
     *,
     free: Sequence[str] | None = None,
@@ -188,11 +211,22 @@ def make_problem(
     simulator: str = "exact",
     sim_options: Mapping | None = None,
 ) -> Problem:
-    """Check and assemble an estimation problem. Every misuse raises :class:`FitError`."""
+    """Check and assemble an estimation problem. Every misuse raises :class:`FitError` (a
+    ``fixed``, ``bounds`` or ``guess`` that is not a mapping: :class:`TypeError`).
+
+    ``model`` is an :class:`~jaxbox.models.RCModel` or a library model name; ``free`` one
+    parameter name or a list of them; ``fixed`` and ``guess`` map names to numbers, ``bounds``
+    names to pairs ``(lower, upper)``, in the parameters' units.
+    """
+    model = get_model(model) if isinstance(model, str) else model
+    if not isinstance(model, RCModel):
+        raise TypeError(
+            f"model must be an RCModel or a library model name, got {type(model).__name__}"
+        )
     names = model.param_names
-    fixed = dict(fixed or {})
-    bounds = dict(bounds or {})
-    user_guess = dict(guess or {})
+    fixed = check_mapping(fixed, "fixed", "{'R_wal': 0.01}")
+    bounds = check_mapping(bounds, "bounds", "{'R_wal': (1e-4, 1.0)}")
+    user_guess = check_mapping(guess, "guess", "{'C_zon': 1e6}")
     for label, d in (("fixed", fixed), ("bounds", bounds), ("guess", user_guess)):
         bad = [k for k in d if k not in names]
         if bad:
@@ -203,6 +237,7 @@ def make_problem(
     if free is None:
         free = [n for n in names if n not in fixed]
     else:
+        free = _names(free, "free")
         bad = [k for k in free if k not in names]
         if bad:
             raise FitError(
@@ -216,12 +251,12 @@ def make_problem(
     if not free:
         raise FitError(f"nothing to estimate: every parameter of {model.name} is fixed")
     full_guess = initial_guess(model, data)
-    full_guess.update({k: float(v) for k, v in user_guess.items()})
+    full_guess.update({k: _number(v, f"guess of {k}") for k, v in user_guess.items()})
     # parameters neither free nor explicitly fixed are held at their guess
     for n in names:
         if n not in free and n not in fixed:
             fixed[n] = full_guess[n]
-    fixed = {n: float(fixed[n]) for n in names if n in fixed}
+    fixed = {n: _number(fixed[n], f"fixed value of {n}") for n in names if n in fixed}
     for n, v in fixed.items():
         if not np.isfinite(v):
             raise FitError(f"fixed value of {n} is {v}; give a finite number")
@@ -231,10 +266,11 @@ def make_problem(
     for n in free:
         spec = model.parameter(n)
         b = bounds.get(n, (spec.lower, spec.upper))
-        try:
-            blo, bhi = (float(b[0]), float(b[1]))
-        except (TypeError, ValueError, IndexError):
-            raise FitError(f"bounds of {n} must be a pair (lower, upper), got {b!r}") from None
+        if isinstance(b, str | bytes | Mapping) or not isinstance(b, Sequence | np.ndarray):
+            raise FitError(f"bounds of {n} must be a pair (lower, upper), got {b!r}")
+        if len(b) != 2:
+            raise FitError(f"bounds of {n} must be a pair (lower, upper), got {len(b)} values")
+        blo, bhi = (_number(b[0], f"lower bound of {n}"), _number(b[1], f"upper bound of {n}"))
         if not blo < bhi:
             raise FitError(f"bounds of {n}: lower {blo:g} must be below upper {bhi:g}")
         if _positive(n) and not blo > 0:

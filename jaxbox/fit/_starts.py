@@ -24,11 +24,26 @@ from scipy import stats
 from scipy.stats import qmc
 
 from ._guess import state_ranges
+from ._problem import FitError
 from ._transforms import _FREE, _LIN, _LOG, _LOWER, Transform
 
 __all__ = ["latin_hypercube", "sample_starts"]
 
 _EPS = 1e-6
+
+
+def _check_sampling(seed, concentration) -> None:
+    """A seed NumPy takes (None or an integer ≥ 0) and a concentration κ ≥ 0, finite."""
+    integer = isinstance(seed, int | np.integer) and not isinstance(seed, bool | np.bool_)
+    if seed is not None and not (integer and seed >= 0):
+        raise FitError(f"seed must be an integer ≥ 0 or None, got {seed!r}")
+    if isinstance(concentration, bool) or not isinstance(concentration, int | float | np.number):
+        raise FitError(f"concentration must be a number ≥ 0, got {concentration!r}")
+    if not (np.isfinite(concentration) and concentration >= 0):
+        raise FitError(
+            f"concentration must be a finite number ≥ 0 (0: uniform strata; default 4), got "
+            f"{concentration!r}"
+        )
 
 
 def latin_hypercube(
@@ -49,6 +64,7 @@ def latin_hypercube(
     """
     if n < 1:
         raise ValueError(f"the number of starts must be at least 1, got {n}")
+    _check_sampling(seed, concentration)
     guess = np.asarray(guess, dtype=float)
     p = len(guess)
     strata = qmc.LatinHypercube(d=max(p, 1), seed=np.random.default_rng(seed)).random(n)
@@ -87,6 +103,7 @@ def sample_starts(
     """
     if n < 1:
         raise ValueError(f"the number of starts must be at least 1, got {n}")
+    _check_sampling(seed, concentration)
     tr = problem.transform
     g = np.asarray([problem.guess_dict[k] for k in problem.free])
     if n == 1:

@@ -177,9 +177,10 @@ def _positive(name: str) -> bool:
     return name.startswith(("R_", "C_"))
 
 
-def _number(value, what: str) -> float:
-    """A real number given for ``what`` (a Python or NumPy scalar; not a bool or a list)."""
-    if isinstance(value, bool | np.bool_) or np.ndim(value) != 0:
+def number(value, what: str) -> float:
+    """A real number given for ``what`` (``"fixed value of R_wal"``): a Python or NumPy scalar,
+    not a bool, a string, ``None`` or a list, which are a :class:`FitError` naming ``what``."""
+    if isinstance(value, bool | np.bool_ | str | bytes) or value is None or np.ndim(value) != 0:
         raise FitError(f"{what} must be a number, got {value!r}")
     try:
         return float(value)
@@ -251,12 +252,12 @@ def make_problem(
     if not free:
         raise FitError(f"nothing to estimate: every parameter of {model.name} is fixed")
     full_guess = initial_guess(model, data)
-    full_guess.update({k: _number(v, f"guess of {k}") for k, v in user_guess.items()})
+    full_guess.update({k: number(v, f"guess of {k}") for k, v in user_guess.items()})
     # parameters neither free nor explicitly fixed are held at their guess
     for n in names:
         if n not in free and n not in fixed:
             fixed[n] = full_guess[n]
-    fixed = {n: _number(fixed[n], f"fixed value of {n}") for n in names if n in fixed}
+    fixed = {n: number(fixed[n], f"fixed value of {n}") for n in names if n in fixed}
     for n, v in fixed.items():
         if not np.isfinite(v):
             raise FitError(f"fixed value of {n} is {v}; give a finite number")
@@ -270,7 +271,7 @@ def make_problem(
             raise FitError(f"bounds of {n} must be a pair (lower, upper), got {b!r}")
         if len(b) != 2:
             raise FitError(f"bounds of {n} must be a pair (lower, upper), got {len(b)} values")
-        blo, bhi = (_number(b[0], f"lower bound of {n}"), _number(b[1], f"upper bound of {n}"))
+        blo, bhi = (number(b[0], f"lower bound of {n}"), number(b[1], f"upper bound of {n}"))
         if not blo < bhi:
             raise FitError(f"bounds of {n}: lower {blo:g} must be below upper {bhi:g}")
         if _positive(n) and not blo > 0:

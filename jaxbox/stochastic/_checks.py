@@ -14,7 +14,7 @@ import pandas as pd
 
 from ..data import Dataset, as_dataset
 from ..data._checks import fmt_seconds, irregular_position
-from ..fit._problem import FitError
+from ..fit._problem import FitError, number
 
 __all__ = ["as_data", "as_datasets", "regular_step", "number", "x0_stds"]
 
@@ -58,17 +58,6 @@ def regular_step(data: Dataset) -> float:
         "series: use one segment (Dataset.segments lists them) or keep the gap as rows whose "
         "outputs are missing (NaN) and whose inputs are filled"
     )
-
-
-def number(value, what: str) -> float:
-    """``value`` as a float; anything that is not a real number (a string, None, a list) is a
-    :class:`~jaxbox.fit.FitError` naming ``what`` (``"fixed value of sigma_zon"``)."""
-    if isinstance(value, bool | str | bytes) or value is None:
-        raise FitError(f"{what} must be a number, got {value!r}")
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        raise FitError(f"{what} must be a number, got {value!r}") from None
 
 
 def x0_stds(model, x0_std, default: float, zero: bool = False) -> tuple[float, ...]:

@@ -185,6 +185,8 @@ def test_resistances_and_capacities_must_be_positive(zonwal_data, kwargs, match)
         ({"free": ["R_wal", 5]}, FitError, "free must hold parameter names"),
         ({"fixed": "R_wal"}, TypeError, "fixed must be a mapping"),
         ({"bounds": [1e-3, 1.0]}, TypeError, "bounds must be a mapping"),
+        ({"weights": {"T_zon": "high"}}, FitError, "weight of T_zon must be a number"),
+        ({"weights": 2.0}, FitError, "weights must map outputs to numbers"),
     ],
 )
 def test_parameter_settings_are_checked_and_named(zonwal_data, kwargs, error, match):

@@ -304,9 +304,14 @@ def make_problem(
                 f"weights given for {', '.join(bad)}, which are not outputs of {model.name} "
                 f"(outputs: {', '.join(outs)})"
             )
-        w = [float(weights.get(o, 1.0)) for o in outs]
+        w = [number(weights.get(o, 1.0), f"weight of {o}") for o in outs]
+    elif isinstance(weights, str | bytes) or not isinstance(weights, Sequence | np.ndarray):
+        raise FitError(
+            f"weights must map outputs to numbers ({{'T_zon': 1.0}}) or hold one number per "
+            f"output {', '.join(outs)}; got {weights!r}"
+        )
     else:
-        w = [float(x) for x in weights]
+        w = [number(x, "weight") for x in np.asarray(weights, dtype=object).ravel()]
         if len(w) != len(outs):
             raise FitError(f"{len(w)} weights for {len(outs)} outputs {', '.join(outs)}")
     if any((not np.isfinite(x)) or x < 0 for x in w) or sum(w) == 0:

@@ -151,3 +151,7 @@ def test_bad_input_is_refused():
         autocorrelation(np.zeros(10) + np.arange(10), 20)
     with pytest.raises(ValueError, match="samples"):
         analyse_residuals(np.zeros((10, 1)), np.zeros((9, 1)))
+    e = np.random.default_rng(0).standard_normal(40)
+    for alpha in (0.0, 1.0, -0.05, 5, float("nan"), "0.05", True):
+        with pytest.raises(ValueError, match="alpha must be a significance level"):
+            analyse_residuals(e, alpha=alpha)

@@ -428,6 +428,10 @@ def analyse_residuals(
         e = e[:, None]
     if e.ndim != 2:
         raise ValueError(f"residuals must have shape [N] or [N, outputs], got {e.shape}")
+    if isinstance(alpha, bool) or not isinstance(alpha, int | float | np.floating):
+        raise ValueError(f"alpha must be a significance level in (0, 1), e.g. 0.05; got {alpha!r}")
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha must be a significance level in (0, 1), e.g. 0.05; got {alpha}")
     n, p = e.shape
     if output_names is None:
         output_names = [f"y{j}" for j in range(p)]

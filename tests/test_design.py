@@ -2,6 +2,7 @@
 and a Monte-Carlo check of the predicted standard deviations against repeated fits."""
 
 import json
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -189,25 +190,27 @@ def test_designed_beats_baselines_and_respects_constraints(planned):
 
 def test_binary_robust_design_with_energy_budget():
     budget = 30 * 3.6e6  # 30 kWh over two days: less than the unconstrained design uses
-    d = design.plan(
-        "ZonWal",
-        PRIOR,
-        days=DAYS,
-        power=(200.0, 2500.0),
-        binary=True,
-        max_energy=budget,
-        comfort=(15.0, 35.0),
-        robust=3,
-        spread=0.3,
-        seed=1,
-        starts=STARTS,
-        max_steps=200,
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the budget and the comfort band are met
+        d = design.plan(
+            "ZonWal",
+            PRIOR,
+            days=DAYS,
+            power=(200.0, 2500.0),
+            binary=True,
+            max_energy=budget,
+            comfort=(15.0, 35.0),
+            robust=3,
+            spread=0.3,
+            seed=1,
+            starts=STARTS,
+            max_steps=200,
+        )
     assert set(np.unique(d.power)) <= {200.0, 2500.0}
     assert d.rounding_loss is not None and np.isfinite(d.rounding_loss)
     assert d.relaxed is not None and np.all((d.relaxed >= 200.0) & (d.relaxed <= 2500.0))
     rep = d.reports["designed"]
-    assert rep["energy_kwh"] * 3.6e6 <= budget * 1.02
+    assert rep["energy_kwh"] * 3.6e6 <= budget * (1 + 1e-12)  # on/off rounding kept to it
     assert 15.0 <= rep["t_min"] and rep["t_max"] <= 35.0
     assert rep["loss"]["hlc"] < d.reports["prbs"]["loss"]["hlc"]
     # robust: three prior samples, the first the nominal one, the others spread log-normally
@@ -340,6 +343,23 @@ def test_bad_prior_values_are_named(tmp_path):
         design.load_prior(params=str(path))
     with pytest.raises(ModelError, match="no parameter.*R_foo"):
         design.prior_samples(design.load_prior("ZonWal"), ["R_foo"], 3, 0.3)
+    for n in (0, -3, 2.5):
+        with pytest.raises(ModelError, match="prior_samples needs n, an integer ≥ 1"):
+            design.prior_samples(design.load_prior("ZonWal"), ["R_wal"], n, 0.3)
+
+
+def test_baseline_schedules_check_their_arguments(planned):
+    ctx = planned.context
+    for args, kwargs, error, words in [
+        ((3000.0, 0.0, None), {}, ModelError, "power must be finite with low < high"),
+        ((-5.0, 3000.0, None), {}, ModelError, "power bounds must be ≥ 0 W"),
+        ((0.0, 3000.0, -1.0), {}, ModelError, "energy_j must be ≥ 0"),
+        ((0.0, 3000.0, None), {"rolbs_longest": 0}, ModelError, "rolbs_longest must be"),
+        ((0.0, 3000.0, None), {"prbs_clock": 1.5}, TypeError, "prbs_clock must be"),
+        ((0.0, 3000.0, None), {"criterion": "Z"}, ModelError, "unknown criterion 'Z'"),
+    ]:
+        with pytest.raises(error, match=words):
+            design.baseline_schedules(ctx, *args, **kwargs)
 
 
 def test_missing_power_or_weather_is_named():

@@ -251,6 +251,20 @@ def baseline_schedules(
     among 1, 2, 4, … samples (up to a quarter of the horizon) unless given; the ROLBS durations
     span one sample to ``rolbs_longest`` (default 72 h, at most a quarter of the horizon).
     """
+    lo, hi = _check_pair("power", (lo, hi), "W")
+    if lo < 0:
+        raise ModelError(f"power bounds must be ≥ 0 W (a heater), got {lo:g}")
+    if energy_j is not None:
+        energy_j = _real("energy_j", energy_j, "J")
+        if not (math.isfinite(energy_j) and energy_j >= 0):
+            raise ModelError(f"energy_j must be ≥ 0 [J] or None, got {energy_j}")
+    if criterion not in CRITERIA:
+        raise ModelError(f"unknown criterion {criterion!r}; choose one of {', '.join(CRITERIA)}")
+    if prbs_clock is not None:
+        prbs_clock = _count("prbs_clock", prbs_clock, 1)
+    if rolbs_longest is not None:
+        rolbs_longest = _count("rolbs_longest", rolbs_longest, 1)
+    seed = _count("seed", seed, 0)
     n = ctx.n
     hours = max(1, int(round(3600 / ctx.step)))
 
@@ -329,6 +343,8 @@ def _design_one(ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_e
         Zb, lb, _ = solve(Zs, _args(ctx, lo, hi, tlo, thi, emax, rho, _MU))
         zb = np.asarray(Zb)[best_of(np.asarray(Zb), lb)]
         designed = np.where(np.sin(zb) >= 0.0, hi, lo)
+        if max_energy is not None:
+            designed = _within_budget(designed, np.sin(zb), lo, hi, ctx.step, max_energy)
         rounding_loss = (
             ctx.report(designed)["loss"][criterion] - ctx.report(relaxed)["loss"][criterion]
         )
@@ -339,6 +355,19 @@ def _design_one(ctx, solve, Z, criterion, lo, hi, tlo, thi, emax, comfort, max_e
         "loss": ctx.report(designed)["loss"][criterion],
         "violation": violation(designed),
     }
+
+
+def _within_budget(u, score, lo: float, hi: float, step: float, budget: float) -> np.ndarray:
+    """An on/off schedule [W] cut to the energy budget [J]: the on samples whose relaxed value
+    ``score`` is lowest (the least surely on) are switched off until it fits."""
+    excess = float(np.sum(u)) * step - budget
+    if excess <= 0.0:
+        return u
+    on = np.flatnonzero(u == hi)
+    k = min(len(on), int(np.ceil(excess / ((hi - lo) * step) - 1e-9)))
+    u = u.copy()
+    u[on[np.argsort(score[on], kind="stable")[:k]]] = lo
+    return u
 
 
 def _warn_violation(rep: dict, comfort, max_energy, lo: float, hi: float) -> None:

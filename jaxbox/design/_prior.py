@@ -185,6 +185,8 @@ def prior_samples(prior: Prior, names, n: int, spread: float | None, seed: int =
             f"model {prior.model.name} has no parameter(s) {', '.join(bad)}; its parameters are "
             f"{', '.join(prior.model.param_names)}"
         )
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+        raise ModelError(f"prior_samples needs n, an integer ≥ 1 (samples), got {n!r}")
     mean = np.log([prior.theta[k] for k in names])
     if n <= 1:
         return mean[None, :]

@@ -173,6 +173,9 @@ def test_config_from_toml(tmp_path):
     assert cfg.load_options() == {"sep": ";", "decimal": ",", "thousands": "."}
     with pytest.raises(FleetError, match="data.thousands must be one of"):
         load_config(thousands=".")
+    assert load_config(models="Zon+Wal").fixed_model == "Zon+Wal"  # a structure name
+    assert load_config(models="exp1").fixed_model is None  # a family: a selection
+
     path.write_text("[identify]\nstart = 3\n", encoding="utf-8")
     with pytest.raises(FleetError, match="unknown key 'start' in \\[identify\\]"):
         load_config(path)
@@ -181,6 +184,35 @@ def test_config_from_toml(tmp_path):
         load_config(path)
     with pytest.raises(FleetError, match="fraction"):
         load_config(fraction=1.5)
+
+
+@pytest.mark.parametrize(
+    "setting, words",
+    [
+        ({"fraction": "half"}, "windows.fraction must be a number"),
+        ({"margin": "x"}, "identify.margin must be a number"),
+        ({"seed": -1}, "identify.seed must be an integer"),
+        ({"reports": "yes"}, "run.reports must be true or false"),
+        ({"models": ["ZonWall"]}, "identify.models: no library model named 'ZonWall'"),
+        ({"models": "exp9"}, "identify.models: no library model named 'exp9'"),
+        ({"columns": ["T_zon"]}, "data.columns must be a table"),
+        ({"scale": {"Q_hea": "kW"}}, "data.scale.Q_hea must be a number"),
+        ({"scale": {"Q_hea": 0}}, "data.scale.Q_hea must be a finite factor"),
+        ({"counters": {"Q_hea": "kwh"}}, "data.counters.Q_hea: unknown energy unit"),
+        ({"sep": ";;"}, "data.sep must be one character"),
+        ({"decimal": ";"}, "data.decimal must be"),
+        ({"resample": "hourly"}, "data.resample 'hourly' is not a positive fixed length"),
+        ({"time_unit": "weeks"}, "data.time_unit must be one of"),
+        ({"epoch": "then"}, "data.epoch 'then' cannot be read"),
+        ({"tz": "Mars/Olympus"}, "data.tz 'Mars/Olympus' cannot be read"),
+        ({"train": ["2024-01-02", "2024-01-01"], "valid": ["2024-01-03", "2024-01-04"]}, "train"),
+    ],
+)
+def test_fleet_settings_are_checked_before_any_building_is_read(setting, words):
+    """A setting no building could be read or fitted with fails the run at once, naming the
+    key, instead of failing every building in turn."""
+    with pytest.raises(FleetError, match=words):
+        load_config(**setting)
 
 
 def test_cli_make_run_and_bad_input(tmp_path, capsys):

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -117,7 +118,7 @@ class FleetConfig:
     reports: bool = False
 
     def __post_init__(self) -> None:
-        if not 0.0 < float(self.fraction) < 1.0:
+        if not 0.0 < _real("windows.fraction", self.fraction) < 1.0:
             raise FleetError(f"windows.fraction must be between 0 and 1, got {self.fraction}")
         if (self.train is None) != (self.valid is None):
             raise FleetError("windows: give both train and valid periods, or neither")
@@ -150,15 +151,35 @@ class FleetConfig:
                 f"identify.criterion {self.criterion!r} is not known; use one of "
                 f"{', '.join(CRITERIA)} (the validation simulation error)"
             )
-        if self.margin is not None and not 0.0 <= float(self.margin) < 1.0:
+        if self.margin is not None and not 0.0 <= _real("identify.margin", self.margin) < 1.0:
             raise FleetError(f"identify.margin must be in [0, 1), got {self.margin}")
-        object.__setattr__(self, "columns", dict(self.columns))
-        object.__setattr__(self, "scale", {k: float(v) for k, v in dict(self.scale).items()})
+        seed = self.seed
+        if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+            raise FleetError(f"identify.seed must be an integer ≥ 0, got {seed!r}")
+        if not isinstance(self.reports, bool):
+            raise FleetError(f"run.reports must be true or false, got {self.reports!r}")
+        self._check_models()
+        object.__setattr__(self, "columns", _names_map("data.columns", self.columns))
+        scale = _names_map("data.scale", self.scale, values=False)
+        for k, v in scale.items():
+            scale[k] = _real(f"data.scale.{k}", v)
+            if not (math.isfinite(scale[k]) and scale[k] != 0):
+                raise FleetError(f"data.scale.{k} must be a finite factor other than 0, got {v!r}")
+        object.__setattr__(self, "scale", scale)
         if isinstance(self.time, list | tuple):
             if len(self.time) != 2 or not all(isinstance(t, str) and t for t in self.time):
                 raise FleetError(f"data.time must be a column or [date, clock], got {self.time!r}")
             object.__setattr__(self, "time", tuple(self.time))
-        object.__setattr__(self, "counters", {k: str(v) for k, v in dict(self.counters).items()})
+        from ..data._counters import COUNTER_UNITS
+
+        counters = _names_map("data.counters", self.counters)
+        for k, unit in counters.items():
+            if unit.strip() not in COUNTER_UNITS:
+                raise FleetError(
+                    f"data.counters.{k}: unknown energy unit {unit!r}; use one of "
+                    f"{', '.join(COUNTER_UNITS)}"
+                )
+        object.__setattr__(self, "counters", counters)
         if self.tz is not None and (not isinstance(self.tz, str) or not self.tz.strip()):
             raise FleetError(
                 f"data.tz must name a time zone such as 'Europe/Berlin', got {self.tz!r}"
@@ -171,11 +192,81 @@ class FleetConfig:
                     f"data.thousands must be one of {', '.join(map(repr, THOUSANDS))} and differ "
                     f"from the decimal mark ('.' with decimal = ','), got {self.thousands!r}"
                 )
+        self._check_reading()
+
+    def _check_models(self) -> None:
+        """Every model name resolves: a library or structure name, a family, 'all', 'search'."""
+        from ..models import ModelError, families, get_model
+
+        names = self.models if isinstance(self.models, tuple) else (self.models,)
+        for name in names:
+            if name in ("all", "search") and not isinstance(self.models, tuple):
+                continue
+            if name in families() and not isinstance(self.models, tuple):
+                continue
+            try:
+                get_model(name)
+            except ModelError as err:
+                raise FleetError(
+                    f"identify.models: {err}; or a family ({', '.join(families())}), 'all' or "
+                    "'search'"
+                ) from None
+
+    def _check_reading(self) -> None:
+        """The options of reading each file, checked before any building is read."""
+        import pandas as pd
+
+        from ..data._checks import TIME_UNITS
+
+        if self.sep is not None and (not isinstance(self.sep, str) or len(self.sep) != 1):
+            raise FleetError(
+                f"data.sep must be one character (e.g. ';' or '\\t'), got {self.sep!r}"
+            )
+        if self.decimal is not None and self.decimal not in (".", ","):
+            raise FleetError(f"data.decimal must be '.' or ',', got {self.decimal!r}")
+        if (self.sep or ",") == (self.decimal or "."):
+            raise FleetError(
+                "data.sep and data.decimal are the same; with decimal = ',' use sep = ';'"
+            )
+        if self.time_unit is not None and self.time_unit not in TIME_UNITS:
+            raise FleetError(
+                f"data.time_unit must be one of {', '.join(TIME_UNITS)}, got {self.time_unit!r}"
+            )
+        checks = [("data.epoch", self.epoch, lambda v: pd.Timestamp(v))]
+        checks.append(("data.tz", self.tz, lambda v: pd.Timestamp("2000-01-01", tz=v)))
+        for name, value, read in checks:
+            if value is None:
+                continue
+            try:
+                read(value)
+            except (ValueError, TypeError, KeyError) as err:
+                raise FleetError(f"{name} {value!r} cannot be read ({err})") from None
+        if self.resample is not None:
+            try:
+                length = pd.Timedelta(pd.tseries.frequencies.to_offset(self.resample))
+            except (ValueError, TypeError):
+                length = None
+            if length is None or not length.total_seconds() > 0:
+                raise FleetError(
+                    f"data.resample {self.resample!r} is not a positive fixed length of time; "
+                    "give one such as '1h', '15min' or '1D'"
+                )
+        if self.train is not None:
+            for name in ("train", "valid"):
+                try:
+                    start, end = (pd.Timestamp(v) for v in getattr(self, name))
+                except (ValueError, TypeError) as err:
+                    raise FleetError(f"windows.{name}: {err}") from None
+                if not start < end:
+                    raise FleetError(
+                        f"windows.{name} must start before it ends, got {start}, {end}"
+                    )
 
     @property
     def fixed_model(self) -> str | None:
         """The model name when exactly one model is given (fitted without selection)."""
         from ..models import families, list_models
+        from ..models._grammar import is_structure_name
 
         m = self.models
         if isinstance(m, tuple) and len(m) == 1:
@@ -184,7 +275,7 @@ class FleetConfig:
             isinstance(m, str)
             and m not in ("all", "search")
             and m not in families()
-            and (m in list_models())
+            and (m in list_models() or is_structure_name(m))
         ):
             return m
         return None
@@ -210,6 +301,23 @@ class FleetConfig:
         d = dataclasses.asdict(self)
         d["models"] = list(self.models) if isinstance(self.models, tuple) else self.models
         return d
+
+
+def _real(name: str, value) -> float:
+    """A number setting as a float (a FleetError naming it otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise FleetError(f"{name} must be a number, got {value!r}")
+    return float(value)
+
+
+def _names_map(name: str, value, values: bool = True) -> dict:
+    """A table of column names -> names (``values``) or -> anything, checked."""
+    if not isinstance(value, Mapping):
+        raise FleetError(f"{name} must be a table {{column = ...}}, got {value!r}")
+    for k, v in value.items():
+        if not isinstance(k, str) or (values and not (isinstance(v, str) and v)):
+            raise FleetError(f"{name} must map column names to names, got {k!r} = {v!r}")
+    return dict(value)
 
 
 _TABLES = {

@@ -201,9 +201,26 @@ def test_recovers_the_hlc_of_a_noisy_building():
     assert got["hlc"] == pytest.approx(b.kpis["hlc"], rel=0.03)
 
 
-def test_errors():
-    with pytest.raises(ValueError, match="at least one"):
+def test_errors(tmp_path):
+    from jaxbox.datasets import make_fleet
+
+    with pytest.raises(ValueError, match="n \\(buildings\\) must be an integer ≥ 1"):
         make_zoo(0)
+    for kwargs, error, words in [
+        ({"n": 2.5}, TypeError, "n \\(buildings\\) must be an integer"),
+        ({"n": 2, "seed": -1}, ValueError, "seed must be an integer ≥ 0"),
+        ({"n": 2, "seed": "x"}, TypeError, "seed must be an integer ≥ 0"),
+        ({"n": 2, "days": float("nan")}, ValueError, "days must be finite"),
+        ({"n": 2, "noise": -0.1}, ValueError, "noise is a standard deviation"),
+    ]:
+        with pytest.raises(error, match=words):
+            make_fleet(**kwargs)
+        if "noise" not in kwargs:
+            with pytest.raises(error, match=words):
+                make_zoo(**kwargs)
+    (tmp_path / "taken").write_text("a file")
+    with pytest.raises(ValueError, match="is a file; give a folder"):
+        make_fleet(2, tmp_path / "taken", days=2)
     with pytest.raises(ValueError, match="steps"):
         make_zoo(1, step="15min")
     with pytest.raises(ValueError, match="heating"):

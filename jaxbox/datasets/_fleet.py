@@ -88,6 +88,7 @@ def make_fleet(
         ValueError: an unknown model, ``n < 1`` or more days than the weather holds.
     """
     from ..data import Dataset
+    from ..data._args import check_count, check_real
     from ..models import get_model
     from ..simulate import simulate_model
     from ..validate import kpi_values
@@ -95,8 +96,14 @@ def make_fleet(
 
     if model not in FLEET_MODELS:
         raise ValueError(f"make_fleet draws {', '.join(FLEET_MODELS)}; got model {model!r}")
-    if int(n) < 1:
-        raise ValueError(f"a fleet needs at least one building, got n={n}")
+    n = check_count(n, "n (buildings)")
+    days = check_real(days, "days", "days")
+    noise = check_real(noise, "noise", "K")
+    if noise < 0:
+        raise ValueError(f"noise is a standard deviation [K] ≥ 0, got {noise}")
+    seed = check_count(seed, "seed", 0)
+    if directory is not None and Path(directory).exists() and not Path(directory).is_dir():
+        raise ValueError(f"directory {str(directory)!r} is a file; give a folder")
     weather = twinhouse_exp1("N2", "1h")
     steps = int(round(days * 24))
     if steps < 48 or steps > len(weather):

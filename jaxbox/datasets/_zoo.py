@@ -26,6 +26,8 @@ import pandas as pd
 import scipy.linalg
 import scipy.signal
 
+from ..data._args import check_count, check_real
+
 __all__ = [
     "ZooBuilding",
     "make_zoo",
@@ -674,8 +676,11 @@ def make_zoo(
     Raises:
         ValueError: ``n < 1``, an unknown step or heating kind, or more days than the weather.
     """
-    if int(n) < 1:
-        raise ValueError(f"a zoo needs at least one building, got n={n}")
+    n = check_count(n, "n (buildings)")
+    seed = check_count(seed, "seed", 0)
+    days = check_real(days, "days", "days")
+    if not days > 0:
+        raise ValueError(f"days must be > 0, got {days}")
     zones = tuple(int(z) for z in zones)
     if not zones or not set(zones) <= {1, 2}:
         raise ValueError(f"zones must be a subset of (1, 2), got {zones}")

@@ -227,6 +227,21 @@ def test_every_model_is_a_proper_thermal_network(name):
         assert np.all(np.asarray(D) == 0) and C.shape == (len(m.outputs), m.n_states)
 
 
+@pytest.mark.parametrize(
+    "name",
+    [*ALL, "Zon+Wal+GroC", "Zon+Wal+Int+BouC+CelC+GroC", "Zon1+Zon2+Wal1+Wal2+CplC"],
+)
+def test_every_mode_is_seen_by_the_outputs_at_the_defaults(name):
+    """At the default values no mode of the network escapes the measured outputs: two capacities
+    hanging off the zone with the same time constant C·R (C_bou·R_bou = C_wal·R_wal once) leave a
+    mode that the outputs never see, and their initial states cannot be told apart."""
+    m = get_model(name)
+    A, _, C, _ = m.state_space_numpy(m.defaults())
+    _, V = np.linalg.eig(A)
+    seen = np.linalg.norm(C @ (V / np.linalg.norm(V, axis=0)), axis=0)
+    assert seen.min() > 1e-3, dict(zip(m.states, seen, strict=True))
+
+
 @pytest.mark.parametrize("name", ALL)
 def test_every_model_steady_state(name):
     m = get_model(name)

@@ -83,12 +83,17 @@ class Parameter:
 
 _T0 = re.compile(r"T_\w+0(_s\d+)?")
 
-# Name-specific default guesses (SI), refined within a prefix.
+# Name-specific default guesses (SI), refined within a prefix. The capacities on the boundaries
+# (C_bou, C_gro, and C_* of any other name) are chosen so that, with their resistances, no two of
+# them nor the envelope (C_wal with R_wal) share a time constant C·R at the defaults: two
+# capacities hanging off the zone with the same time constant leave a mode of the network that the
+# zone temperature never sees, so their initial states could not be told apart from the data.
 _DEFAULTS = {
     "C_zon": 2e6,
     "C_wal": 2e7,
     "C_int": 1e7,
-    "C_bou": 1e7,
+    "C_bou": 6e6,
+    "C_gro": 8e6,
     "C_emb": 5e6,
     "C_hea": 1e5,
     "C_sen": 1e5,

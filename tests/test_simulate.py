@@ -121,6 +121,98 @@ def test_simulate_errors(inputs):
     assert jax.jit(lambda c: check_theta(m, th | {"C_zon": c})["C_zon"])(-1.0) == -1.0
 
 
+def test_hostile_parameters_are_refused_by_name(inputs):
+    from jaxbox.models import ModelError
+
+    t, u = inputs
+    ds = Dataset.from_arrays(t, u)
+    m = get_model("Zon")
+    th = m.defaults()
+    for bad in ("2e6", None, True, 1 + 2j):
+        with pytest.raises(TypeError, match="parameter C_zon is .*; give a number in J/K"):
+            simulate_model(m, th | {"C_zon": bad}, ds)
+    with pytest.raises(ModelError, match="C_zon has shape \\(2,\\); give one number"):
+        simulate_model(m, th | {"C_zon": np.array([2e6, 3e6])}, ds)
+    ok = simulate_model(m, th | {"C_zon": np.array([th["C_zon"]])}, ds)  # one value, any shape
+    np.testing.assert_array_equal(ok.y, simulate_model(m, th, ds).y)
+    with pytest.raises(TypeError, match="must be a mapping"):
+        simulate_model(m, list(th.values()), ds)
+    with pytest.raises(ModelError, match="T_zon0 = 293.15 looks like kelvin"):
+        simulate_model(m, th | {"T_zon0": 293.15}, ds)
+    bm = get_model("BM_TiTe")  # fra_wal splits R_wal: fra_wal·R_wal and (1 − fra_wal)·R_wal
+    for fra in (0.0, 1.0, 1.5):
+        with pytest.raises(ModelError, match="fra_wal = .* strictly between 0 and 1"):
+            simulate_model(bm, bm.defaults() | {"fra_wal": fra}, ds)
+    rad = get_model("Zon+Int+Rad")  # fra_rad and 1 − fra_rad share Q_hea
+    with pytest.raises(ModelError, match="fra_rad = 1.2 lies outside \\[0, 1\\]"):
+        simulate_model(rad, rad.defaults() | {"fra_rad": 1.2}, ds)
+    simulate_model(rad, rad.defaults() | {"fra_rad": 1.0}, ds)  # all of it to the mass: fine
+
+
+def test_hostile_data_options_and_x0_are_refused_early(inputs):
+    from jaxbox.data import DataError, prepare_window
+    from jaxbox.models import ModelError
+
+    t, u = inputs
+    ds = Dataset.from_arrays(t, u)
+    m = get_model("Zon")
+    with pytest.raises(TypeError, match="must be a jaxbox.data.Dataset, got DataFrame"):
+        simulate_model(m, None, ds.frame)
+    gap = dict(u, T_amb=np.where((t > 5 * DT) & (t < 9 * DT), np.nan, u["T_amb"]), T_zon=20.0)
+    with pytest.raises(DataError, match="input 'T_amb' of model Zon is NaN .* at 3 sample"):
+        simulate_model(m, None, Dataset.from_arrays(t, gap))
+    with pytest.warns(Warning):
+        cut = prepare_window(Dataset.from_arrays(t, gap), m.inputs, m.outputs, max_gap=0)
+    with pytest.raises(ModelError, match="2 segments .* simulate model.segmented\\(2\\)"):
+        simulate_model(m, None, cut)
+    two = m.segmented(2)
+    exact = simulate_model(two, None, cut).y
+    np.testing.assert_allclose(simulate_model(two, None, cut, method="diffrax").y, exact, atol=1e-4)
+    with pytest.raises(TypeError, match="rtol apply to method='diffrax' only"):
+        simulate_model(m, None, ds, rtol=1e-3)
+    with pytest.raises(TypeError, match="no option\\(s\\) step; its options are adaptive"):
+        simulate_model(m, None, ds, method="diffrax", step=1)
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(ValueError, match="rtol = .* finite number above zero"):
+            simulate_model(m, None, ds, method="diffrax", rtol=bad)
+    with pytest.raises(ValueError, match="substeps = 0 must be a whole number"):
+        simulate_model(m, None, ds, method="diffrax", adaptive=False, substeps=0)
+    with pytest.raises(FloatingPointError, match="max_steps=2 steps .* raise max_steps"):
+        simulate_model(m, None, ds, method="diffrax", max_steps=2)
+    for method in ("exact", "diffrax"):
+        with pytest.raises(ModelError, match="x0 has shape \\(2,\\) but model Zon has 1 state"):
+            simulate_model(m, None, ds, method=method, x0=[20.0, 21.0])
+    with pytest.raises(ModelError, match="x0 = \\[nan\\] is not finite"):
+        simulate_model(m, None, ds, x0=[float("nan")])
+
+
+def test_simulate_arrays_checks_shapes_and_times(inputs):
+    from jaxbox.models import ModelError
+
+    t, u = inputs
+    m = get_model("Zon")
+    th, U = m.defaults(), _u(m, u)
+    with pytest.raises(ModelError, match="u has shape \\(199, 3\\) but model Zon needs"):
+        simulate_arrays(m, th, t, U[:-1])
+    with pytest.raises(ModelError, match="u has shape \\(200, 2\\)"):
+        simulate_arrays(m, th, t, U[:, :2])
+    with pytest.raises(ModelError, match="finite and increasing"):
+        simulate_arrays(m, th, np.zeros_like(t), U)  # a time step of zero
+    with pytest.raises(ModelError, match="finite and increasing"):
+        simulate_arrays(m, th, t[::-1], U, method="diffrax")
+    irregular = t.copy()
+    irregular[1] = 10.0
+    with pytest.raises(ModelError, match="needs a regular time step"):
+        simulate_arrays(m, th, irregular, U)
+    with pytest.raises(ModelError, match="input 'T_amb' of model Zon is nan at sample 4"):
+        simulate_arrays(m, th, t, np.where(np.arange(len(t))[:, None] == 4, np.nan, U))
+    with pytest.raises(ModelError, match="at least two samples"):
+        simulate_arrays(m, th, t[:1], U[:1])
+    # traced times and inputs: the shapes are checked, the values left to the computation
+    y = jax.jit(lambda t, U: simulate_arrays(m, th, t, U)[0])(t, U)
+    np.testing.assert_allclose(y, simulate_arrays(m, th, t, U)[0], rtol=1e-12)
+
+
 @pytest.mark.parametrize("name", ["Zon", "ZonWalIntInfWinBouC"])
 def test_numpy_post_simulation_equals_the_jax_exact_route(inputs, name):
     """The compilation-free NumPy route of the post-simulation (``method="exact"`` of

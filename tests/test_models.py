@@ -117,3 +117,33 @@ def test_models_are_hashable_values():
         {k: jnp.asarray(v) for k, v in get_model("Zon").defaults().items()}
     )
     assert A.dtype == jnp.float64
+
+
+def test_hostile_declarations_are_refused_by_name():
+    """Names that are not text, shares that are not fractions, gains naming capacities or
+    resistances, infinite scales and gains, duplicated elements, an output that is an input."""
+    from jaxbox.models import components as c
+
+    net = RCNetwork("M").node("zon", output=True)
+    cases = [
+        (lambda: RCNetwork("M").node("zon", C=5), "capacity parameter of node 'zon' is 5"),
+        (lambda: RCNetwork("M").node("zon", C="C_ zon"), "capacity parameter .* 'C_ zon'"),
+        (lambda: RCNetwork("M").node("zon", output="T zon"), "output of node 'zon' is 'T zon'"),
+        (lambda: net.resistance("zon", 3, "R_w"), "links 'zon' to 3; give a node name"),
+        (lambda: net.resistance("zon", "T_amb", "R_ w"), "'R_ w' must be named R_\\*"),
+        (lambda: net.resistance("zon", "T_amb", "R_w", scale=np.inf), "finite scale > 0"),
+        (lambda: net.resistance("zon", "T_amb", "R_w", scale="C_zon"), "a fraction fra_\\*"),
+        (lambda: net.heat("zon", 3), "heat input 3 of node 'zon' must be a column name"),
+        (lambda: net.heat("zon", "Q_hea", gain=float("nan")), "give a finite number"),
+        (lambda: net.heat("zon", "Q_hea", gain="C_zon"), "names 'C_zon'; a gain names"),
+        (lambda: net.heat("zon", "Q_hea", gain="1-gA"), "only a fraction fra_\\* has"),
+        (lambda: c.infiltration(c.infiltration(c.wall(net))), "'R_inf' .* declared twice"),
+        (lambda: net.heat("zon", "Q_hea").heat("zon", "Q_hea"), "'Q_hea' .* declared twice"),
+        (
+            lambda: RCNetwork("M").node("zon", output="T_amb").resistance("zon", "T_amb", "R_w"),
+            "output 'T_amb' is also an input",
+        ),
+    ]
+    for make, message in cases:
+        with pytest.raises(ModelError, match=message):
+            make().build()

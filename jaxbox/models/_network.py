@@ -69,6 +69,33 @@ def _parse_gain(gain) -> tuple[tuple[str, object], ...]:
     return tuple(factors)
 
 
+#: the prefixes of the parameters a heat input's gain may name: apertures [m²], fractions [-]
+#: and constant heat inputs [W]
+_GAIN_PREFIXES = ("gA", "fra_", "Q_")
+
+
+def _check_gain(network: str, input: str, gain) -> tuple[tuple[str, object], ...]:
+    """The factors of the gain of heat input ``input``: finite numbers, and parameters that are
+    apertures ``gA*``, fractions ``fra_*`` (also as ``1-fra_*``) or heat inputs ``Q_*``."""
+    if isinstance(gain, bool):
+        raise ModelError(f"{network}: gain of {input!r} is {gain!r}; give a number or a name")
+    factors = _parse_gain(gain)
+    for kind, value in factors:
+        if kind == "const" and not abs(value) < float("inf"):
+            raise ModelError(f"{network}: gain of {input!r} is {gain!r}; give a finite number")
+        if kind == "param" and not value.startswith(_GAIN_PREFIXES):
+            raise ModelError(
+                f"{network}: gain {gain!r} of {input!r} names {value!r}; a gain names apertures "
+                "gA* [m²], fractions fra_* [-] or heat inputs Q_* [W]"
+            )
+        if kind == "compl" and not value.startswith("fra_"):
+            raise ModelError(
+                f"{network}: gain {gain!r} of {input!r} takes 1-{value}; only a fraction fra_* "
+                "has a complement"
+            )
+    return factors
+
+
 def _gain_text(factors) -> str:
     out = []
     for kind, value in factors:
@@ -157,6 +184,12 @@ class RCNetwork:
             raise ModelError(f"{self.name}: duplicate node {name!r}; node names must be unique")
         C = f"C_{name}" if C is None else C
         T0 = f"T_{name}0" if T0 is None else T0
+        for what, value in (("capacity", C), ("initial state", T0)):
+            if not isinstance(value, str) or (value and not _PARAM.fullmatch(value)):
+                raise ModelError(
+                    f"{self.name}: {what} parameter of node {name!r} is {value!r}; give a "
+                    "parameter name of letters, digits and '_'"
+                )
         if not C:
             raise ModelError(f"{self.name}: node {name!r} has no capacity; give C='C_{name}'")
         if not C.startswith("C_"):
@@ -169,6 +202,11 @@ class RCNetwork:
             output = f"T_{name}"
         elif output is False:
             output = None
+        if output is not None and (not isinstance(output, str) or not _PARAM.fullmatch(output)):
+            raise ModelError(
+                f"{self.name}: output of node {name!r} is {output!r}; give True or a column name "
+                "of letters, digits and '_' (e.g. 'T_zon')"
+            )
         if output is not None and output in [n.output for n in self.nodes]:
             raise ModelError(f"{self.name}: duplicate output {output!r}")
         return dataclasses.replace(self, nodes=self.nodes + (_Node(name, C, T0, output),))
@@ -196,6 +234,11 @@ class RCNetwork:
         that is itself estimated.
         """
         self._require_node(a, f"resistance {R!r}")
+        if not isinstance(b, str) or not _PARAM.fullmatch(b):
+            raise ModelError(
+                f"{self.name}: resistance {R!r} links {a!r} to {b!r}; give a node name or a "
+                "temperature input such as 'T_amb'"
+            )
         if b not in self._node_names():
             if not b.startswith("T_"):
                 raise ModelError(
@@ -204,7 +247,7 @@ class RCNetwork:
                 )
         if a == b:
             raise ModelError(f"{self.name}: resistance {R!r} links node {a!r} to itself")
-        if not isinstance(R, str) or not R.startswith("R_"):
+        if not isinstance(R, str) or not R.startswith("R_") or not _PARAM.fullmatch(R):
             raise ModelError(f"{self.name}: resistance parameter {R!r} must be named R_*")
         const = self._constant_nodes()
         if a in const and (b in const or b not in self._node_names()):
@@ -218,6 +261,11 @@ class RCNetwork:
             for kind, v in _parse_gain(scale):
                 if kind == "const":
                     value *= v
+                elif not v.startswith("fra_"):
+                    raise ModelError(
+                        f"{self.name}: scale {scale!r} of resistance {R!r} names {v!r}; a share "
+                        "of a resistance is a fraction fra_* (e.g. 'fra_wal', '1-fra_wal')"
+                    )
                 else:
                     factors += ((kind, v),)
             scale = value
@@ -228,9 +276,20 @@ class RCNetwork:
                 f"{self.name}: scale of resistance {R!r} must be a number or an expression like "
                 f"'fra_wal', got {scale!r}"
             ) from None
-        if not scale > 0:
-            raise ModelError(f"{self.name}: resistance {R!r} needs scale > 0, got {scale!r}")
-        return dataclasses.replace(self, edges=self.edges + (_Edge(a, b, R, scale, factors),))
+        if not 0 < scale < float("inf"):
+            raise ModelError(
+                f"{self.name}: resistance {R!r} needs a finite scale > 0, got {scale!r}"
+            )
+        edge = _Edge(a, b, R, scale, factors)
+        if any(
+            {e.a, e.b} == {a, b} and (e.R, e.scale, e.factors) == (R, scale, factors)
+            for e in self.edges
+        ):
+            raise ModelError(
+                f"{self.name}: resistance {R!r} between {a!r} and {b!r} is declared twice (two "
+                "in parallel would halve it); give the second its own parameter name"
+            )
+        return dataclasses.replace(self, edges=self.edges + (edge,))
 
     def heat(self, node: str, input: str, gain: str | float = 1.0) -> RCNetwork:
         """Inject ``gain · input`` [W] into ``node``.
@@ -240,6 +299,11 @@ class RCNetwork:
         ``"gA_e*fra_sol"``, ``"1-fra_rad"``.
         """
         self._require_node(node, f"heat input {input!r}")
+        if not isinstance(input, str) or not _PARAM.fullmatch(input):
+            raise ModelError(
+                f"{self.name}: heat input {input!r} of node {node!r} must be a column name of "
+                "letters, digits and '_' (e.g. 'Q_hea', 'I_glo_hor')"
+            )
         if node in self._constant_nodes():
             raise ModelError(
                 f"{self.name}: node {node!r} is held at a constant temperature and takes no heat "
@@ -249,9 +313,13 @@ class RCNetwork:
             raise ModelError(
                 f"{self.name}: {input!r} is a temperature; link it with .resistance(), not .heat()"
             )
-        return dataclasses.replace(
-            self, sources=self.sources + (_Source(node, input, _parse_gain(gain)),)
-        )
+        source = _Source(node, input, _check_gain(self.name, input, gain))
+        if source in self.sources:
+            raise ModelError(
+                f"{self.name}: heat input {input!r} into {node!r} with gain {gain!r} is declared "
+                "twice (it would count twice); declare it once"
+            )
+        return dataclasses.replace(self, sources=self.sources + (source,))
 
     def parameter(self, name: str, spec: Parameter | None = None, **fields) -> RCNetwork:
         """Declare the spec of a parameter: its default guess, bounds or description.
@@ -350,6 +418,12 @@ class RCNetwork:
         for s in self.sources:
             if s.input not in inputs:
                 inputs.append(s.input)
+        clash = [n.output for n in self.nodes if n.output in inputs]
+        if clash:
+            raise ModelError(
+                f"{self.name}: output {clash[0]!r} is also an input of the network; a measured "
+                "node cannot be driven by its own measurement: rename the output or the input"
+            )
         # parameters in a canonical order: capacities, resistances, gains, initial states
         order: list[str] = []
         for n in self.nodes:

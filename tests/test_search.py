@@ -286,6 +286,26 @@ def test_bad_search_options(building, option, words):
         structure_search(building, **option)
 
 
+@pytest.mark.parametrize(
+    "option, error, words",
+    [
+        ({"grammar": "Zon+Wal"}, TypeError, "grammar must be a jaxbox.models.Grammar"),
+        ({"margin": True}, ValueError, "margin must be a fraction"),
+        ({"starts": 0}, ValueError, "starts must be a whole number"),
+        ({"seed": 1.5}, TypeError, "seed must be"),
+        ({"max_steps": 0}, ValueError, "max_steps must be"),
+        ({"progress": "log.txt"}, TypeError, "progress must be a function"),
+    ],
+)
+def test_search_options_refused_before_any_case(building, option, error, words):
+    """Refused before a root is declared (a grammar given as text failed inside the grammar,
+    settings inside the fits)."""
+    n = len(building)
+    with pytest.raises(error, match=words):
+        structure_search(building, **option)
+    assert len(building) == n
+
+
 # ---- repairs ------------------------------------------------------------------------------------
 
 

@@ -10,6 +10,7 @@ from jaxbox.select import (
     candidate_models,
     forward_selection,
     lhs_starts,
+    manual_guess,
     naming_guess,
     parent_guess,
     state_ranges,
@@ -100,6 +101,84 @@ def test_manual_guess_and_unknown_names(data):
     with pytest.raises(ValueError, match="parent"):
         gb.add_case("Zon", guess="parent")
     assert gb.add_case("Zon").name == "Zon#2"
+
+
+@pytest.mark.parametrize(
+    "kw, error, words",
+    [
+        ({"name": 5}, TypeError, "name must be"),
+        ({"name": " "}, ValueError, "name must not be empty"),
+        ({"starts": 0}, ValueError, "starts must be a whole number"),
+        ({"starts": 2.5}, TypeError, "starts must be a whole number"),
+        ({"starts": 10**9}, ValueError, "starts must be a whole number from 1 to"),
+        ({"seed": -1}, ValueError, "seed must be"),
+        ({"seed": "a"}, TypeError, "seed must be"),
+        ({"fixed": {"C_foo": 1.0}}, ValueError, "no parameter.*C_foo"),
+        ({"fixed": {"C_zon": "big"}}, ValueError, "fixed value of C_zon must be a number"),
+        ({"fixed": {"gA": float("nan")}}, ValueError, "fixed value of gA is nan"),
+        ({"bounds": {"C_zon": 5.0}}, ValueError, "bounds of C_zon must be a pair"),
+        ({"bounds": {"C_zon": (5e6, 1e6)}}, ValueError, "bounds of C_zon: lower"),
+        ({"bounds": {"C_zon": (1, 2, 3)}}, ValueError, "bounds of C_zon must be a pair"),
+        ({"free": ["C_foo"]}, ValueError, "no parameter.*C_foo"),
+        ({"free": []}, ValueError, "nothing to estimate"),
+        ({"guess": {"C_zon": "big"}}, ValueError, "guess of C_zon must be a number"),
+        ({"guess": {"C_zon": float("nan")}}, ValueError, "guess of C_zon is nan"),
+        ({"guess": {"C_zon": -1.0}}, ValueError, "guess of C_zon.*outside its bounds"),
+        ({"max_steps": -1}, ValueError, "max_steps must be"),
+        ({"rtol": "a"}, TypeError, "rtol must be a number"),
+        ({"postsim": "nope"}, ValueError, "postsim must be one of"),
+        ({"simulator": "euler"}, ValueError, "simulator must be one of"),
+        ({"weights": "x"}, ValueError, "weights must"),
+        ({"guess": "parent", "parent": "nope"}, ValueError, "parent 'nope' is not a case"),
+        ({"guess": "parent", "parent": 3}, TypeError, "parent must be the name"),
+    ],
+)
+def test_add_case_refuses_hostile_arguments_when_declared(data, kw, error, words):
+    """Refused when declared, naming the argument, and nothing is added (they were accepted and
+    failed when run, or inside a selection as a failed case)."""
+    gb = GreyBox(data)
+    with pytest.raises(error, match=words):
+        gb.add_case("Zon", **kw)
+    assert len(gb) == 0
+
+
+def test_add_case_parent_only_with_the_parent_guess(selection):
+    gb = selection[0].greybox
+    n = len(gb)
+    with pytest.raises(ValueError, match="guess='parent'"):
+        gb.add_case("ZonWal", parent="Zon")  # was silently a naming guess
+    assert len(gb) == n
+
+
+def test_manual_guess_refuses_text_and_nan(data):
+    with pytest.raises(TypeError, match="value of R_wal must be a number"):
+        manual_guess(get_model("Zon"), data, {"R_wal": "0.01"})
+    with pytest.raises(ValueError, match="value of R_wal must be finite"):
+        manual_guess(get_model("Zon"), data, {"R_wal": float("inf")})
+
+
+@pytest.mark.parametrize(
+    "candidates, kw, error, words",
+    [
+        (None, {}, TypeError, "candidates must be a list"),
+        (3, {}, TypeError, "candidates must be a list"),
+        (["Zon", "Zon"], {}, ValueError, "Zon more than once"),
+        (["Zon"], {"margin": "0.1"}, ValueError, "margin must be a fraction"),
+        (["Zon"], {"patience": True}, ValueError, "patience must be"),
+        (["Zon"], {"inherit": "no"}, TypeError, "inherit must be True or False"),
+        (["Zon"], {"progress": "x"}, TypeError, "progress must be a function"),
+        (["Zon"], {"starts": 10**9}, ValueError, "starts must be a whole number"),
+        (["Zon"], {"postsim": "nope"}, ValueError, "postsim must be one of"),
+        (["Zon"], {"rtol": "a"}, TypeError, "rtol must be a number"),
+    ],
+)
+def test_forward_selection_refuses_bad_options_before_any_case(data, candidates, kw, error, words):
+    """Refused before any case is declared (a bad setting made every case fail, a huge number
+    of starts ran out of memory inside numpy, duplicates were identified twice)."""
+    gb = GreyBox(data)
+    with pytest.raises(error, match=words):
+        forward_selection(gb, candidates, **kw)
+    assert len(gb) == 0
 
 
 def test_candidate_models_sorted_and_filtered(data):

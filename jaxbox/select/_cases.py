@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -21,7 +21,15 @@ from ..fit import DEFAULT_STARTS
 from ..models import RCModel
 from ._guess import Guess, lhs_starts
 
-__all__ = ["Case", "Progress", "SETTINGS", "run_cases"]
+__all__ = [
+    "Case",
+    "Progress",
+    "SETTINGS",
+    "check_seed",
+    "check_settings",
+    "check_starts",
+    "run_cases",
+]
 
 Progress = Callable[[str], None]
 
@@ -30,6 +38,64 @@ FIT_SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simula
 #: Settings of a case: the solver's, and ``postsim``, the post-simulation method of its
 #: validation (``"diffrax"``, adaptive, by default; ``"exact"``, the matrix exponential).
 SETTINGS = (*FIT_SETTINGS, "postsim")
+#: the simulators of a fit and the post-simulation methods of a validation
+SIMULATORS = ("exact", "diffrax")
+#: the most starts of one case and the most solver iterations per start (the command line's
+#: limits of ``--starts`` and ``--max-steps``)
+MAX_STARTS = 100_000
+MAX_STEPS = 1_000_000
+
+
+def _whole(value, name: str, lo: int, hi: int | None = None) -> int:
+    """An integer argument in ``[lo, hi]``: a bool, a float or text is a ``TypeError``, one out
+    of range a ``ValueError``, each naming ``name``."""
+    span = f"from {lo} to {hi}" if hi is not None else f"≥ {lo}"
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
+        raise TypeError(f"{name} must be a whole number {span}, got {value!r}")
+    if value < lo or (hi is not None and value > hi):
+        raise ValueError(f"{name} must be a whole number {span}, got {value}")
+    return int(value)
+
+
+def check_starts(value, name: str = "starts") -> int:
+    """The number of starts of a case: a whole number from 1 to :data:`MAX_STARTS`."""
+    return _whole(value, name, 1, MAX_STARTS)
+
+
+def check_seed(value, name: str = "seed") -> int | None:
+    """The seed of the Latin hypercube of a case: ``None`` or a whole number ≥ 0."""
+    return None if value is None else _whole(value, name, 0)
+
+
+def _tolerance(value, name: str) -> float:
+    """A solver tolerance: a finite number ≥ 0."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | float | np.number):
+        raise TypeError(f"{name} must be a number ≥ 0, got {value!r}")
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name} must be a finite number ≥ 0, got {value!r}")
+    return float(value)
+
+
+def check_settings(settings: Mapping) -> dict:
+    """The settings of a case (:data:`SETTINGS`), checked before anything is declared or run:
+    unknown names, and ``max_steps``, ``rtol``, ``atol``, ``concentration``, ``simulator`` and
+    ``postsim`` of the wrong type or out of range, name the setting (``weights`` and
+    ``max_gap`` are checked with the estimation problem and the data)."""
+    bad = [str(k) for k in settings if k not in SETTINGS]
+    if bad:
+        raise TypeError(f"unknown setting(s) {', '.join(bad)}; settings are {', '.join(SETTINGS)}")
+    out = dict(settings)
+    if "max_steps" in out:
+        out["max_steps"] = _whole(out["max_steps"], "max_steps", 1, MAX_STEPS)
+    for key in ("rtol", "atol", "concentration"):
+        if key in out:
+            out[key] = _tolerance(out[key], key)
+    for key in ("simulator", "postsim"):
+        if key in out and (not isinstance(out[key], str) or out[key] not in SIMULATORS):
+            raise ValueError(
+                f"{key} must be one of {', '.join(map(repr, SIMULATORS))}, got {out[key]!r}"
+            )
+    return out
 
 
 def verdict_of(result, validation):

@@ -25,7 +25,7 @@ import pandas as pd
 from ..data import Dataset
 from ..fit import DEFAULT_STARTS
 from ..models import RCModel, get_model, list_models
-from ._cases import Case, Progress, quiet, run_cases
+from ._cases import Case, Progress, check_seed, check_settings, check_starts, quiet, run_cases
 from ._greybox import GreyBox
 from ._guess import state_ranges
 
@@ -75,8 +75,14 @@ def candidate_models(candidates, data=None) -> list[RCModel]:
     """Resolve candidates: a list of names/models, a library family name, or ``"all"`` (every
     library model whose inputs and outputs are all columns of ``data``).
 
-    Sorted by number of parameters (stable: library order among equals).
+    Sorted by number of parameters (stable: library order among equals). The same model
+    named twice is a ``ValueError``.
     """
+    if not isinstance(candidates, str | Sequence) or isinstance(candidates, bytes):
+        raise TypeError(
+            "candidates must be a list of model names or models, a library family name or "
+            f"'all', got {type(candidates).__name__}"
+        )
     if isinstance(candidates, str):
         if candidates == "all":
             models = [get_model(n) for n in list_models()]
@@ -87,6 +93,11 @@ def candidate_models(candidates, data=None) -> list[RCModel]:
             models = [get_model(n) for n in list_models(family=candidates)]
     else:
         models = [get_model(m) for m in candidates]
+        twice = sorted({m.name for m in models if [n.name for n in models].count(m.name) > 1})
+        if twice:
+            raise ValueError(
+                f"candidates name {', '.join(twice)} more than once; give each model once"
+            )
     if not models:
         raise ValueError(f"no candidate model from {candidates!r} (with these data)")
     return sorted(models, key=lambda m: len(m.param_names))
@@ -249,6 +260,38 @@ def _as_greybox(obj, what: str) -> GreyBox:
     raise TypeError(f"{what} takes {_TAKES}; got {type(obj).__name__}")
 
 
+def _flag(value, name: str) -> bool:
+    """A true/false argument (``inherit``, ``retry_bounds``): text such as ``"no"`` is not
+    taken for true."""
+    if not isinstance(value, bool | np.bool_):
+        raise TypeError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def check_run(starts, seed, settings: Mapping, progress) -> dict:
+    """The arguments every case of a selection or a search shares, checked before the first
+    case is declared: ``starts``, ``seed``, the solver ``settings`` and ``progress`` (a
+    callable or ``None``). Returns the settings."""
+    check_starts(starts)
+    check_seed(seed)
+    if progress is not None and not callable(progress):
+        raise TypeError(
+            f"progress must be a function taking one line of text (such as print) or None, got "
+            f"{progress!r}"
+        )
+    return check_settings(settings)
+
+
+def _fraction(value, name: str) -> float:
+    """``margin``: a fraction in [0, 1)."""
+    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
+    if not ok or not 0.0 <= value < 1.0:  # nan fails too
+        raise ValueError(f"{name} must be a fraction in [0, 1), e.g. 0.05 for 5 %, got {value!r}")
+    return float(value)
+
+
 def forward_selection(
     greybox,
     candidates: str | Sequence[str | RCModel] = "all",
@@ -336,10 +379,11 @@ def forward_selection_many(
     greyboxes = [_as_greybox(gb, "forward_selection_many") for gb in greyboxes]
     if not greyboxes:
         raise ValueError("forward selection needs at least one GreyBox")
-    if not isinstance(margin, int | float) or not 0.0 <= margin < 1.0:
-        raise ValueError(f"margin must be in [0, 1), got {margin}")
-    if not isinstance(patience, int) or patience < 1:
-        raise ValueError(f"patience must be at least 1, got {patience}")
+    margin = _fraction(margin, "margin")
+    if isinstance(patience, bool) or not isinstance(patience, int | np.integer) or patience < 1:
+        raise ValueError(f"patience must be a whole number ≥ 1, got {patience!r}")
+    inherit, retry_bounds = _flag(inherit, "inherit"), _flag(retry_bounds, "retry_bounds")
+    settings = check_run(starts, seed, settings, progress)
     models = candidate_models(candidates, greyboxes[0].data)
     for gb in greyboxes[1:]:
         feeds = set(m.name for m in candidate_models(candidates, gb.data))

@@ -19,8 +19,9 @@ from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
 from ..data._plausible import STUCK_HOURS
 from ..fit import DEFAULT_STARTS, FitError
 from ..fit._batch import fit_data
+from ..fit._problem import make_problem, number
 from ..models import RCModel, get_model
-from ._cases import SETTINGS, Case, Progress, fmt_se
+from ._cases import Case, Progress, check_seed, check_settings, check_starts, fmt_se
 from ._guess import Guess, manual_guess, naming_guess, parent_guess
 from ._persist import read_greybox, save_greybox
 
@@ -50,6 +51,54 @@ def _stuck_hours(value) -> float | None:
             f"stuck_hours must be a positive number of hours (or None for no check), got {value!r}"
         )
     return float(value)
+
+
+def _case_name(name) -> str | None:
+    """``name=`` of :meth:`GreyBox.add_case`: ``None`` (the model's name) or non-empty text."""
+    if name is None:
+        return None
+    if not isinstance(name, str):
+        raise TypeError(f"name must be the case's name (text) or None, got {name!r}")
+    if not name.strip():
+        raise ValueError("name must not be empty; give the case a name or None for the model's")
+    return name
+
+
+def _problem(model, ident, free, fixed, bounds, guess, settings, label: str):
+    """The estimation problem of a case, set up once when it is declared, so that a parameter
+    name, value or bound the model does not take is refused then (not when the case runs)."""
+    try:
+        return make_problem(
+            model,
+            ident,
+            free=free,
+            fixed=fixed or None,
+            bounds=bounds or None,
+            guess=dict(guess) if isinstance(guess, Mapping) else None,
+            weights=settings.get("weights"),
+            simulator=settings.get("simulator", "exact"),
+        )
+    except FitError as err:
+        raise FitError(f"{label}: {err}") from None
+
+
+def _checked_guess(guess: Guess, model: RCModel, label: str) -> Guess:
+    """A :class:`Guess` given to :meth:`GreyBox.add_case`: finite numbers for parameters of
+    ``model``."""
+    bad = [k for k in guess.values if k not in model.param_names]
+    if bad:
+        raise ValueError(
+            f"{label}: the guess names {', '.join(map(str, bad))}, which the model does not "
+            f"have; its parameters are {', '.join(model.param_names)}"
+        )
+    for k, v in guess.values.items():
+        try:
+            finite = np.isfinite(number(v, f"guess of {k}"))
+        except FitError:
+            finite = False
+        if not finite:
+            raise ValueError(f"{label}: the guess of {k} must be a finite number, got {v!r}")
+    return guess
 
 
 class GreyBox:
@@ -188,6 +237,7 @@ class GreyBox:
                 ``atol``, ``concentration``, ``weights``, ``simulator``).
         """
         model = get_model(model)
+        name = _case_name(name)
         fixed = check_mapping(fixed, "fixed")
         bounds = check_mapping(bounds, "bounds")
         if free is not None and (isinstance(free, str | bytes) or not isinstance(free, Sequence)):
@@ -195,11 +245,10 @@ class GreyBox:
                 f"free must be a list of parameter names, e.g. free=['R_wal', 'C_zon'], got "
                 f"{free!r}"
             )
-        bad = [k for k in settings if k not in SETTINGS]
-        if bad:
-            raise TypeError(
-                f"unknown setting(s) {', '.join(bad)}; settings are {', '.join(SETTINGS)}"
-            )
+        settings = check_settings(settings)
+        starts, seed = check_starts(starts), check_seed(seed)
+        if parent is not None:
+            self._parent(parent, guess)
         if train is not None or valid is not None:
             ident, val = self.data.windows(
                 None if train is None else _pair(train, "train"),
@@ -213,8 +262,10 @@ class GreyBox:
             model, ident = fit_data(model, ident, settings["max_gap"])
         except FitError as err:
             raise DataError(str(err)) from None
+        label = f"case {name or model.name!r} (model {model.name})"
+        problem = _problem(model, ident, free, fixed, bounds, guess, settings, label)
         if isinstance(guess, Guess):
-            g = guess
+            g = _checked_guess(guess, model, label)
         elif isinstance(guess, Mapping):
             g = manual_guess(model, ident, guess)
         elif guess == "naming":
@@ -222,9 +273,7 @@ class GreyBox:
         elif guess == "parent":
             if parent is None:
                 raise ValueError("guess='parent' needs parent=<name of a case that has been run>")
-            p = self[parent]
-            p._require_run()
-            g = parent_guess(model, ident, p.result.params, parent)
+            g = parent_guess(model, ident, self.cases[parent].result.params, parent)
         else:
             error = ValueError if isinstance(guess, str) else TypeError
             raise error(
@@ -237,16 +286,33 @@ class GreyBox:
             ident=ident,
             valid=val,
             guess=g,
-            free=None if free is None else tuple(free),
-            fixed=dict(fixed or {}),
-            bounds={k: (float(a), float(b)) for k, (a, b) in (bounds or {}).items()},
-            starts=int(starts),
+            free=None if free is None else problem.free,
+            fixed={k: float(v) for k, v in fixed.items()},
+            bounds={k: (float(a), float(b)) for k, (a, b) in bounds.items()},
+            starts=starts,
             seed=seed,
-            settings=dict(settings),
+            settings=settings,
             parent=parent if g.source == "parent" else g.parent,
         )
         self.cases[case.name] = case
         return case
+
+    def _parent(self, parent, guess) -> None:
+        """``parent=`` of :meth:`add_case`: a run case of this GreyBox, given with
+        ``guess='parent'``."""
+        if not isinstance(parent, str):
+            raise TypeError(f"parent must be the name of a case (text), got {parent!r}")
+        if parent not in self.cases:
+            raise ValueError(
+                f"parent {parent!r} is not a case of this GreyBox; cases: "
+                f"{', '.join(self.cases) or '(none)'}"
+            )
+        if not (isinstance(guess, str) and guess == "parent"):
+            raise ValueError(
+                f"parent={parent!r} is used only with guess='parent' (to start from its "
+                f"optimum); pass guess='parent' or leave parent out (guess is {guess!r})"
+            )
+        self.cases[parent]._require_run()
 
     def identify(self, model: str | RCModel, *, progress: Progress | None = None, **kw) -> Case:
         """Declare a case and run it (see :meth:`add_case` for the arguments)."""

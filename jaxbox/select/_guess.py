@@ -16,7 +16,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..fit import initial_guess, make_problem, sample_starts, state_guess, state_ranges
+from ..fit import FitError, initial_guess, make_problem, sample_starts, state_guess, state_ranges
+from ..fit._problem import number
 from ..models import RCModel
 
 __all__ = [
@@ -95,7 +96,13 @@ def manual_guess(model: RCModel, data, values: Mapping[str, float]) -> Guess:
             f"parameters are {', '.join(model.param_names)}"
         )
     base = naming_guess(model, data).values
-    base.update({k: float(v) for k, v in values.items()})
+    for k, v in values.items():
+        try:
+            base[k] = number(v, f"manual guess: the value of {k}")
+        except FitError as err:
+            raise TypeError(str(err)) from None
+        if not np.isfinite(base[k]):
+            raise ValueError(f"manual guess: the value of {k} must be finite, got {v!r}")
     return Guess(base, "manual")
 
 

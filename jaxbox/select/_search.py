@@ -76,9 +76,11 @@ from ._cases import Case, Progress, quiet, run_cases
 from ._forward import (
     Selection,
     _as_greybox,
+    _fraction,
     _narrowed_retry,
     _pinned_unmeasured_states,
     _retry_of,
+    check_run,
 )
 
 __all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
@@ -360,10 +362,15 @@ def structure_search(
     ):
         if not isinstance(value, int) or isinstance(value, bool) or value < lo:
             raise ValueError(f"{label} must be a whole number ≥ {lo}, got {value!r}")
-    if not isinstance(margin, int | float) or not 0.0 <= margin < 1.0:
-        raise ValueError(f"margin must be in [0, 1), got {margin!r}")
-    if not isinstance(alpha, int | float) or not 0.0 < alpha < 1.0:
+    margin = _fraction(margin, "margin")
+    if isinstance(alpha, bool) or not isinstance(alpha, int | float) or not 0.0 < alpha < 1.0:
         raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    if grammar is not None and not isinstance(grammar, Grammar):
+        raise TypeError(
+            f"grammar must be a jaxbox.models.Grammar (or None: from the data's columns), got "
+            f"{type(grammar).__name__}"
+        )
+    settings = check_run(starts, seed, settings, progress)
     gb = _as_greybox(greybox, "structure_search")
     try:
         grammar = grammar or Grammar.from_columns(gb.data.columns)

@@ -142,6 +142,40 @@ def test_interrupted_write_of_the_arrays(greybox, tmp_path, monkeypatch):
     assert load_greybox(folder / "greybox.json")["Zon"].done
 
 
+def test_save_refuses_a_file_and_another_tools_index(greybox, tmp_path):
+    """A file as the folder was FileExistsError/NotADirectoryError; another tool's
+    greybox.json was overwritten, and a file of its named arrays-*.npz removed."""
+    (tmp_path / "a-file").write_text("x")
+    with pytest.raises(PersistError, match="is a file; give a folder"):
+        save_greybox(greybox, tmp_path / "a-file")
+    with pytest.raises(PersistError, match="lies under the file"):
+        greybox.save(tmp_path / "a-file" / "gb")
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "greybox.json").write_text('{"format": "othertool/3"}')
+    with pytest.raises(PersistError, match="othertool/3.*another folder"):
+        greybox.save(theirs)
+    assert (theirs / "greybox.json").read_text() == '{"format": "othertool/3"}'
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    (mixed / "arrays-train.npz").write_text("not ours")
+    greybox.save(mixed)
+    greybox.save(mixed)
+    assert (mixed / "arrays-train.npz").read_text() == "not ours"
+
+
+def test_max_gap_stuck_hours_and_infinite_bounds_come_back(greybox, tmp_path):
+    """The GreyBox's max_gap came back as the default; an infinite bound was saved as null
+    and its save could not be loaded."""
+    gb = GreyBox(greybox.data, max_gap="3h", stuck_hours=None)
+    inf = float("inf")
+    gb.identify("Zon", starts=1, max_steps=20, bounds={"T_zon0": (-inf, inf)})
+    back = load_greybox(gb.save(tmp_path / "gb"))
+    assert back.max_gap == 3 * 3600.0 and back.stuck_hours is None
+    assert back["Zon"].bounds == {"T_zon0": (-inf, inf)}
+    assert back["Zon"].result.params == gb["Zon"].result.params
+
+
 def test_load_rejects_other_files(tmp_path):
     (tmp_path / "greybox.json").write_text('{"format": "other"}')
     with pytest.raises(ValueError, match="not a saved GreyBox"):
@@ -233,6 +267,16 @@ def _set(doc, path, value):
         (["tz"], 2, "tz"),
         (["tz"], "Mars/Olympus_Mons", "data"),
         (["stuck_hours"], "24", "stuck_hours"),
+        # values of the right type that a GreyBox or a case does not take: checked on load
+        # as when declared (they loaded, or failed deep inside with no file named)
+        (["stuck_hours"], -1, "stuck_hours"),
+        (["ranges"], {"T_zon": [50, 0]}, "T_zon"),
+        (["train"], ["2099-01-01", "2099-02-01"], "train 2099-01-01"),
+        (["cases", 0, "settings", "postsim"], "bogus", "cases[0].settings: postsim"),
+        (["cases", 0, "settings", "max_steps"], -1, "cases[0].settings: max_steps"),
+        (["cases", 0, "seed"], -5, "cases[0].seed"),
+        (["cases", 0, "starts"], 10**12, "cases[0].starts"),
+        (["cases", 0, "free"], ["C_zon"], "cases[0].result.free"),
     ],
 )
 def test_a_malformed_index_gives_one_error_naming_the_field(saved, path, value, field):

@@ -23,7 +23,7 @@ from ..fit._problem import make_problem, number
 from ..models import RCModel, get_model
 from ._cases import Case, Progress, check_seed, check_settings, check_starts, fmt_se
 from ._guess import Guess, manual_guess, naming_guess, parent_guess
-from ._persist import read_greybox, save_greybox
+from ._persist import PersistError, read_greybox, save_greybox
 
 __all__ = ["GreyBox", "load_greybox"]
 
@@ -419,14 +419,20 @@ class GreyBox:
     def load(cls, path, *, models: Mapping[str, RCModel] | None = None) -> GreyBox:
         """Load a GreyBox saved with :meth:`save`; see :func:`load_greybox`."""
         saved = read_greybox(path, models=check_mapping(models, "models"))
-        gb = cls(
-            saved.data,
-            train=saved.train,
-            valid=saved.valid,
-            name=saved.name,
-            ranges=saved.ranges,
-            stuck_hours=saved.stuck_hours,
-        )
+        try:
+            gb = cls(
+                saved.data,
+                train=saved.train,
+                valid=saved.valid,
+                name=saved.name,
+                ranges=saved.ranges,
+                stuck_hours=saved.stuck_hours,
+                max_gap=DEFAULT_MAX_GAP if saved.max_gap is None else saved.max_gap,
+            )
+        except (TypeError, ValueError) as err:  # periods, ranges, stuck_hours, max_gap
+            raise PersistError(
+                f"{saved.index}: the GreyBox cannot be set up again ({err})"
+            ) from None
         gb.cases = {case.name: case for case in saved.cases}
         return gb
 

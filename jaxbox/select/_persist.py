@@ -47,7 +47,7 @@ from ..data import DataError, Dataset
 from ..data._checks import offset_text
 from ..data._plausible import STUCK_HOURS
 from ..models import ModelError, RCModel, get_model
-from ._cases import Case, verdict_of
+from ._cases import Case, check_seed, check_settings, check_starts, verdict_of
 from ._guess import Guess
 
 __all__ = ["FORMAT", "PersistError", "Saved", "read_greybox", "save_greybox"]
@@ -63,8 +63,9 @@ _ATTEMPTS = 5
 
 class PersistError(ValueError):
     """A saved GreyBox cannot be read: no index, another format, a field missing or of the wrong
-    type, an arrays file outside the folder or damaged. The message names the file and the
-    field."""
+    type, an arrays file outside the folder or damaged; or a GreyBox cannot be saved where it
+    was asked to (a file, or a folder holding another tool's ``greybox.json``). The message
+    names the file and the field."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,6 +79,8 @@ class Saved:
     cases: list
     ranges: dict
     stuck_hours: float | None = STUCK_HOURS
+    max_gap: float | None = None
+    index: Path | None = None
 
 
 # ---- the schema of the index -------------------------------------------------------------------
@@ -121,6 +124,10 @@ _TYPES: dict[str, Callable] = {
     "an object of [lower, upper] pairs": _dict_of(
         lambda v: isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)
     ),
+    # an infinite bound (an unbounded parameter) is saved as null
+    "an object of [lower, upper] pairs of numbers or nulls": _dict_of(
+        lambda v: isinstance(v, list) and len(v) == 2 and all(_or_none(_is_number)(x) for x in v)
+    ),
 }
 
 #: field -> (expected type, may be null); fields marked optional may be missing
@@ -134,8 +141,9 @@ _TOP = {
     "ranges": ("an object of [lower, upper] pairs", False),
     "stuck_hours": ("a number", True),
     "tz": ("a string", True),
+    "max_gap": ("a number", False),
 }
-_TOP_OPTIONAL = {"ranges", "stuck_hours", "tz"}
+_TOP_OPTIONAL = {"ranges", "stuck_hours", "tz", "max_gap"}
 _CASE = {
     "name": ("a string", False),
     "model": ("a string", False),
@@ -144,7 +152,7 @@ _CASE = {
     "guess": ("an object", False),
     "free": ("a list of strings", True),
     "fixed": ("an object of numbers", False),
-    "bounds": ("an object of [lower, upper] pairs", False),
+    "bounds": ("an object of [lower, upper] pairs of numbers or nulls", False),
     "starts": ("an integer", False),
     "seed": ("an integer", True),
     "settings": ("an object", False),
@@ -218,8 +226,11 @@ def _check_index(doc, index: Path) -> None:
         if case["name"] in names:
             fail(f"{where}.name", f"{case['name']!r} is given to two cases")
         names.add(case["name"])
-        if case["starts"] < 1:
-            fail(f"{where}.starts", f"must be at least 1, got {case['starts']}")
+        for key, check in (("starts", check_starts), ("seed", check_seed)):
+            try:
+                check(case[key])
+            except (TypeError, ValueError) as err:
+                fail(f"{where}.{key}", f"is out of range ({err})")
         result = case["result"]
         if result is not None:
             _check_fields(result, _RESULT, f"{where}.result", fail, _RESULT_OPTIONAL)
@@ -257,6 +268,11 @@ def _check_arrays(arrays: dict, doc: dict, path: Path) -> None:
         steps = need(f"{key}/steps", 1, "iu")
         if not (len(initial) == len(params) == len(cost) == len(steps) == n):
             raise PersistError(f"{path}: the arrays of cases[{i}] do not hold its {n} starts")
+        p = len(result["free"])
+        if initial.shape[1] != p or params.shape[1] != p:
+            raise PersistError(
+                f"{path}: the arrays of cases[{i}] do not hold its {p} free parameters"
+            )
 
 
 def _arrays(gb) -> dict[str, np.ndarray]:
@@ -321,10 +337,39 @@ def save_greybox(gb, path) -> Path:
     Returns:
         The path of the index file ``greybox.json``.
     """
-    folder = Path(path)
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = _save_folder(path)
     with _saving(folder):
+        _check_not_foreign(folder / INDEX)
         return _save(gb, folder)
+
+
+def _save_folder(path) -> Path:
+    """The folder to save into, created if needed; a file there, or a file on the way to it, is
+    a :class:`PersistError`."""
+    folder = Path(path)
+    for p in (folder, *folder.parents):
+        if p.exists() and not p.is_dir():
+            where = "is a file" if p == folder else f"lies under the file {p}"
+            raise PersistError(f"cannot save a GreyBox into {folder}: it {where}; give a folder")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def _check_not_foreign(index: Path) -> None:
+    """A save replaces a saved GreyBox only: a ``greybox.json`` of another tool, of another
+    format version, or unreadable is left alone (a :class:`PersistError`)."""
+    if not index.exists():
+        return
+    try:
+        doc = json.loads(index.read_text(encoding="utf-8"))
+        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+    except (OSError, ValueError):
+        got = "unreadable"
+    if got != FORMAT:
+        raise PersistError(
+            f"{index} is not a saved GreyBox of this version (format {got!r}, expected "
+            f"{FORMAT!r}) and a save would replace it; save into another folder, or remove it"
+        )
 
 
 def _tz_text(tz) -> str | None:
@@ -380,6 +425,7 @@ def _save(gb, folder: Path) -> Path:
         "ranges": {k: list(v) for k, v in getattr(gb, "ranges", {}).items()},
         "stuck_hours": getattr(gb, "stuck_hours", STUCK_HOURS),
         "tz": _tz_text(gb.data.index.tz),
+        "max_gap": getattr(gb, "max_gap", None),
         "cases": [_case_doc(i, c) for i, c in enumerate(gb.cases.values())],
     }
     index = atomic_write_json(folder / INDEX, doc)
@@ -387,7 +433,7 @@ def _save(gb, folder: Path) -> Path:
     # previous index; older ones go
     keep = {arrays_name, previous}
     for old in folder.glob("arrays-*.npz"):
-        if old.name not in keep:
+        if _ARRAYS_NAME.fullmatch(old.name) and old.name not in keep:  # only what saves write
             old.unlink(missing_ok=True)
     return index
 
@@ -477,6 +523,8 @@ def read_greybox(path, *, models: dict | None = None) -> Saved:
         cases=cases,
         ranges={k: tuple(v) for k, v in doc.get("ranges", {}).items()},
         stuck_hours=doc.get("stuck_hours", STUCK_HOURS),
+        max_gap=doc.get("max_gap"),
+        index=index,
     )
 
 
@@ -490,6 +538,10 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
 
     where = f"cases[{i}]"
     model = _model(cd["model"], models, f"{where}.model:", index)
+    try:
+        check_settings(cd["settings"])
+    except (TypeError, ValueError) as err:
+        raise PersistError(f"{index}: {where}.settings: {err}") from None
     try:
         ident = data.slice(*cd["train"])
         valid = None if cd["valid"] is None else data.slice(*cd["valid"])
@@ -509,7 +561,9 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
         guess=Guess.from_dict(cd["guess"]),
         free=None if cd["free"] is None else tuple(cd["free"]),
         fixed={k: float(v) for k, v in cd["fixed"].items()},
-        bounds={k: (float(a), float(b)) for k, (a, b) in cd["bounds"].items()},
+        bounds={
+            k: (_bound(a, -math.inf), _bound(b, math.inf)) for k, (a, b) in cd["bounds"].items()
+        },
         starts=int(cd["starts"]),
         seed=cd["seed"],
         settings=dict(cd["settings"]),
@@ -536,6 +590,11 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
         )
     except (FitError, ModelError, DataError) as err:
         raise PersistError(f"{index}: {where} cannot be set up again ({err})") from None
+    if tuple(rd["free"]) != problem.free:
+        raise PersistError(
+            f"{index}: {where}.result.free ({', '.join(rd['free'])}) are not the free parameters "
+            f"of its estimation problem ({', '.join(problem.free)})"
+        )
     key = rd["arrays"]
     report = StartReport(
         initial=arrays[f"{key}/initial"],
@@ -563,3 +622,8 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
 
 def _float(v) -> float:
     return math.nan if v is None else float(v)
+
+
+def _bound(v, infinite: float) -> float:
+    """A saved bound: null for an infinite one (JSON has no infinity)."""
+    return infinite if v is None else float(v)

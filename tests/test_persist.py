@@ -176,6 +176,12 @@ def test_max_gap_stuck_hours_and_infinite_bounds_come_back(greybox, tmp_path):
     assert back["Zon"].result.params == gb["Zon"].result.params
 
 
+def test_load_names_a_models_entry_that_is_not_a_model(saved):
+    folder, _ = saved
+    with pytest.raises(TypeError, match=r"models\['Zon'\] must be an RCModel"):
+        load_greybox(folder, models={"Zon": 3})  # was 'no library model named 3'
+
+
 def test_load_rejects_other_files(tmp_path):
     (tmp_path / "greybox.json").write_text('{"format": "other"}')
     with pytest.raises(ValueError, match="not a saved GreyBox"):

@@ -498,6 +498,12 @@ def read_greybox(path, *, models: dict | None = None) -> Saved:
     Raises:
         PersistError: no saved GreyBox there, or a damaged one (the message names the field).
     """
+    for name, model in (models or {}).items():
+        if not isinstance(model, RCModel | str):
+            raise TypeError(
+                f"models[{name!r}] must be an RCModel (or a library model name) for the cases "
+                f"saved with model {name!r}, got {type(model).__name__}"
+            )
     p = Path(path)
     index = p if p.name == INDEX and not p.is_dir() else p / INDEX
     remove_stale_temporaries(index.parent)

@@ -205,6 +205,10 @@ def test_one_free_name_a_model_name_and_the_start_sampling_settings(zonwal_data)
         ({"seed": 1.5}, "seed must be an integer"),
         ({"concentration": -1.0}, "concentration must be a finite number"),
         ({"concentration": float("nan")}, "concentration must be a finite number"),
+        ({"max_steps": 0}, "max_steps must be an integer ≥ 1"),
+        ({"max_steps": 2.5}, "max_steps must be an integer ≥ 1"),
+        ({"rtol": "a"}, "rtol must be a number"),
+        ({"atol": -1.0}, "atol must be a finite number ≥ 0"),
     ]:
         with pytest.raises(FitError, match=match):
             fit_model("ZonWal", zonwal_data, starts=3, **kwargs)

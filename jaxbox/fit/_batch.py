@@ -23,6 +23,7 @@ from ..models import get_model
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
 from ._fit import _problem_key, check_homotopy, make_starts, result_from, solve_jobs, solver_key
 from ._problem import FitError, make_problem, problem_arrays
+from ._problem import number as problem_number
 from ._result import FitResult
 from ._solver import LevenbergMarquardt
 
@@ -49,6 +50,21 @@ def fit_data(model, data, max_gap=DEFAULT_MAX_GAP, what: str = "identification d
     except DataError as err:
         raise FitError(str(err)) from None
     return model.segmented(len(data.segments)), data
+
+
+def _max_steps(value) -> int:
+    """Levenberg–Marquardt steps per start: an integer ≥ 1."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise FitError(f"max_steps must be an integer ≥ 1, got {value!r}")
+    return int(value)
+
+
+def _tolerance(value, name: str) -> float:
+    """A convergence tolerance: a number ≥ 0."""
+    number = problem_number(value, name)
+    if not (np.isfinite(number) and number >= 0):
+        raise FitError(f"{name} must be a finite number ≥ 0, got {value!r}")
+    return number
 
 
 def fit_model(
@@ -332,9 +348,9 @@ def fit_batch(
             problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
             x0 = make_starts(problem, data, *(arg[k] for k in _STARTS))
             solver = (
-                int(arg["max_steps"]),
-                float(arg["rtol"]),
-                float(arg["atol"]),
+                _max_steps(arg["max_steps"]),
+                _tolerance(arg["rtol"], "rtol"),
+                _tolerance(arg["atol"], "atol"),
                 arg["solver"],
                 check_homotopy(arg["homotopy"]),
                 bool(arg["release"]),

@@ -18,7 +18,6 @@ __all__ = [
     "check_fraction",
     "check_range",
     "check_flag",
-    "check_own",
 ]
 
 
@@ -128,26 +127,3 @@ def check_flag(value: Any, what: str) -> bool:
     if not isinstance(value, bool | np.bool_):
         raise TypeError(f"{what} must be True or False, got {value!r}")
     return bool(value)
-
-
-def check_own(result, uncertainty, validation):
-    """``(uncertainty, validation)`` checked to be those of ``result`` (or None)."""
-    from ._postsim import Validation
-    from ._uncertainty import Uncertainty
-
-    check_instance(uncertainty, Uncertainty, "uncertainty", "jaxbox.validate.uncertainty")
-    check_instance(validation, Validation, "validation", "jaxbox.validate.validate")
-    if uncertainty is not None and tuple(uncertainty.free) != tuple(result.free):
-        raise ValueError(
-            f"uncertainty is of a fit with the free parameters {', '.join(uncertainty.free)}, "
-            f"not of this one ({', '.join(result.free)}); pass uncertainty(result)"
-        )
-    if validation is not None and (
-        validation.model != result.model.name or len(validation.y_auto) != len(result.data)
-    ):
-        raise ValueError(
-            f"validation is of another fit (model {validation.model}, {len(validation.y_auto)} "
-            f"identification samples), not of this one (model {result.model.name}, "
-            f"{len(result.data)} samples); pass validate(result, valid)"
-        )
-    return uncertainty, validation

@@ -263,19 +263,15 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
         :class:`Kpis` (definitions in :mod:`jaxbox.validate._kpi`).
 
     Raises:
-        TypeError: ``result`` is not a FitResult or ``uncertainty`` not an Uncertainty.
-        ValueError: the fit has no finite optimum, no degrees of freedom are left for the
-            covariance, ``level`` is not in (0, 1), or ``uncertainty`` is of another fit.
+        ValueError: the fit has no finite optimum, or no degrees of freedom are left for the
+            covariance.
     """
     from scipy import stats
 
-    from ._args import check_fit, check_level, check_own
     from ._uncertainty import uncertainty as _uncertainty
 
     require_x64()
-    problem = check_fit(result).problem
-    uncertainty = check_own(result, uncertainty, None)[0]
-    level = None if level is None else check_level(level)
+    problem = result.problem
     model = problem.model
     if uncertainty is None:
         uncertainty = _uncertainty(result)

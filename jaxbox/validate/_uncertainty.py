@@ -46,7 +46,6 @@ from scipy import stats
 
 from .._compiled import cached, jit
 from .._x64 import require_x64
-from ._args import check_fit
 
 __all__ = ["Uncertainty", "Combination", "uncertainty", "sensitivities"]
 
@@ -332,11 +331,11 @@ def sensitivities(
     from ..fit import problem_arrays
 
     require_x64()
-    problem = check_fit(result).problem
+    problem = result.problem
     t, u, _, _ = problem_arrays(problem, result.data)
     if params is None:
         params = [result.params[n] for n in problem.free]
-    p = _free_values(params, problem.free)
+    p = jnp.asarray(np.asarray(params, dtype=float))
     fixed_values = jnp.asarray([v for _, v in problem.fixed], dtype=float)
     shared = _rc_jacobian(problem, t, u, p, fixed_values)
     if shared is not None:
@@ -344,26 +343,6 @@ def sensitivities(
     else:
         ysim, J = _jacobian_fn(problem, len(t))(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
     return np.asarray(ysim), np.asarray(J)
-
-
-def _free_values(params, free) -> jnp.ndarray:
-    """``params`` as one finite value [SI] per free parameter, in ``free`` order."""
-    try:
-        p = np.asarray(params, dtype=float)
-    except (TypeError, ValueError):
-        raise TypeError(
-            f"params must be {len(free)} numbers in result.free order ({', '.join(free)}), "
-            f"got {params!r}"
-        ) from None
-    if p.shape != (len(free),):
-        raise ValueError(
-            f"params must be {len(free)} values in result.free order ({', '.join(free)}), "
-            f"got shape {p.shape}"
-        )
-    bad = [n for n, v in zip(free, p, strict=True) if not np.isfinite(v)]
-    if bad:
-        raise ValueError(f"params of {', '.join(bad)} are not finite; give finite values [SI]")
-    return jnp.asarray(p)
 
 
 def _is_temperature(unit: str) -> bool:
@@ -452,21 +431,12 @@ def uncertainty(
         :class:`Uncertainty`.
 
     Raises:
-        TypeError: ``result`` is not a FitResult (a stochastic fit has ``result.intervals()``),
-            or an option of the wrong type.
-        ValueError: fewer output samples than free parameters (no degrees of freedom left), an
-            optimum that is not finite, or an option out of range (``level`` in (0, 1),
-            ``rcond`` and ``loading`` in [0, 1), ``max_collinearity`` > 0).
+        ValueError: fewer output samples than free parameters (no degrees of freedom left), or
+            an optimum that is not finite.
     """
     from ..fit import problem_arrays
-    from ._args import check_flag, check_fraction, check_level, check_positive
 
-    problem = check_fit(result).problem
-    level = check_level(level)
-    rcond = check_fraction(rcond, "rcond (relative singular-value cut-off)")
-    max_collinearity = check_positive(max_collinearity, "max_collinearity", allow_inf=True)
-    loading = check_fraction(loading, "loading (share of a direction)")
-    include_initial_states = check_flag(include_initial_states, "include_initial_states")
+    problem = result.problem
     free = tuple(problem.free)
     specs = {s.name: s for s in problem.model.parameters}
     units = tuple(specs[n].unit for n in free)

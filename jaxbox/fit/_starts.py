@@ -24,7 +24,7 @@ from scipy import stats
 from scipy.stats import qmc
 
 from ._guess import state_ranges
-from ._problem import FitError
+from ._problem import FitError, number
 from ._transforms import _FREE, _LIN, _LOG, _LOWER, Transform
 
 __all__ = ["latin_hypercube", "sample_starts"]
@@ -37,8 +37,7 @@ def _check_sampling(seed, concentration) -> None:
     integer = isinstance(seed, int | np.integer) and not isinstance(seed, bool | np.bool_)
     if seed is not None and not (integer and seed >= 0):
         raise FitError(f"seed must be an integer ≥ 0 or None, got {seed!r}")
-    if isinstance(concentration, bool) or not isinstance(concentration, int | float | np.number):
-        raise FitError(f"concentration must be a number ≥ 0, got {concentration!r}")
+    concentration = number(concentration, "concentration")
     if not (np.isfinite(concentration) and concentration >= 0):
         raise FitError(
             f"concentration must be a finite number ≥ 0 (0: uniform strata; default 4), got "

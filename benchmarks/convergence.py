@@ -204,7 +204,10 @@ def report(res: dict) -> str:
         "stops a start after 60 s (`max_wall_time`). *Steps*: Levenberg–Marquardt steps per "
         "start, every stage of every route counted."
         + (
-            f" The run was resumed: the first models were measured by the run of "
+            f" {', '.join(f'`{m}`' for m in res['remeasured'])} measured again on {res['date']} "
+            f"(`--models`), the other models by the run of {res['resumed_from']}."
+            if res.get("remeasured")
+            else f" The run was resumed: the first models were measured by the run of "
             f"{res['resumed_from']}."
             if res.get("resumed_from")
             else ""
@@ -387,6 +390,11 @@ def main(argv=None) -> None:
     ap.add_argument(
         "--resume", action="store_true", help="keep the models already in convergence.json"
     )
+    ap.add_argument(
+        "--models",
+        default="",
+        help="measure only these models (comma-separated), the others kept from convergence.json",
+    )
     args = ap.parse_args(argv)
     if args.report_only:
         Path(args.out).write_text(report(json.loads((HERE / "convergence.json").read_text())))
@@ -408,10 +416,15 @@ def main(argv=None) -> None:
         res["casadi_from"] = earlier.get("casadi_from") or earlier["date"]
         res["n_casadi"] = earlier["n_casadi"]
     done, old = {}, {}
-    if args.resume and (HERE / "convergence.json").exists():
+    redo = {m for m in args.models.split(",") if m}
+    if (args.resume or redo) and (HERE / "convergence.json").exists():
         old = json.loads((HERE / "convergence.json").read_text())
-        done = {(f, n): row for f, n, row in old["rows"]}
+        done = {(f, n): row for f, n, row in old["rows"] if n not in redo}
         res["resumed_from"] = old.get("resumed_from", old["date"])
+        if redo:
+            res["remeasured"] = sorted(redo)
+            if old.get("resumed_from"):
+                res["resumed_from"] = f"{old['resumed_from']} and {old['date']}"
     for fam in args.families.split(","):
         for name in families()[fam]:
             if (fam, name) in done:

@@ -697,6 +697,30 @@ def test_with_columns() -> None:
         ds.with_columns(T_amb=np.full(len(ds), 290.0))
 
 
+def test_with_columns_keeps_gaps_as_the_constructor_does() -> None:
+    """NaN in a column added with with_columns is a gap, kept as Dataset(frame) keeps it (it
+    was refused: 'missing values ... fill them before loading'); what the constructor refuses
+    is still refused, naming the column."""
+    ds = synthetic()
+    gap = ds["T_zon"].copy()
+    gap[[3, 4, 10]] = np.nan
+    new = ds.with_columns(T_amb=gap)
+    assert np.isnan(new["T_amb"][[3, 4, 10]]).all()
+    assert np.count_nonzero(np.isnan(new["T_amb"])) == 3
+    built = ds.frame
+    built["T_amb"] = gap
+    assert new.equals(Dataset(built))  # the same dataset, gap and all
+    assert np.isnan(ds.with_columns(P_ele=float("nan"))["P_ele"]).all()  # a scalar gap too
+    bad = gap.copy()
+    bad[5] = np.inf
+    with pytest.raises(DataError, match="column 'T_amb' has infinite values"):
+        ds.with_columns(T_amb=bad)
+    with pytest.raises(DataError, match="column 'T_amb' must hold numbers"):
+        ds.with_columns(T_amb=["warm"] * len(ds))
+    with pytest.raises(DataError, match="with_columns takes a mapping"):
+        ds.with_columns(np.zeros(len(ds)))
+
+
 def test_from_arrays() -> None:
     ds = Dataset.from_arrays(np.arange(5) * 3600.0, {"T_zon": np.ones(5)}, start="2020-06-01")
     assert ds.start == pd.Timestamp("2020-06-01") and ds.step == 3600.0

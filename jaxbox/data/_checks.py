@@ -22,7 +22,6 @@ __all__ = [
     "Where",
     "check_finite",
     "check_kelvin",
-    "check_missing",
     "check_order",
     "localize",
     "check_regular",
@@ -510,23 +509,6 @@ def _number_hint(value: object) -> str:
     return (
         f" (digits grouped in thousands? pass thousands={mark!r}, on the command line "
         f"--thousands {mark!r})"
-    )
-
-
-def check_missing(frame: pd.DataFrame) -> None:
-    """No NaN or empty values: name the first column with some, how many and where."""
-    holes = frame.isna()
-    counts = holes.sum()
-    bad = [name for name in frame.columns if counts[name] > 0]
-    if not bad:
-        return
-    name = bad[0]
-    times = frame.index[holes[name].to_numpy()]
-    others = f" (also in {', '.join(map(repr, bad[1:4]))}{', ...' if len(bad) > 4 else ''})"
-    raise DataError(
-        f"column {name!r} has {int(counts[name])} missing (NaN or empty) values between "
-        f"{times[0]} and {times[-1]}{others if len(bad) > 1 else ''}; slice the data to a "
-        "period without gaps or fill them (e.g. DataFrame.interpolate) before loading."
     )
 
 

@@ -13,7 +13,6 @@ from ._checks import (
     Where,
     check_finite,
     check_kelvin,
-    check_missing,
     check_order,
     check_regular,
     fill_missing_rows,
@@ -198,12 +197,25 @@ class Dataset:
         """A new dataset with columns added or replaced.
 
         Give a mapping and/or keywords ``name=values``; values are 1-D arrays with one value
-        per sample, or scalars (repeated). Units are those of the canonical names.
+        per sample, or scalars (repeated). Units are those of the canonical names. The values
+        are checked as ``Dataset(frame)`` checks them: NaN is a gap, kept (as the constructor
+        keeps it); infinite or absurd values, text and temperatures in kelvin are refused,
+        naming the column.
         """
+        if columns is not None and not isinstance(columns, Mapping):
+            raise DataError(
+                f"with_columns takes a mapping {{name: values}} and/or keywords name=values, got "
+                f"{type(columns).__name__}"
+            )
         new = {**(columns or {}), **arrays}
         frame = self._frame.copy()
         for name, values in new.items():
-            array = np.asarray(values, dtype=np.float64)
+            try:
+                array = np.asarray(values, dtype=np.float64)
+            except (TypeError, ValueError) as err:
+                raise DataError(
+                    f"column {str(name)!r} must hold numbers (NaN for a gap), one per sample: {err}"
+                ) from None
             if array.ndim == 0:
                 array = np.full(len(frame), float(array))
             if array.shape != (len(frame),):
@@ -213,8 +225,7 @@ class Dataset:
                 )
             frame[str(name)] = array
         added = frame[[str(name) for name in new]]
-        check_finite(added)
-        check_missing(added)
+        check_finite(added)  # as the constructor: NaN values are gaps, kept
         check_kelvin(added)
         return Dataset._new(frame, self._step)
 

@@ -286,6 +286,38 @@ def test_bad_search_options(building, option, words):
         structure_search(building, **option)
 
 
+def test_search_counts_may_be_numpy_integers(building):
+    """beam, max_depth and lookahead from numpy (an array, a table) were refused ('beam must be
+    a whole number ≥ 1, got np.int64(2)'); alpha as numpy's float32 too. Taken, the search
+    goes on to the next check (here the grammar, so that nothing is fitted)."""
+    n = len(building)
+    numbers = dict(
+        beam=np.int64(2), max_depth=np.int32(3), lookahead=np.uint8(1), alpha=np.float32(0.05)
+    )
+    with pytest.raises(TypeError, match="grammar must be"):
+        structure_search(building, grammar="not a grammar", **numbers)
+    assert len(building) == n
+
+
+@pytest.mark.parametrize(
+    "option, error, words",
+    [
+        ({"beam": True}, TypeError, "beam must be a whole number ≥ 1, got True"),
+        ({"beam": np.True_}, TypeError, "beam must be a whole number"),
+        ({"beam": 2.0}, TypeError, "beam must be a whole number ≥ 1, got 2.0"),
+        ({"max_depth": "3"}, TypeError, "max_depth must be a whole number ≥ 0, got '3'"),
+        ({"max_depth": np.int64(-1)}, ValueError, "max_depth must be a whole number ≥ 0"),
+        ({"lookahead": 0.5}, TypeError, "lookahead must be a whole number"),
+        ({"alpha": np.bool_(True)}, ValueError, "alpha must be in"),
+    ],
+)
+def test_search_counts_refuse_bools_and_fractions_by_name(building, option, error, words):
+    n = len(building)
+    with pytest.raises(error, match=words):
+        structure_search(building, **option)
+    assert len(building) == n
+
+
 @pytest.mark.parametrize(
     "option, error, words",
     [

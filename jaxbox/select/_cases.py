@@ -11,6 +11,7 @@ initial guesses.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -28,6 +29,7 @@ __all__ = [
     "check_seed",
     "check_settings",
     "check_starts",
+    "check_whole",
     "run_cases",
 ]
 
@@ -46,11 +48,12 @@ MAX_STARTS = 100_000
 MAX_STEPS = 1_000_000
 
 
-def _whole(value, name: str, lo: int, hi: int | None = None) -> int:
-    """An integer argument in ``[lo, hi]``: a bool, a float or text is a ``TypeError``, one out
-    of range a ``ValueError``, each naming ``name``."""
+def check_whole(value, name: str, lo: int, hi: int | None = None) -> int:
+    """An integer argument in ``[lo, hi]``, as an ``int``: any integral number (``int``, numpy's
+    ``int64``…) is taken; a bool, a float (even ``2.0``) or text is a ``TypeError``, one out of
+    range a ``ValueError``, each naming ``name``."""
     span = f"from {lo} to {hi}" if hi is not None else f"≥ {lo}"
-    if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Integral):
         raise TypeError(f"{name} must be a whole number {span}, got {value!r}")
     if value < lo or (hi is not None and value > hi):
         raise ValueError(f"{name} must be a whole number {span}, got {value}")
@@ -59,12 +62,12 @@ def _whole(value, name: str, lo: int, hi: int | None = None) -> int:
 
 def check_starts(value, name: str = "starts") -> int:
     """The number of starts of a case: a whole number from 1 to :data:`MAX_STARTS`."""
-    return _whole(value, name, 1, MAX_STARTS)
+    return check_whole(value, name, 1, MAX_STARTS)
 
 
 def check_seed(value, name: str = "seed") -> int | None:
     """The seed of the Latin hypercube of a case: ``None`` or a whole number ≥ 0."""
-    return None if value is None else _whole(value, name, 0)
+    return None if value is None else check_whole(value, name, 0)
 
 
 def _tolerance(value, name: str) -> float:
@@ -86,7 +89,7 @@ def check_settings(settings: Mapping) -> dict:
         raise TypeError(f"unknown setting(s) {', '.join(bad)}; settings are {', '.join(SETTINGS)}")
     out = dict(settings)
     if "max_steps" in out:
-        out["max_steps"] = _whole(out["max_steps"], "max_steps", 1, MAX_STEPS)
+        out["max_steps"] = check_whole(out["max_steps"], "max_steps", 1, MAX_STEPS)
     for key in ("rtol", "atol", "concentration"):
         if key in out:
             out[key] = _tolerance(out[key], key)

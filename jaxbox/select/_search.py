@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import time
 
 import numpy as np
@@ -72,7 +73,7 @@ from ..models._grammar import (
     roots,
 )
 from ..validate import MAX_REL_CI
-from ._cases import Case, Progress, quiet, run_cases
+from ._cases import Case, Progress, check_whole, quiet, run_cases
 from ._forward import (
     Selection,
     _as_greybox,
@@ -347,24 +348,31 @@ def structure_search(
         :class:`Search` (the cases are in ``search.greybox.cases``).
 
     Raises:
-        ValueError: a bad option, or data the grammar cannot model (no ``T_zon``/``T_amb``,
-            more than two zones).
+        TypeError: an option of the wrong type: ``beam``, ``max_depth`` or ``lookahead`` not a
+            whole number (any integral number is one, numpy's too; a bool or ``2.0`` is not),
+            a ``grammar`` that is not a :class:`~jaxbox.models.Grammar`, ``starts`` or ``seed``
+            that is not a whole number, ``progress`` not a function.
+        ValueError: an option out of range, or data the grammar cannot model (no
+            ``T_zon``/``T_amb``, more than two zones).
     """
     from ..models import ModelError
 
     say = progress or quiet
     if criterion not in CRITERIA:
         raise ValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
-    for label, value, lo in (
-        ("beam", beam, 1),
-        ("max_depth", max_depth, 0),
-        ("lookahead", lookahead, 0),
-    ):
-        if not isinstance(value, int) or isinstance(value, bool) or value < lo:
-            raise ValueError(f"{label} must be a whole number ≥ {lo}, got {value!r}")
+    # any integral number (numpy's int64 from an array or a table too); a bool, a float or
+    # text is refused by name (TypeError), a number out of range too (ValueError)
+    beam = check_whole(beam, "beam", 1)
+    max_depth = check_whole(max_depth, "max_depth", 0)
+    lookahead = check_whole(lookahead, "lookahead", 0)
     margin = _fraction(margin, "margin")
-    if isinstance(alpha, bool) or not isinstance(alpha, int | float) or not 0.0 < alpha < 1.0:
+    if (
+        isinstance(alpha, bool | np.bool_)
+        or not isinstance(alpha, numbers.Real)
+        or not 0.0 < alpha < 1.0
+    ):
         raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    alpha = float(alpha)
     if grammar is not None and not isinstance(grammar, Grammar):
         raise TypeError(
             f"grammar must be a jaxbox.models.Grammar (or None: from the data's columns), got "

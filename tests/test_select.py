@@ -103,6 +103,32 @@ def test_manual_guess_and_unknown_names(data):
     assert gb.add_case("Zon").name == "Zon#2"
 
 
+def test_an_explicit_name_in_use_is_refused_not_renamed(data):
+    """A name given twice was silently changed to 'A#2': the user's name is theirs; made-up
+    names (the model's, a retry's) still get #2, #3…"""
+    gb = GreyBox(data, name="house")
+    first = gb.add_case("Zon", name="A")
+    with pytest.raises(ValueError, match=r"'house' already has a case named 'A'.*another name"):
+        gb.add_case("ZonWal", name="A")
+    assert list(gb.cases) == ["A"] and gb["A"] is first and first.model.name == "Zon"
+    assert [gb.add_case("Zon").name, gb.add_case("Zon").name] == ["Zon", "Zon#2"]
+    with pytest.raises(ValueError, match="remove_case"):
+        gb.add_case("Zon", name="Zon")  # the model's name, given: refused as well
+    # removed, the name is free again
+    assert gb.remove_case("A") is first
+    assert gb.add_case("ZonWal", name="A").model.name == "ZonWal"
+    with pytest.raises(KeyError, match="no case 'nope'"):
+        gb.remove_case("nope")
+    gb["Zon#2"].parent = "A"  # as if it had started from A's optimum
+    with pytest.raises(ValueError, match="parent of 'Zon#2'"):
+        gb.remove_case("A")
+    # a retry made up by a selection: suffixed, not refused
+    from jaxbox.select._forward import _retry_of
+
+    retries = [_retry_of(gb, gb["Zon"], "narrowed").name for _ in range(2)]
+    assert retries == ["Zon+narrowed", "Zon+narrowed#2"]
+
+
 @pytest.mark.parametrize(
     "kw, error, words",
     [

@@ -114,12 +114,12 @@ def _pinned_unmeasured_states(case: Case) -> list[str]:
 
 def _retry_of(gb: GreyBox, case: Case, suffix: str, **changes) -> Case:
     """Declare (not run) a case like ``case`` (same model, windows, starts, seed and settings)
-    named ``<case>+<suffix>``, with ``changes`` (``guess``, ``free``, ``fixed``, ``bounds``) and
-    the same parent."""
+    named ``<case>+<suffix>`` (``#2``… added when taken), with ``changes`` (``guess``,
+    ``free``, ``fixed``, ``bounds``) and the same parent."""
     fields = dict(guess=case.guess, free=case.free, fixed=case.fixed, bounds=case.bounds)
     retry = gb.add_case(
         case.model,
-        name=f"{case.name}+{suffix}",
+        name=gb._unique(f"{case.name}+{suffix}"),
         **{**fields, **changes},
         starts=case.starts,
         seed=case.seed,

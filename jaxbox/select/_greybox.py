@@ -196,6 +196,9 @@ class GreyBox:
     # -- cases -----------------------------------------------------------------------------------
 
     def _unique(self, name: str) -> str:
+        """``name``, or ``name#2``, ``name#3``… when taken: for names the GreyBox makes up (the
+        model's name, a retry's), never for a name the user gives (:meth:`add_case` refuses a
+        name already used)."""
         if name not in self.cases:
             return name
         k = 2
@@ -223,7 +226,9 @@ class GreyBox:
 
         Args:
             model: a library model name or an :class:`~jaxbox.models.RCModel`.
-            name: case name (default the model name, made unique).
+            name: case name (default the model name, made unique with ``#2``, ``#3``…). A
+                name given here must not be in use: a case of that name is refused
+                (``ValueError``), never renamed; pick another or :meth:`remove_case` the old one.
             guess: ``"naming"`` (defaults per prefix, initial states from the data),
                 ``"parent"`` (same-named parameters from the optimum of case ``parent``; new
                 ones their defaults), a mapping of values (manual, over the naming guess), or a
@@ -238,6 +243,12 @@ class GreyBox:
         """
         model = get_model(model)
         name = _case_name(name)
+        if name is not None and name in self.cases:
+            raise ValueError(
+                f"GreyBox {self.name!r} already has a case named {name!r}; pick another name= "
+                f"(or leave name out for one made from the model's), or remove the old case "
+                f"first with remove_case({name!r})"
+            )
         fixed = check_mapping(fixed, "fixed")
         bounds = check_mapping(bounds, "bounds")
         if free is not None and (isinstance(free, str | bytes) or not isinstance(free, Sequence)):
@@ -281,7 +292,7 @@ class GreyBox:
                 "values or a Guess"
             )
         case = Case(
-            name=self._unique(name or model.name),
+            name=name if name is not None else self._unique(model.name),
             model=model,
             ident=ident,
             valid=val,
@@ -296,6 +307,25 @@ class GreyBox:
         )
         self.cases[case.name] = case
         return case
+
+    def remove_case(self, name: str) -> Case:
+        """Remove the case ``name`` (to declare another under its name) and return it.
+
+        Raises:
+            KeyError: no case of that name.
+            ValueError: other cases started from its optimum (``guess='parent'``): remove
+                them first, or their ``parent`` would name whatever case takes the name next.
+        """
+        if not isinstance(name, str):
+            raise TypeError(f"remove_case takes the name of a case (text), got {name!r}")
+        case = self[name]  # KeyError naming the cases
+        children = [c.name for c in self.cases.values() if c is not case and c.parent == name]
+        if children:
+            raise ValueError(
+                f"case {name!r} is the parent of {', '.join(map(repr, children))}; remove "
+                "those first"
+            )
+        return self.cases.pop(name)
 
     def _parent(self, parent, guess) -> None:
         """``parent=`` of :meth:`add_case`: a run case of this GreyBox, given with

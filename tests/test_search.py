@@ -286,6 +286,22 @@ def test_bad_search_options(building, option, words):
         structure_search(building, **option)
 
 
+def test_a_search_whose_every_root_failed_says_so(building, monkeypatch):
+    import jaxbox.fit
+    from jaxbox.fit import FitError
+
+    def fit_batch(requests, **kw):
+        return [FitError("every start failed (test)") for _ in requests]
+
+    monkeypatch.setattr(jaxbox.fit, "fit_batch", fit_batch)
+    lines = []
+    gb = GreyBox(building.data, name="failing")
+    s = structure_search(gb, starts=2, progress=lines.append)
+    assert s.accepted is None and all(n.status == "failed" for n in s.tree)
+    assert s.stopped == "no root could be fitted: every fit failed (each case's notes say why)"
+    assert "accepted: none (no model could be identified)" in lines[-1]
+
+
 def test_search_counts_may_be_numpy_integers(building):
     """beam, max_depth and lookahead from numpy (an array, a table) were refused ('beam must be
     a whole number ≥ 1, got np.int64(2)'); alpha as numpy's float32 too. Taken, the search

@@ -238,6 +238,86 @@ def test_forward_selection_accepts_the_true_structure(selection):
     assert any("4 starts in one batch" in line for line in lines)
 
 
+def _failing_fits(monkeypatch, fits=()):
+    """jaxbox.fit.fit_batch failing every start of the models not in ``fits`` (as a fit whose
+    every start failed), fitting the others."""
+    import jaxbox.fit
+    from jaxbox.fit import FitError
+
+    real = jaxbox.fit.fit_batch
+
+    def fit_batch(requests, **kw):
+        mine = [r for r in requests if r["model"].name in fits]
+        done = iter(real(mine, **kw) if mine else [])
+        return [
+            next(done) if r["model"].name in fits else FitError("every start failed (test)")
+            for r in requests
+        ]
+
+    monkeypatch.setattr(jaxbox.fit, "fit_batch", fit_batch)
+
+
+def test_a_selection_whose_every_candidate_failed_says_so(data, monkeypatch):
+    """It said 'every candidate was identified' when none could be."""
+    _failing_fits(monkeypatch)
+    lines = []
+    sel = forward_selection(GreyBox(data), ["Zon", "ZonWal"], starts=2, progress=lines.append)
+    assert sel.accepted is None and sel.order == ("Zon", "ZonWal")
+    assert "every candidate was identified" not in sel.stopped
+    assert sel.stopped.startswith("every candidate was tried and none could be identified")
+    assert "all 2 fit(s) failed" in sel.stopped
+    assert "accepted: none (no model could be identified)" in lines[-1]
+
+
+def test_a_selection_with_some_failed_candidates_names_them(data, monkeypatch):
+    _failing_fits(monkeypatch, fits=("Zon",))
+    sel = forward_selection(GreyBox(data), ["Zon", "ZonWal"], starts=2, max_steps=30)
+    assert sel.greybox["Zon"].done and not sel.greybox["ZonWal"].done
+    assert sel.stopped == (
+        "every candidate was tried; 1 of 2 case(s) could not be identified: ZonWal (their "
+        "notes say why)"
+    )
+
+
+def test_a_stop_says_what_the_candidates_did():
+    """A candidate that failed was reported as 'not valid'; a mixed streak as the last one."""
+    from types import SimpleNamespace
+
+    from jaxbox.select._forward import _Climb
+
+    def climb(patience):
+        models = [SimpleNamespace(name=n) for n in ("A", "B", "C", "D")]
+        c = _Climb(
+            None,
+            models,
+            starts=1,
+            seed=0,
+            margin=0.05,
+            patience=patience,
+            inherit=True,
+            retry=False,
+            settings={},
+            say=lambda msg: None,
+        )
+        c.best, c.k = SimpleNamespace(name="A", score=1.0), 1
+        return c
+
+    def case(name, done=True, valid=False, score=2.0):
+        return SimpleNamespace(name=name, done=done, is_valid=valid, score=score, valid=object())
+
+    one = climb(1)
+    one._judge(case("B", done=False))
+    assert one.stopped == "stopped after B: 1 candidate(s) in a row could not be identified"
+    assert one.skipped == ("C", "D")
+    two = climb(2)
+    two._judge(case("B", done=False))
+    two._judge(case("C", valid=True))
+    assert two.stopped == (
+        "stopped after C: 2 candidate(s) in a row did not improve on A (1 could not be "
+        "identified, 1 did not lower the validation SE by 5 %)"
+    )
+
+
 def test_lockstep_selection_on_two_buildings_matches_one_by_one(selection, data):
     """Two buildings climb together, each step's fits in one batch; each climbs as it would
     alone (same cases, same optima)."""

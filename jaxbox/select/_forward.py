@@ -159,7 +159,8 @@ class _Climb:
         self.starts, self.seed, self.settings = starts, seed, settings
         self.margin, self.patience, self.inherit, self.retry = margin, patience, inherit, retry
         self.k, self.best, self.order, self.misses = 0, None, [], 0
-        self.stopped = "every candidate was identified"
+        self.stopped = ""  # why the climb stopped early; "" while it runs through
+        self.streak: list[str] = []  # what each candidate since the best one did instead
         self.skipped: tuple[str, ...] = ()
         self.finished = False
         self.pending: Case | None = None  # a retry to run before the next model
@@ -209,21 +210,53 @@ class _Climb:
             and (best is None or case.score < (1.0 - margin) * best.score)
         )
         if improved:
-            self.best, self.misses = case, 0
+            self.best, self.misses, self.streak = case, 0, []
             return
         if best is None:  # nothing valid yet: keep climbing
             return
         self.misses += 1
+        if not case.done:
+            self.streak.append("could not be identified")
+        elif not case.is_valid:
+            self.streak.append("not valid")
+        else:
+            se = "identification" if case.valid is None else "validation"
+            by = f" by {100 * margin:g} %" if margin else ""
+            self.streak.append(f"did not lower the {se} SE{by}")
         if self.misses >= self.patience and self.k < len(self.models):
-            why = "not valid" if not case.is_valid else "did not improve the validation SE"
+            kinds = list(dict.fromkeys(self.streak))
+            if len(kinds) == 1:
+                why = kinds[0]
+            else:
+                why = (
+                    f"did not improve on {best.name} ("
+                    + ", ".join(f"{self.streak.count(k)} {k}" for k in kinds)
+                    + ")"
+                )
             self.stopped = f"stopped after {case.name}: {self.misses} candidate(s) in a row {why}"
-            if margin and case.is_valid:
-                self.stopped += f" by {100 * margin:g} %"
             self.skipped = tuple(m.name for m in self.models[self.k :])
             self.finished = True
 
+    def _ran_through(self) -> str:
+        """Why a climb that did not stop early ended, true to what happened: every candidate
+        identified, some that could not be (their fits failed), or none."""
+        failed = [n for n in self.order if not self.gb.cases[n].done]
+        if not failed:
+            return "every candidate was identified"
+        if len(failed) == len(self.order):
+            return (
+                f"every candidate was tried and none could be identified: all {len(failed)} "
+                "fit(s) failed (each case's notes say why)"
+            )
+        shown = ", ".join(failed[:5]) + (", …" if len(failed) > 5 else "")
+        return (
+            f"every candidate was tried; {len(failed)} of {len(self.order)} case(s) could not "
+            f"be identified: {shown} (their notes say why)"
+        )
+
     def selection(self, elapsed: float) -> Selection:
         gb, order = self.gb, self.order
+        self.stopped = self.stopped or self._ran_through()
         accepted = gb.best(valid_only=True)
         if accepted is not None and accepted.name not in set(order):
             accepted = min(
@@ -231,10 +264,13 @@ class _Climb:
                 key=lambda c: c.score,
                 default=None,
             )
-        self.say(
-            f"accepted: {accepted.name if accepted else 'none (no valid model)'}; {self.stopped} "
-            f"({elapsed:.0f} s)"
-        )
+        if accepted is not None:
+            verdict = accepted.name
+        elif any(gb.cases[n].done for n in order):
+            verdict = "none (no valid model)"
+        else:
+            verdict = "none (no model could be identified)"
+        self.say(f"accepted: {verdict}; {self.stopped} ({elapsed:.0f} s)")
         return Selection(
             greybox=gb,
             accepted=None if accepted is None else accepted.name,

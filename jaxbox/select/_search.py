@@ -472,7 +472,14 @@ def structure_search(
             nodes[c.name]["why"] = (
                 f"{nodes[c.name].get('why') or 'not valid'}; a root: grown all the same"
             )
-    stopped = "no root could be fitted" if not beam_cases else ""
+    stopped = ""
+    if not beam_cases:
+        fitted = [c.name for c in first if c.done]
+        stopped = (
+            f"no root could be grown: {', '.join(fitted)} fitted with no finite simulation error"
+            if fitted
+            else "no root could be fitted: every fit failed (each case's notes say why)"
+        )
 
     def grow(pairs: list[tuple[Case, Case]], depth: int) -> tuple[list[Case], list]:
         """Identify every new extension of each ``(case, reference)`` pair in one batched call
@@ -592,10 +599,13 @@ def structure_search(
         if accepted is not None and name == accepted.name:
             node["status"] = "accepted"
     tree = tuple(SearchNode(**nodes[n]) for n in nodes)
-    say(
-        f"accepted: {accepted.name if accepted else 'none (no valid model)'}; {stopped} "
-        f"({elapsed:.0f} s, {len(nodes)} candidates)"
-    )
+    if accepted is not None:
+        verdict = accepted.name
+    elif any(gb.cases[n].done for n in nodes):
+        verdict = "none (no valid model)"
+    else:
+        verdict = "none (no model could be identified)"
+    say(f"accepted: {verdict}; {stopped} ({elapsed:.0f} s, {len(nodes)} candidates)")
     return Search(
         greybox=gb,
         accepted=None if accepted is None else accepted.name,

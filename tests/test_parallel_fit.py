@@ -71,8 +71,13 @@ def test_parallel_normal_equations_equal_the_sequential_pass(segments, members_u
     mats, tangents, u, y, w, t = _problem(segments, members_u)
     y, w = y[..., : len(outputs)], w[..., : len(outputs)]
     g = None if gain is None else jnp.asarray(gain)
-    seq = normal_equations(mats, tangents, outputs, u, y, w, t=t, gain=g, chunk=8)
-    par = normal_equations_parallel(mats, tangents, outputs, u, y, w, t=t, gain=g)
+    # compiled, as in a fit (op by op, the associative scan's levels dispatch one at a time)
+    seq = jax.jit(
+        lambda m, tg, u, y, w, t, g: normal_equations(m, tg, outputs, u, y, w, t=t, gain=g, chunk=8)
+    )(mats, tangents, u, y, w, t, g)
+    par = jax.jit(
+        lambda m, tg, u, y, w, t, g: normal_equations_parallel(m, tg, outputs, u, y, w, t=t, gain=g)
+    )(mats, tangents, u, y, w, t, g)
     for name, a, b in zip(("cost", "Jᵀr", "JᵀJ"), seq, par, strict=True):
         assert np.all(np.isfinite(b)), name
         np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-14 * float(jnp.max(jnp.abs(a))))
@@ -121,6 +126,6 @@ def test_parallel_normal_equations_differentiate_like_the_sequential_pass():
         _, _, H = fn(mats, tangents, (0, 2), inputs, y, w)
         return jnp.sum(jnp.log(jnp.diagonal(H, axis1=1, axis2=2)))
 
-    seq = jax.grad(lambda v: information(normal_equations, v))(u)
-    par = jax.grad(lambda v: information(normal_equations_parallel, v))(u)
+    seq = jax.jit(jax.grad(lambda v: information(normal_equations, v)))(u)
+    par = jax.jit(jax.grad(lambda v: information(normal_equations_parallel, v)))(u)
     np.testing.assert_allclose(par, seq, rtol=1e-10, atol=1e-12 * float(jnp.max(jnp.abs(seq))))

@@ -231,7 +231,9 @@ class RCNetwork:
         ``b`` is a node name, or a measured temperature input (a name starting with ``T_``,
         e.g. ``T_amb``, ``T_bou``), in °C. ``scale`` is a positive number, or an expression of
         fractions such as ``"fra_wal"`` or ``"1-fra_wal"`` (``"0.5*fra_wal"``…): a share of ``R``
-        that is itself estimated.
+        that is itself estimated. Such a fraction stays strictly inside (0, 1), where neither
+        part of ``R`` vanishes: without a declared spec its bounds are [0.01, 0.99] (not the
+        [0, 1] of other fractions), and :meth:`build` refuses declared bounds that reach 0 or 1.
         """
         self._require_node(a, f"resistance {R!r}")
         if not isinstance(b, str) or not _PARAM.fullmatch(b):
@@ -372,7 +374,8 @@ class RCNetwork:
         Raises:
             ModelError: no node, no output, a node with no path to a boundary temperature
                 (its temperature would drift without bound), an override for an unknown
-                parameter.
+                parameter, a fraction setting a share of a resistance (``scale="fra_wal"``)
+                whose bounds reach 0 or 1 (that part of the resistance would vanish).
         """
         if not self.nodes:
             raise ModelError(f"{self.name}: the network has no node; add one with .node()")
@@ -447,6 +450,9 @@ class RCNetwork:
                 f"element of the network uses (parameters: {', '.join(seen)})"
             )
         specs = {p: declared[p] if p in declared else parameter_for(p) for p in seen}
+        for f in {f for e in self.edges for _, f in e.factors} - set(declared):
+            default = min(max(specs[f].default, 0.01), 0.99)  # (a share of a resistance)
+            specs[f] = specs[f].replace(default=default, lower=0.01, upper=0.99)
         for p, over in (params or {}).items():
             if p not in specs:
                 raise ModelError(
@@ -457,6 +463,15 @@ class RCNetwork:
                 specs[p] = over.replace(name=p)
             else:
                 specs[p] = specs[p].replace(**dict(over))
+        for e in self.edges:  # a share of a resistance at 0 or 1 removes a part of it
+            for _, f in e.factors:
+                if not 0.0 < specs[f].lower <= specs[f].upper < 1.0:
+                    raise ModelError(
+                        f"{self.name}: {f} sets a share of the resistance {e.R} between {e.a!r} "
+                        f"and {e.b!r} ({e.text()}); its bounds [{specs[f].lower:g}, "
+                        f"{specs[f].upper:g}] must lie strictly inside (0, 1), or that part of "
+                        f"{e.R} vanishes: give bounds such as [0.01, 0.99]"
+                    )
         return RCModel(
             name=self.name,
             description=self.description,

@@ -16,6 +16,14 @@ prefix     unit    default guess                 default bounds
 
 ``Q_*`` is a constant heat input (signed): a steady base load, or the heat that stands for a
 constant offset of a temperature sensor (:func:`~jaxbox.models.components.sensor_offset`).
+
+Whatever the bounds a spec is given (by a component, :meth:`RCNetwork.parameter`, an override of
+:meth:`RCNetwork.build` or :meth:`RCModel.with_parameters`), they stay physical: a resistance
+``R_*`` or a capacity ``C_*`` has a lower bound > 0 (at 0 a resistance joins two temperatures
+into one, a capacity makes its state infinitely fast; below 0 the network makes heat), and a
+fraction ``fra_*`` lies within [0, 1] (``fra_ele``, numbered ``fra_ele1``…, only ≥ 0: occupants'
+body heat follows their electricity use, so it may exceed 1). :class:`Parameter` refuses other
+bounds, naming the parameter.
 """
 
 from __future__ import annotations
@@ -52,8 +60,18 @@ class Parameter:
     description: str = ""
 
     def __post_init__(self):
+        if not isinstance(self.name, str):
+            raise ModelError(f"a parameter name is text such as 'R_wal', got {self.name!r}")
         for field in ("default", "lower", "upper"):
-            object.__setattr__(self, field, float(getattr(self, field)))
+            value = getattr(self, field)
+            try:
+                if isinstance(value, bool | str | bytes):
+                    raise TypeError
+                object.__setattr__(self, field, float(value))
+            except (TypeError, ValueError):
+                raise ModelError(
+                    f"parameter {self.name!r}: {field} must be a number, got {value!r}"
+                ) from None
         if math.isnan(self.default) or math.isnan(self.lower) or math.isnan(self.upper):
             raise ModelError(f"parameter {self.name!r}: default and bounds must not be NaN")
         if not self.lower < self.upper:
@@ -66,6 +84,26 @@ class Parameter:
                 f"parameter {self.name!r}: default {self.default:g} lies outside its bounds "
                 f"[{self.lower:g}, {self.upper:g}]; change the default or the bounds"
             )
+        if _POSITIVE.fullmatch(self.name) and not self.lower > 0:
+            if self.name[0] == "R":
+                kind, floor = "resistance [K/W]", 1e-5
+                why = "at 0 it joins two temperatures into one, below 0 heat flows uphill"
+            else:
+                kind, floor = "capacity [J/K]", 1e4
+                why = "at 0 its temperature follows at once, below 0 it runs away"
+            raise ModelError(
+                f"parameter {self.name!r}: lower bound {self.lower:g} must be > 0, a {kind} is "
+                f"positive ({why}); give a small positive lower bound such as {floor:g}"
+            )
+        if _FRACTION.fullmatch(self.name):
+            top = math.inf if _FREE_FRACTION.fullmatch(self.name) else 1.0
+            if not (0.0 <= self.lower and self.upper <= top):
+                span = "[0, 1]" if top == 1.0 else "[0, ∞)"
+                raise ModelError(
+                    f"parameter {self.name!r}: bounds [{self.lower:g}, {self.upper:g}] leave "
+                    f"{span}; a fraction fra_* lies within [0, 1] (fra_ele, a share of the "
+                    f"electricity use, within [0, ∞)): give bounds within {span}"
+                )
 
     @property
     def is_initial_state(self) -> bool:
@@ -82,6 +120,11 @@ class Parameter:
 
 
 _T0 = re.compile(r"T_\w+0(_s\d+)?")
+#: resistances [K/W] and capacities [J/K]: positive
+_POSITIVE = re.compile(r"[RC]_\w+")
+#: fractions [-]: within [0, 1], except the share of electricity use (and its numbered copies)
+_FRACTION = re.compile(r"fra_\w+")
+_FREE_FRACTION = re.compile(r"fra_ele\d*")
 
 # Name-specific default guesses (SI), refined within a prefix. The capacities on the boundaries
 # (C_bou, C_gro, and C_* of any other name) are chosen so that, with their resistances, no two of

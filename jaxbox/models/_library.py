@@ -71,6 +71,7 @@ to identify the others.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import re
 from collections.abc import Callable, Sequence
 
@@ -165,9 +166,12 @@ def get_model(name: str | RCModel) -> RCModel:
     try:
         return _REGISTRY[name].make()
     except (KeyError, TypeError):
+        near = difflib.get_close_matches(name, _REGISTRY, n=1) if isinstance(name, str) else []
+        meant = f"did you mean {near[0]!r}? " if near else ""
         raise ModelError(
-            f"no library model named {name!r}; available: {', '.join(_REGISTRY)} "
-            "(`jaxbox models` lists them)"
+            f"no library model named {name!r}; {meant}available: {', '.join(_REGISTRY)} "
+            "(`jaxbox models` lists them), or a structure of the component grammar such as "
+            "'Zon+Wal+Int' (jaxbox.models.grammar)"
         ) from None
 
 

@@ -250,3 +250,56 @@ def test_shared_program_equals_the_per_structure_derivatives(name):
         np.testing.assert_allclose(shared[0], own[0], rtol=0, atol=1e-9)
         scale = np.max(np.abs(np.asarray(own[1])), axis=(0, 1))
         np.testing.assert_allclose(shared[1] / scale, np.asarray(own[1]) / scale, atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    ("options", "error", "words"),
+    [
+        ({"level": 0.0}, ValueError, ["level", "(0, 1)"]),
+        ({"level": 1.0}, ValueError, ["level", "(0, 1)"]),
+        ({"level": 95}, ValueError, ["level", "0.95"]),
+        ({"level": float("nan")}, ValueError, ["level", "nan"]),
+        ({"level": "0.95"}, TypeError, ["level", "number"]),
+        ({"rcond": 2.0}, ValueError, ["rcond", "[0, 1)"]),
+        ({"rcond": float("nan")}, ValueError, ["rcond"]),
+        ({"max_collinearity": 0}, ValueError, ["max_collinearity", "> 0"]),
+        ({"max_collinearity": "x"}, TypeError, ["max_collinearity"]),
+        ({"loading": -1.0}, ValueError, ["loading"]),
+        ({"include_initial_states": "yes"}, TypeError, ["include_initial_states"]),
+    ],
+)
+def test_bad_options_are_refused(zon_fit, options, error, words):
+    """A level of 1.5, 95 or NaN gave NaN intervals, 0 zero-width ones, -0.1 reversed ones; a
+    max_collinearity of 0 divided by zero; rcond 2 made every parameter unidentifiable."""
+    with pytest.raises(error) as err:
+        uncertainty(zon_fit, **options)
+    for word in words:
+        assert word in str(err.value), str(err.value)
+
+
+def test_sensitivities_refuse_bad_parameter_values(zon_fit):
+    with pytest.raises(ValueError, match="4 values in result.free order"):
+        sensitivities(zon_fit, [1.0, 2.0])
+    with pytest.raises(ValueError, match="R_wal are not finite"):
+        sensitivities(zon_fit, [5e6, np.nan, 2.0, 20.0])
+    with pytest.raises(TypeError, match="result must be a FitResult"):
+        sensitivities(None)
+
+
+def test_a_duck_typed_result_is_taken_and_a_lacking_one_named(zon_fit):
+    """Any object with the attributes read (problem, data, params) serves, as a FitResult does;
+    one lacking them is refused naming what is missing (was AttributeError deep inside)."""
+    import types
+
+    duck = types.SimpleNamespace(
+        problem=zon_fit.problem, data=zon_fit.data, params=dict(zon_fit.params)
+    )
+    np.testing.assert_allclose(sensitivities(duck)[1], sensitivities(zon_fit)[1])
+    assert uncertainty(duck).names == uncertainty(zon_fit).names
+    bare = types.SimpleNamespace(problem=zon_fit.problem, data=zon_fit.data)
+    p = [zon_fit.params[n] for n in zon_fit.free]
+    np.testing.assert_allclose(sensitivities(bare, p)[1], sensitivities(zon_fit)[1])
+    with pytest.raises(TypeError, match="result must be a FitResult .* without params"):
+        sensitivities(bare)
+    with pytest.raises(TypeError, match="without params"):
+        uncertainty(bare)

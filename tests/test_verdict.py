@@ -345,3 +345,127 @@ def test_a_fast_state_pinned_at_its_start_is_a_warning_a_slow_one_a_reason():
     slow = fit_model("ZonWal", data, starts=3, bounds={"T_wal0": (-3.0, 5.0)})
     v = check_validity(slow, check_intervals=False)
     assert "T_wal0" in v.flagged("at_bound")
+
+
+# -- hostile input: refused early, by name ---------------------------------------------------------
+
+
+def _not_a_fit():
+    from jaxbox.stochastic import MLResult
+
+    return object.__new__(MLResult)  # a stochastic fit (no fields needed to be refused)
+
+
+@pytest.mark.parametrize(
+    ("call", "words"),
+    [
+        (lambda fit, valid: validate(None, valid), ["result must be a FitResult", "None"]),
+        (lambda fit, valid: validate(valid, valid), ["result must be a FitResult", "Dataset"]),
+        (lambda fit, valid: validate(_not_a_fit(), valid), ["stochastic fit", "intervals()"]),
+        (lambda fit, valid: uncertainty(_not_a_fit()), ["stochastic fit", "method='oe'"]),
+        (lambda fit, valid: check_validity(None), ["result must be a FitResult"]),
+        (lambda fit, valid: validate(fit, valid.frame), ["valid", "DataFrame", "Dataset(frame)"]),
+        (lambda fit, valid: validate(fit, {"T_zon": [1.0]}), ["valid", "got a dict"]),
+        (lambda fit, valid: validate(fit, fit), ["valid", "got a FitResult"]),
+    ],
+    ids=["None", "data", "ml", "ml-unc", "verdict-None", "frame", "dict", "fit"],
+)
+def test_validation_refuses_what_is_not_a_fit_or_data(fitted_half, halves, call, words):
+    with pytest.raises(TypeError) as err:
+        call(fitted_half, halves[1])
+    for word in words:
+        assert word in str(err.value), str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("options", "error", "words"),
+    [
+        ({"rtol": -1.0}, ValueError, ["rtol", "> 0"]),
+        ({"rtol": float("nan")}, ValueError, ["rtol", "nan"]),
+        ({"atol": 0.0}, ValueError, ["atol", "> 0"]),
+        ({"atol": float("inf")}, ValueError, ["atol", "finite"]),
+        ({"rtol": "1e-6"}, TypeError, ["rtol", "number"]),
+    ],
+)
+def test_validate_refuses_bad_tolerances(fitted_half, halves, options, error, words):
+    """A tolerance of 0, inf or NaN was reported as 'non-finite values … the fit is not usable',
+    a negative one accepted, a string refused by float() inside the solver."""
+    with pytest.raises(error) as err:
+        validate(fitted_half, halves[1], **options)
+    for word in words:
+        assert word in str(err.value), str(err.value)
+
+
+def test_validation_data_in_another_time_zone(halves):
+    """Naive and zone-aware time stamps cannot be compared: a clear ValidationError, not
+    pandas' TypeError; another time zone of the same instants is converted (it failed inside
+    the data checks on a mixed index)."""
+    from jaxbox.validate import ValidationError
+
+    ident, valid = halves
+    utc = Dataset(ident.frame.tz_localize("UTC"))
+    fit = fit_model("Zon", utc, starts=_start())
+    with pytest.raises(ValidationError, match="naive .*time zone UTC"):
+        validate(fit, valid)
+    berlin = Dataset(valid.frame.tz_localize("UTC").tz_convert("Europe/Berlin"))
+    same = validate(fit, Dataset(valid.frame.tz_localize("UTC")), method="exact")
+    other = validate(fit, berlin, method="exact")
+    assert other.rmse_cross == same.rmse_cross
+    assert str(other.index_cross.tz) == "UTC"
+
+
+def test_validation_data_missing_a_column_is_a_validation_error(fitted_half, halves):
+    from jaxbox.validate import ValidationError
+
+    frame = halves[1].frame.rename(columns={"Q_hea": "P_heat"})
+    with pytest.raises(ValidationError, match="no column 'Q_hea'"):
+        validate(fitted_half, Dataset(frame))
+
+
+@pytest.mark.parametrize(
+    ("options", "error", "words"),
+    [
+        ({"max_rel_ci": -1.0}, ValueError, ["max_rel_ci", "> 0"]),
+        ({"max_rel_ci": float("nan")}, ValueError, ["max_rel_ci", "nan"]),
+        ({"max_rel_ci": "0.5"}, TypeError, ["max_rel_ci"]),
+        ({"bound_tol": 0.7}, ValueError, ["bound_tol", "[0, 0.5)"]),
+        ({"bound_tol": -0.1}, ValueError, ["bound_tol"]),
+        ({"tau_range": (10.0, 1.0)}, ValueError, ["tau_range", "low < high"]),
+        ({"tau_range": 5}, TypeError, ["tau_range", "pair"]),
+        ({"limits": {"R_": (1.0, 0.0)}}, ValueError, ["limits['R_']"]),
+        ({"limits": {"R_": 5}}, TypeError, ["limits['R_']", "pair"]),
+        ({"limits": 5}, TypeError, ["limits", "mapping"]),
+        ({"max_rmse": float("nan")}, ValueError, ["max_rmse", "nan"]),
+        ({"max_rmse": -1.0}, ValueError, ["max_rmse", "> 0"]),
+        ({"max_rmse_ratio": -1.0}, ValueError, ["max_rmse_ratio"]),
+        ({"rmse_floor": "x"}, TypeError, ["rmse_floor"]),
+        ({"ua_range": (1e5, 1.0)}, ValueError, ["ua_range", "low < high"]),
+        ({"capacity_range": ("a", 1.0)}, TypeError, ["capacity_range"]),
+        ({"slowest_tau_range": (600.0, float("nan"))}, ValueError, ["slowest_tau_range"]),
+        ({"residuals": "white"}, TypeError, ["residuals", "analyse_residuals"]),
+        ({"check_intervals": "no"}, TypeError, ["check_intervals", "True or False"]),
+        ({"data_overrides": 5}, TypeError, ["data_overrides", "mapping"]),
+    ],
+)
+def test_check_validity_refuses_odd_thresholds(good, options, error, words):
+    """NaN thresholds passed every check (a valid verdict), negative ones failed every fit or
+    none, reversed ranges judged nonsense, strings raised numpy's or Python's messages."""
+    with pytest.raises(error) as err:
+        check_validity(good, **options)
+    for word in words:
+        assert word in str(err.value), str(err.value)
+
+
+def test_check_validity_refuses_another_fits_validation_or_uncertainty(good, fitted_half, halves):
+    """A Validation or Uncertainty of another fit was judged as this one's (or AttributeError
+    on anything else)."""
+    other = validate(fitted_half, halves[1], method="exact")
+    with pytest.raises(ValueError, match="validation is of another fit"):
+        check_validity(good, validation=other)
+    with pytest.raises(TypeError, match="validation must be a Validation"):
+        check_validity(good, validation=halves[1])
+    with pytest.raises(TypeError, match="uncertainty must be an Uncertainty"):
+        check_validity(good, other)
+    bare = fit_model("Zon", _data(), starts=_start()[:, [0, 1, 3]], fixed={"gA": 2.0})
+    with pytest.raises(ValueError, match="uncertainty is of a fit"):
+        check_validity(good, uncertainty(bare))

@@ -165,15 +165,45 @@ def _contiguous(ident, valid) -> None:
         )
 
 
+def _zone(tz) -> str:
+    return "naive (no time zone)" if tz is None else f"in time zone {tz}"
+
+
+def _same_zone(ident, valid):
+    """``valid`` with its time stamps in the time zone of ``ident`` (the same instants): naive
+    and zone-aware time stamps cannot be compared, so that mix is refused."""
+    tz_id, tz_va = ident.index.tz, valid.index.tz
+    if (tz_id is None) != (tz_va is None):
+        raise ValidationError(
+            f"the validation data's time stamps are {_zone(tz_va)} but the identification "
+            f"data's are {_zone(tz_id)}; load both with the same tz (jaxbox.data.load(..., "
+            "tz=...)) or localize both"
+        )
+    if tz_id is None or str(tz_id) == str(tz_va):
+        return valid
+    return valid._new(valid._frame.tz_convert(tz_id), valid.step)
+
+
+def validation_window(result, valid, max_gap=None):
+    """The validation :class:`~jaxbox.data.Dataset` checked to follow the identification data of
+    ``result`` (a Dataset, the same step, the same time zone: one in another zone is converted,
+    later in time) and prepared for its gaps as the fit's were."""
+    from ._args import check_dataset
+
+    valid = _same_zone(result.data, check_dataset(valid, "valid (the validation data)"))
+    _contiguous(result.data, valid)
+    return _prepared(result, valid, max_gap)
+
+
 def _prepared(result, valid, max_gap):
     """The validation window with its gaps prepared as the fit's were."""
     from ..data import DataError, prepare_window
     from ..data._gaps import DEFAULT_MAX_GAP
 
     model = result.model
-    valid.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     gap = result.settings.get("max_gap", DEFAULT_MAX_GAP) if max_gap is None else max_gap
     try:
+        valid.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
         return prepare_window(
             valid, model.inputs, model.outputs, max_gap=gap, what="validation data"
         )
@@ -230,9 +260,10 @@ def validate(
     Args:
         result: a :class:`~jaxbox.fit.FitResult`.
         valid: validation :class:`~jaxbox.data.Dataset` after the identification data (same
-            step); ``None`` for auto-validation only.
+            step; time stamps in another time zone are converted to the identification
+            data's, naive and zone-aware ones are not mixed); ``None`` for auto-validation only.
         method: ``"diffrax"`` (adaptive Kvaerno3, default) or ``"exact"``.
-        rtol, atol: tolerances of the adaptive solver.
+        rtol, atol: tolerances of the adaptive solver (> 0; atol in K).
         max_gap: the longest input gap of the validation data filled by interpolation [s]
             (default: the fit's, see :func:`jaxbox.data.prepare_window`).
 
@@ -250,18 +281,28 @@ def validate(
 
     Returns:
         :class:`Validation` with RMSE per output and SE on both periods.
+
+    Raises:
+        TypeError: ``result`` is not a FitResult (a stochastic fit included) or ``valid`` not a
+            Dataset.
+        ValidationError: the validation data do not follow the identification data (step, time
+            zone, start), lack a column of the model, or leave no usable segment.
+        ValueError: an unknown ``method`` or a tolerance that is not a positive number.
     """
     from ..fit import state_guess
+    from ._args import check_fit, check_positive
 
     require_x64()
+    result = check_fit(result, needs=("problem", "model", "data", "params", "settings"))
     if method not in ("diffrax", "exact"):
         raise ValueError(f"unknown post-simulation method {method!r}; use 'diffrax' or 'exact'")
+    rtol = check_positive(rtol, "rtol (relative tolerance of the adaptive solver)")
+    atol = check_positive(atol, "atol (absolute tolerance of the adaptive solver)", "K")
     model = result.model
     ident = result.data
     names_in, names_out = list(model.inputs), list(model.outputs)
     if valid is not None:
-        _contiguous(ident, valid)
-        valid = _prepared(result, valid, max_gap)
+        valid = validation_window(result, valid, max_gap)
     u, y, n_id = joined_arrays(result, valid)
     opts = {"rtol": rtol, "atol": atol} if method == "diffrax" else {}
     base = model.segmented(1)

@@ -127,9 +127,12 @@ def prediction_performance(
         :class:`PredictionPerformance`.
     """
 
+    from ._args import check_fit
     from ._postsim import joined_arrays
 
     require_x64()
+    needs = ("problem", "model", "data", "params")
+    result = check_fit(result, needs=needs if valid is None else (*needs, "settings"))
     model = result.model
     ident = result.data
     names_out = list(model.outputs)
@@ -139,9 +142,9 @@ def prediction_performance(
             "separate periods); k-step prediction needs one: pass a window without long gaps"
         )
     if valid is not None:
-        from ._postsim import _prepared
+        from ._postsim import validation_window
 
-        valid = _prepared(result, valid, None)
+        valid = validation_window(result, valid)
         if len(valid.segments) > 1 or (valid.start - ident.end).total_seconds() > ident.step * 1.5:
             raise ValueError(
                 "the validation data hold gaps longer than max_gap or do not follow the "

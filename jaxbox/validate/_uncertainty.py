@@ -46,6 +46,7 @@ from scipy import stats
 
 from .._compiled import cached, jit
 from .._x64 import require_x64
+from ._args import check_fit
 
 __all__ = ["Uncertainty", "Combination", "uncertainty", "sensitivities"]
 
@@ -331,11 +332,11 @@ def sensitivities(
     from ..fit import problem_arrays
 
     require_x64()
-    problem = result.problem
+    problem = check_fit(result, needs=_SENSITIVITY_NEEDS[params is None]).problem
     t, u, _, _ = problem_arrays(problem, result.data)
     if params is None:
         params = [result.params[n] for n in problem.free]
-    p = jnp.asarray(np.asarray(params, dtype=float))
+    p = _free_values(params, problem.free)
     fixed_values = jnp.asarray([v for _, v in problem.fixed], dtype=float)
     shared = _rc_jacobian(problem, t, u, p, fixed_values)
     if shared is not None:
@@ -343,6 +344,30 @@ def sensitivities(
     else:
         ysim, J = _jacobian_fn(problem, len(t))(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
     return np.asarray(ysim), np.asarray(J)
+
+
+_SENSITIVITY_NEEDS = {True: ("problem", "data", "params"), False: ("problem", "data")}
+"""What :func:`sensitivities` reads of its result: without ``params``, the optimum too."""
+
+
+def _free_values(params, free) -> jnp.ndarray:
+    """``params`` as one finite value [SI] per free parameter, in ``free`` order."""
+    try:
+        p = np.asarray(params, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(
+            f"params must be {len(free)} numbers in result.free order ({', '.join(free)}), "
+            f"got {params!r}"
+        ) from None
+    if p.shape != (len(free),):
+        raise ValueError(
+            f"params must be {len(free)} values in result.free order ({', '.join(free)}), "
+            f"got shape {p.shape}"
+        )
+    bad = [n for n, v in zip(free, p, strict=True) if not np.isfinite(v)]
+    if bad:
+        raise ValueError(f"params of {', '.join(bad)} are not finite; give finite values [SI]")
+    return jnp.asarray(p)
 
 
 def _is_temperature(unit: str) -> bool:
@@ -431,12 +456,21 @@ def uncertainty(
         :class:`Uncertainty`.
 
     Raises:
-        ValueError: fewer output samples than free parameters (no degrees of freedom left), or
-            an optimum that is not finite.
+        TypeError: ``result`` is not a FitResult (a stochastic fit has ``result.intervals()``),
+            or an option of the wrong type.
+        ValueError: fewer output samples than free parameters (no degrees of freedom left), an
+            optimum that is not finite, or an option out of range (``level`` in (0, 1),
+            ``rcond`` and ``loading`` in [0, 1), ``max_collinearity`` > 0).
     """
     from ..fit import problem_arrays
+    from ._args import check_flag, check_fraction, check_level, check_positive
 
-    problem = result.problem
+    problem = check_fit(result).problem
+    level = check_level(level)
+    rcond = check_fraction(rcond, "rcond (relative singular-value cut-off)")
+    max_collinearity = check_positive(max_collinearity, "max_collinearity", allow_inf=True)
+    loading = check_fraction(loading, "loading (share of a direction)")
+    include_initial_states = check_flag(include_initial_states, "include_initial_states")
     free = tuple(problem.free)
     specs = {s.name: s for s in problem.model.parameters}
     units = tuple(specs[n].unit for n in free)

@@ -45,6 +45,16 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from ..data import DataError, Dataset, Finding, find_implausible, signal_unit
+from ..data._args import check_mapping
+from ._args import (
+    check_fit,
+    check_flag,
+    check_fraction,
+    check_instance,
+    check_positive,
+    check_range,
+)
+from ._residuals import ResidualAnalysis
 
 __all__ = [
     "CAPACITY_RANGE",
@@ -758,6 +768,50 @@ def _judged(result, uncertainty, **options) -> _Judged:
     )
 
 
+_VERDICT_NEEDS = ("problem", "model", "data", "params", "free", "cost", "starts", "best", "bounds")
+"""What :func:`check_validity` reads of its result."""
+
+
+def _limits(limits) -> dict[str, tuple[float, float]]:
+    """``limits`` of :func:`check_validity` checked: parameter names or prefixes to ranges."""
+    if limits is None:
+        return {}
+    out = {}
+    for name, rng in check_mapping(limits, "limits", "{'R_': (0.0, 100.0)}").items():
+        if not isinstance(name, str):
+            raise TypeError(f"limits are keyed by parameter names or prefixes, got {name!r}")
+        out[name] = check_range(rng, f"limits[{name!r}]")
+    return out
+
+
+def _optional_range(value, what: str, unit: str):
+    """A plausible range ``(low, high)`` ≥ 0, or None (the check skipped)."""
+    return None if value is None else check_range(value, what, unit, lower=0.0)
+
+
+def _own(result, uncertainty, validation):
+    """``(uncertainty, validation)`` checked to be those of ``result`` (or None)."""
+    from ._postsim import Validation
+    from ._uncertainty import Uncertainty
+
+    check_instance(uncertainty, Uncertainty, "uncertainty", "jaxbox.validate.uncertainty")
+    check_instance(validation, Validation, "validation", "jaxbox.validate.validate")
+    if uncertainty is not None and tuple(uncertainty.free) != tuple(result.free):
+        raise ValueError(
+            f"uncertainty is of a fit with the free parameters {', '.join(uncertainty.free)}, "
+            f"not of this one ({', '.join(result.free)}); pass uncertainty(result)"
+        )
+    if validation is not None and (
+        validation.model != result.model.name or len(validation.y_auto) != len(result.data)
+    ):
+        raise ValueError(
+            f"validation is of another fit (model {validation.model}, {len(validation.y_auto)} "
+            f"identification samples), not of this one (model {result.model.name}, "
+            f"{len(result.data)} samples); pass validate(result, valid)"
+        )
+    return uncertainty, validation
+
+
 def check_validity(
     result,
     uncertainty=None,
@@ -815,25 +869,39 @@ def check_validity(
 
     Returns:
         :class:`Verdict` (truthy when valid).
+
+    Raises:
+        TypeError: ``result`` is not a FitResult, ``uncertainty``, ``validation`` or
+            ``residuals`` not what its function returns, or an option of the wrong type.
+        ValueError: an option out of range (limits > 0, ``inf`` switching one off; ranges
+            ``(low, high)`` with low < high; ``bound_tol`` in [0, 0.5)), or an ``uncertainty``
+            or ``validation`` of another fit.
     """
+    result = check_fit(result, needs=_VERDICT_NEEDS)
+    uncertainty, validation = _own(result, uncertainty, validation)
     ctx = _judged(
         result,
         uncertainty,
-        max_rel_ci=MAX_REL_CI if max_rel_ci is None else max_rel_ci,
-        bound_tol=bound_tol,
-        tau_range=tau_range,
-        limits={**PHYSICAL_LIMITS, **(limits or {})},
-        residuals=residuals,
-        check_intervals=check_intervals,
+        max_rel_ci=check_positive(
+            MAX_REL_CI if max_rel_ci is None else max_rel_ci, "max_rel_ci", allow_inf=True
+        ),
+        bound_tol=check_fraction(bound_tol, "bound_tol", upper=0.5),
+        tau_range=check_range(tau_range, "tau_range", "s", lower=0.0),
+        limits={**PHYSICAL_LIMITS, **_limits(limits)},
+        residuals=check_instance(
+            residuals, ResidualAnalysis, "residuals", "jaxbox.validate.analyse_residuals"
+        ),
+        check_intervals=check_flag(check_intervals, "check_intervals"),
         validation=validation,
-        max_rmse=max_rmse,
-        max_rmse_ratio=max_rmse_ratio,
-        rmse_floor=rmse_floor,
-        ua_range=ua_range,
-        capacity_range=capacity_range,
-        slowest_tau_range=slowest_tau_range,
-        check_data=check_data,
-        data_overrides=data_overrides,
+        max_rmse=check_positive(max_rmse, "max_rmse", "K", allow_inf=True),
+        max_rmse_ratio=check_positive(max_rmse_ratio, "max_rmse_ratio", allow_inf=True),
+        rmse_floor=check_fraction(rmse_floor, "rmse_floor [K]", upper=math.inf),
+        ua_range=_optional_range(ua_range, "ua_range", "W/K"),
+        capacity_range=_optional_range(capacity_range, "capacity_range", "J/K"),
+        slowest_tau_range=_optional_range(slowest_tau_range, "slowest_tau_range", "s"),
+        check_data=check_flag(check_data, "check_data"),
+        data_overrides=check_mapping(data_overrides, "data_overrides", "{'T_zon': (-10, 90)}")
+        or None,
     )
     flags = [flag for check in _CHECKS for flag in check(ctx)]
     reasons = tuple(f.message for f in flags if f.severe)

@@ -142,3 +142,14 @@ def test_kpis_in_the_fit_report(zon_fit):
     assert hlc["value"] == pytest.approx(1 / zon_fit.params["R_wal"])
     assert hlc["ci95"][0] < hlc["value"] < hlc["ci95"][1]
     assert len(doc["kpis"]["time_constants"]) == 1
+
+
+def test_bad_level_or_uncertainty_is_refused(zon_fit, zonwal_fit):
+    """A level of 2 gave every indicator an undefined interval (written as None) silently; a
+    string for the uncertainty raised AttributeError; another fit's was used as this one's."""
+    with pytest.raises(ValueError, match="level must be a confidence level"):
+        kpis(zon_fit, level=2.0)
+    with pytest.raises(TypeError, match="uncertainty must be an Uncertainty"):
+        kpis(zon_fit, "wide")
+    with pytest.raises(ValueError, match="uncertainty is of a fit"):
+        kpis(zon_fit, uncertainty(zonwal_fit))

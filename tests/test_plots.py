@@ -175,3 +175,70 @@ def test_save_plots_writes_every_figure(fitted, tmp_path):
     }
     for p in paths:
         assert p.exists() and p.stat().st_size > 1000
+
+
+@pytest.mark.parametrize(
+    ("plot", "words"),
+    [
+        (lambda res, v: plot_fit(res), ["validation must be a Validation", "FitResult"]),
+        (lambda res, v: plot_residuals(None), ["validation must be a Validation"]),
+        (lambda res, v: plot_residuals_vs_inputs(res), ["validation must be a Validation"]),
+        (lambda res, v: plot_confidence_intervals(res), ["uncertainty must be an Uncertainty"]),
+        (lambda res, v: plot_prediction(v), ["must be a PredictionPerformance"]),
+        (lambda res, v: plot_multistart(None), ["result must be a fit"]),
+    ],
+)
+def test_plots_of_the_wrong_object_say_what_they_take(fitted, plot, words):
+    res, _, v = fitted
+    with pytest.raises(TypeError) as err:
+        plot(res, v)
+    for word in words:
+        assert word in str(err.value), str(err.value)
+
+
+def test_plot_options_are_checked(fitted):
+    """Unknown inputs were dropped silently (a name given as a string was read letter by letter:
+    no input panel); which='bogus' or 'cross' without validation data said 'no data';
+    max_rel_ci of -1 or NaN drew nonsense limits."""
+    res, _, v = fitted
+    with pytest.raises(ValueError, match="'T_out' are not inputs of Zon; its inputs: T_amb"):
+        plot_fit(v, inputs=["T_out"])
+    fig = plot_fit(v, inputs="T_amb")
+    assert [ax.get_ylabel() for ax in fig.axes] == ["T_zon [°C]", "temperature [°C]"]
+    with pytest.raises(ValueError, match="which must be 'auto', 'cross' or 'both'"):
+        plot_residuals_vs_inputs(v, which="bogus")
+    with pytest.raises(ValueError, match="which='cross': this Validation holds no validation data"):
+        plot_residuals_vs_inputs(validate(res, method="exact"), which="cross")
+    unc = uncertainty(res)
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(ValueError, match="max_rel_ci"):
+            plot_confidence_intervals(unc, max_rel_ci=bad)
+
+
+def test_residual_band_with_output_gaps(fitted):
+    """An output gap in the identification data (NaN residuals) made the ±2σ band NaN: not
+    drawn at all."""
+    _, _, v = fitted
+    y = v.y_auto.copy()
+    y[10:13, 0] = np.nan
+    gappy = dataclasses.replace(v, y_auto=y)
+    ax = plot_residuals(gappy).axes[0]
+    band = [line.get_ydata()[0] for line in ax.lines[-3:-1]]
+    e = v.residuals_auto[:, 0]
+    expected = 2 * np.std(np.delete(e, [10, 11, 12]))
+    assert band == pytest.approx([-expected, expected], rel=1e-12)
+
+
+def test_save_plots_checks_its_options_before_writing(fitted, tmp_path):
+    """A format matplotlib does not write failed at the first figure (matplotlib's message)
+    after creating the folder; a Dataset in the validation slot raised AttributeError."""
+    res, valid, v = fitted
+    with pytest.raises(ValueError, match="fmt must be an image format"):
+        save_plots(res, v, tmp_path / "a", fmt="bogus")
+    assert not (tmp_path / "a").exists()
+    with pytest.raises(ValueError, match="dpi"):
+        save_plots(res, v, tmp_path / "b", dpi=0)
+    with pytest.raises(TypeError, match="validation must be a Validation"):
+        save_plots(res, valid, tmp_path / "c")
+    with pytest.raises(TypeError, match="validation must be a Validation"):
+        fit_report(res, valid, validation="cached")

@@ -128,3 +128,15 @@ def test_horizons_are_checked():
         prediction_performance(res, horizons=[0, 3])
     with pytest.raises(ValueError, match="horizons"):
         prediction_performance(res, horizons=[N])
+
+
+def test_horizons_must_be_whole_samples():
+    """A horizon of 1.5 samples was silently cut to 1; a string or a single number raised
+    int()'s or iteration's message (a single number is now one horizon)."""
+    data = _data("ZonWal", TRUTH, N, sigma=0.1)
+    res = _result_at("ZonWal", data, TRUTH)
+    with pytest.raises(TypeError, match="horizons"):
+        prediction_performance(res, horizons=[1.5])
+    with pytest.raises(TypeError, match="horizons"):
+        prediction_performance(res, horizons="6")
+    assert list(prediction_performance(res, horizons=6).horizons) == [6]

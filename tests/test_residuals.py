@@ -155,3 +155,21 @@ def test_bad_input_is_refused():
     for alpha in (0.0, 1.0, -0.05, 5, float("nan"), "0.05", True):
         with pytest.raises(ValueError, match="alpha must be a significance level"):
             analyse_residuals(e, alpha=alpha)
+
+
+def test_the_single_tests_check_alpha_and_lags_too():
+    """ljung_box and cumulated_periodogram took alpha = 2 or NaN and answered 'not white';
+    lags of 1.5 were cut to 1, a string raised int()'s message."""
+    e = np.random.default_rng(0).standard_normal(40)
+    for test in (ljung_box, cumulated_periodogram):
+        for alpha in (2.0, float("nan")):
+            with pytest.raises(ValueError, match="alpha must be a significance level"):
+                test(e, alpha=alpha)
+    with pytest.raises(TypeError, match="lags must be an integer"):
+        ljung_box(e, lags=1.5)
+    with pytest.raises(TypeError, match="max_lag must be an integer"):
+        autocorrelation(e, "5")
+    with pytest.raises(TypeError, match="max_lag must be an integer"):
+        analyse_residuals(e, max_lag=2.5)
+    with pytest.raises(TypeError, match="residuals must be numbers"):
+        analyse_residuals("residuals")

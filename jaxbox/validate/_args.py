@@ -1,6 +1,9 @@
 """Argument checks of the validation API: each refuses a bad argument early, by its name, with
 what to pass instead (a ``TypeError`` for the wrong kind of object, a ``ValueError`` for a value
-out of range)."""
+out of range).
+
+A leaf: it imports no module of :mod:`jaxbox.validate` (they all import it). Checks that need
+the validation classes live in :mod:`jaxbox.validate._own`."""
 
 from __future__ import annotations
 

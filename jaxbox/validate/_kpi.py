@@ -263,15 +263,20 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
         :class:`Kpis` (definitions in :mod:`jaxbox.validate._kpi`).
 
     Raises:
-        ValueError: the fit has no finite optimum, or no degrees of freedom are left for the
-            covariance.
+        TypeError: ``result`` is not a FitResult or ``uncertainty`` not an Uncertainty.
+        ValueError: the fit has no finite optimum, no degrees of freedom are left for the
+            covariance, ``level`` is not in (0, 1), or ``uncertainty`` is of another fit.
     """
     from scipy import stats
 
+    from ._args import check_fit, check_level
+    from ._own import check_own
     from ._uncertainty import uncertainty as _uncertainty
 
     require_x64()
-    problem = result.problem
+    problem = check_fit(result).problem
+    uncertainty = check_own(result, uncertainty, None)[0]
+    level = None if level is None else check_level(level)
     model = problem.model
     if uncertainty is None:
         uncertainty = _uncertainty(result)

@@ -16,7 +16,13 @@ def rmse(y_sim, y_meas) -> np.ndarray:
     A missing measurement (NaN, an output gap) is left out: the mean runs over the measured
     samples of each column (``nan`` for a column without any).
     """
-    e = np.asarray(y_sim, dtype=float) - np.asarray(y_meas, dtype=float)
+    y_sim, y_meas = np.asarray(y_sim, dtype=float), np.asarray(y_meas, dtype=float)
+    if y_sim.shape != y_meas.shape:
+        raise ValueError(
+            f"y_sim has shape {y_sim.shape} but y_meas {y_meas.shape}; give one simulated value "
+            "per measured one (samples × outputs)"
+        )
+    e = y_sim - y_meas
     if e.ndim == 1:
         e = e[:, None]
     seen = np.isfinite(e)
@@ -30,4 +36,6 @@ def simulation_error(rmse_per_output: Sequence[float], weights: Sequence[float])
     """SE = Σ q_j RMSE_j [K], the reference study's weighted simulation error."""
     r = np.asarray(rmse_per_output, dtype=float)
     q = np.asarray(weights, dtype=float)
+    if r.shape != q.shape:
+        raise ValueError(f"{r.size} RMSE values for {q.size} weights; give one weight per output")
     return float(np.sum(q * r))

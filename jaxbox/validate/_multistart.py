@@ -150,6 +150,14 @@ def multistart_view(result, *, rtol: float = 1e-4, atol: float = 1e-12) -> Multi
     Returns:
         :class:`MultistartView`.
     """
+    from ._args import check_fraction
+
+    if not hasattr(result, "starts"):
+        raise TypeError(
+            f"result must be a fit (the result of jaxbox.fit_model), got {type(result).__name__}"
+        )
+    rtol = check_fraction(rtol, "rtol (relative cost tolerance)", upper=float("inf"))
+    atol = check_fraction(atol, "atol (absolute cost tolerance) [K²]", upper=float("inf"))
     st = result.starts
     cost = np.asarray(st.cost, dtype=float)
     usable = np.asarray(st.usable, dtype=bool)

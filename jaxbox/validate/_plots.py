@@ -66,6 +66,34 @@ def _group_inputs(names):
     return list(groups.items())
 
 
+def _validation(obj):
+    """``obj`` when it is a :class:`~jaxbox.validate.Validation`; a ``TypeError`` otherwise."""
+    from ._postsim import Validation
+
+    if isinstance(obj, Validation):
+        return obj
+    raise TypeError(
+        f"validation must be a Validation, got {type(obj).__name__}; use "
+        "validate(result, valid) first"
+    )
+
+
+def _shown_inputs(v, inputs) -> list[str]:
+    """The inputs of ``v`` to draw: all by default, else ``inputs`` (one name or several),
+    each checked to be an input of the model."""
+    names = list(v.inputs)
+    if inputs is None:
+        return names
+    wanted = [inputs] if isinstance(inputs, str) else list(inputs)
+    unknown = [n for n in wanted if n not in names]
+    if unknown:
+        raise ValueError(
+            f"inputs {', '.join(map(repr, unknown))} are not inputs of {v.model}; its inputs: "
+            f"{', '.join(names)}"
+        )
+    return wanted
+
+
 def _analysis(obj, which="auto"):
     """A ResidualAnalysis from itself or from a Validation."""
     if hasattr(obj, "outputs") and hasattr(obj, "alpha") and hasattr(obj, "white"):
@@ -86,10 +114,11 @@ def plot_fit(validation, *, inputs=None, title: str | None = None):
         inputs: input names to show (default: every model input), grouped by unit.
         title: figure title (default: model name and errors).
     """
-    v = validation
+    v = _validation(validation)
     names_in = list(v.inputs)
-    show = [n for n in (inputs if inputs is not None else names_in) if n in names_in]
-    groups = _group_inputs(show) if v.u_auto is not None else []
+    show = [names_in.index(n) for n in _shown_inputs(v, inputs)]
+    groups = _group_inputs([names_in[i] for i in show]) if v.u_auto is not None else []
+    groups = [(label, [show[i] for i in idx]) for label, idx in groups]
     rows = len(v.outputs) + len(groups)
     fig, axes = _figure(rows, 1, height=2.3, sharex=True)
     axes = axes[:, 0]
@@ -129,8 +158,9 @@ def plot_fit(validation, *, inputs=None, title: str | None = None):
 
 
 def plot_residuals(validation, *, title: str | None = None):
-    """Residuals (measured − simulated) over time, identification and validation data."""
-    v = validation
+    """Residuals (measured − simulated) over time, identification and validation data (the
+    dashed band ±2 σ of the measured identification residuals; output gaps left out)."""
+    v = _validation(validation)
     fig, axes = _figure(len(v.outputs), 1, height=2.4, sharex=True)
     axes = axes[:, 0]
     ta = _times(v.index_auto)
@@ -141,7 +171,8 @@ def plot_residuals(validation, *, title: str | None = None):
         ax.plot(ta, ea[:, j], color=_AUTO, lw=0.8, label="identification")
         if ec is not None:
             ax.plot(_times(v.index_cross), ec[:, j], color=_CROSS, lw=0.8, label="validation")
-        s = float(np.std(ea[:, j]))
+        seen = np.isfinite(ea[:, j])
+        s = float(np.std(ea[seen, j])) if seen.any() else 0.0
         for level in (-2 * s, 2 * s):
             ax.axhline(level, color="0.5", lw=0.6, ls="--")
         ax.axhline(0.0, color="0.2", lw=0.6)
@@ -160,7 +191,14 @@ def plot_residuals_vs_inputs(validation, *, which: str = "both", title: str | No
         validation: a :class:`~jaxbox.validate.Validation`.
         which: ``"auto"``, ``"cross"`` or ``"both"`` periods.
     """
-    v = validation
+    v = _validation(validation)
+    if which not in ("auto", "cross", "both"):
+        raise ValueError(f"which must be 'auto', 'cross' or 'both', got {which!r}")
+    if which == "cross" and v.residuals_cross is None:
+        raise ValueError(
+            "no data for which='cross': this Validation holds no validation data; call "
+            "validate(result, valid) with validation data"
+        )
     if v.u_auto is None or not v.inputs:
         raise ValueError("this Validation holds no inputs; recompute it with validate()")
     periods = []
@@ -277,6 +315,16 @@ def plot_confidence_intervals(uncertainty, *, max_rel_ci: float | None = MAX_REL
     Parameters that are not identifiable are marked in red without a bar; those on a poorly
     identifiable direction are drawn in red.
     """
+    from ._args import check_positive
+    from ._uncertainty import Uncertainty
+
+    if not isinstance(uncertainty, Uncertainty):
+        raise TypeError(
+            f"uncertainty must be an Uncertainty, got {type(uncertainty).__name__}; use "
+            "uncertainty(result) first"
+        )
+    if max_rel_ci is not None:
+        max_rel_ci = check_positive(max_rel_ci, "max_rel_ci")
     u = uncertainty
     n = len(u.names)
     fig, axes = _figure(1, 1, width=8.0, height=0.45 * n + 1.6)
@@ -364,6 +412,13 @@ def plot_multistart(view, *, title: str | None = None):
 
 def plot_prediction(performance, *, title: str | None = None):
     """k-step-ahead prediction error against the horizon, with the simulation error."""
+    from ._prediction import PredictionPerformance
+
+    if not isinstance(performance, PredictionPerformance):
+        raise TypeError(
+            f"performance must be a PredictionPerformance, got {type(performance).__name__}; "
+            "use prediction_performance(result, valid) first"
+        )
     pf = performance
     fig, axes = _figure(1, 1, width=7.0, height=3.6)
     ax = axes[0, 0]

@@ -131,14 +131,14 @@ def _separated(e, u, index, step, max_lag):
     """Residuals (and inputs) of data in segments with ``L`` rows of NaN between segments
     (``L`` the largest lag of the residual tests), so that no lagged pair spans a cut."""
     from ..data._gaps import segment_slices
-    from ._residuals import default_max_lag
+    from ._residuals import _lags, default_max_lag
 
     if step is None or index is None:
         return e, u
     pieces = segment_slices(index, step)
     if len(pieces) == 1:
         return e, u
-    lag = default_max_lag(len(e)) if max_lag is None else int(max_lag)
+    lag = _lags(max_lag, "max_lag", default_max_lag(len(e)))
     parts_e, parts_u = [], []
     for k, (a, b) in enumerate(pieces):
         if k:

@@ -109,6 +109,19 @@ def _discrete(model, params, dt: float):
     return (*discretize_foh_numpy(A, B, dt), C, D, x0)
 
 
+def _horizons(horizons) -> list[int]:
+    """``horizons`` as whole numbers of samples ≥ 1 (one number is one horizon)."""
+    from ..data._args import check_count
+
+    if isinstance(horizons, int | np.integer) and not isinstance(horizons, bool):
+        horizons = [horizons]
+    if isinstance(horizons, str) or not hasattr(horizons, "__iter__"):
+        raise TypeError(
+            f"horizons must be whole numbers of samples, e.g. [1, 6, 24]; got {horizons!r}"
+        )
+    return [check_count(k, "each of horizons (whole samples)") for k in horizons]
+
+
 def prediction_performance(
     result,
     valid=None,
@@ -152,7 +165,8 @@ def prediction_performance(
             )
     u, y, n_id = joined_arrays(result, valid)
     n_all = len(u)
-    ks = np.asarray(sorted(set(DEFAULT_HORIZONS if horizons is None else horizons)), dtype=int)
+    ks = np.asarray(sorted(set(DEFAULT_HORIZONS if horizons is None else _horizons(horizons))))
+    ks = ks.astype(int)
     shortest = min(n_id, n_all - n_id) if valid is not None else n_id
     if horizons is None:
         ks = ks[ks < shortest]

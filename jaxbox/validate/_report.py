@@ -35,6 +35,19 @@ def _valid_dataset(validation):
     return Dataset.from_arrays(validation.index_cross, cols)
 
 
+def _image_format(fmt) -> str:
+    """``fmt`` checked to be an image format that matplotlib writes (``png``, ``pdf``…)."""
+    from matplotlib.figure import Figure
+
+    formats = Figure().canvas.get_supported_filetypes()
+    if not isinstance(fmt, str) or fmt.lower().lstrip(".") not in formats:
+        raise ValueError(
+            f"fmt must be an image format such as 'png', 'pdf' or 'svg' (one of "
+            f"{', '.join(sorted(formats))}), got {fmt!r}"
+        )
+    return fmt.lower().lstrip(".")
+
+
 def fit_report(
     result,
     valid=None,
@@ -70,13 +83,21 @@ def fit_report(
         ``prediction`` and ``kpis`` (HLC, solar aperture and time constants with intervals,
         see :func:`~jaxbox.validate.kpis`; ``None`` without a covariance).
     """
+    from ..data._args import check_mapping
+    from ._args import check_dataset, check_fit
     from ._kpi import kpis
     from ._multistart import multistart_view
+    from ._own import check_own
     from ._postsim import validate
     from ._prediction import prediction_performance
     from ._uncertainty import uncertainty as _uncertainty
     from ._verdict import check_validity
 
+    result = check_fit(result)
+    uncertainty, validation = check_own(result, uncertainty, validation)
+    if valid is not None:
+        check_dataset(valid, "valid (the validation data)")
+    verdict_options = check_mapping(verdict_options, "verdict_options", "{'max_rmse': 3.0}")
     if validation is None:
         validation = validate(result, valid)
     if uncertainty is None:
@@ -190,10 +211,18 @@ def save_plots(
         ``autocorrelation_validation`` with validation data).
     """
     from . import _plots
+    from ._args import check_dataset, check_fit, check_positive
+    from ._own import check_own
     from ._postsim import validate
     from ._prediction import prediction_performance
     from ._uncertainty import uncertainty as _uncertainty
 
+    result = check_fit(result)
+    uncertainty, validation = check_own(result, uncertainty, validation)
+    if valid is not None:
+        check_dataset(valid, "valid (the validation data)")
+    fmt = _image_format(fmt)
+    dpi = check_positive(dpi, "dpi (dots per inch)")
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     if validation is None:

@@ -50,9 +50,33 @@ __all__ = [
 ]
 
 
+def _floats(e, what: str) -> np.ndarray:
+    """``e`` as a float array; a ``TypeError`` naming ``what`` when it holds no numbers."""
+    try:
+        return np.asarray(e, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{what} must be numbers (an array), got {type(e).__name__}") from None
+
+
+def _lags(value, what: str, default: int) -> int:
+    """A number of lags: ``default`` for None, else a whole number (not 1.5, not a string)."""
+    from ..data._args import check_count
+
+    return default if value is None else check_count(value, what, minimum=0)
+
+
+def _alpha(alpha) -> float:
+    """A significance level in (0, 1)."""
+    if isinstance(alpha, bool) or not isinstance(alpha, int | float | np.floating):
+        raise ValueError(f"alpha must be a significance level in (0, 1), e.g. 0.05; got {alpha!r}")
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha must be a significance level in (0, 1), e.g. 0.05; got {alpha}")
+    return float(alpha)
+
+
 def _vector(e, what="residuals") -> np.ndarray:
     """A 1-D float series; NaN marks a missing sample (a gap), infinities are refused."""
-    e = np.asarray(e, dtype=float)
+    e = _floats(e, what)
     if e.ndim != 1:
         raise ValueError(f"{what} must be one series (1-D), got shape {e.shape}")
     if np.isinf(e).any():
@@ -95,7 +119,7 @@ def autocorrelation(e, max_lag: int | None = None) -> tuple[np.ndarray, np.ndarr
     """
     e = _vector(e)
     n = e.size
-    L = default_max_lag(n) if max_lag is None else int(max_lag)
+    L = _lags(max_lag, "max_lag", default_max_lag(n))
     if not 0 <= L < n:
         raise ValueError(f"max_lag must be in [0, {n - 1}] for {n} samples, got {max_lag}")
     d, seen = _centred(e)
@@ -127,7 +151,7 @@ def cross_correlation(e, u, max_lag: int | None = None) -> tuple[np.ndarray, np.
     if u.size != e.size:
         raise ValueError(f"residuals ({e.size}) and input ({u.size}) differ in length")
     n = e.size
-    L = default_max_lag(n) if max_lag is None else int(max_lag)
+    L = _lags(max_lag, "max_lag", default_max_lag(n))
     if not 0 <= L < n:
         raise ValueError(f"max_lag must be in [0, {n - 1}] for {n} samples, got {max_lag}")
     de, _ = _centred(e)  # missing samples (NaN) count as 0 after centring: no pair
@@ -182,8 +206,9 @@ def ljung_box(e, lags: int | None = None, alpha: float = 0.05) -> LjungBox:
     is the number of measured samples.
     """
     e = _vector(e)
+    alpha = _alpha(alpha)
     n = int(np.isfinite(e).sum())
-    h = default_lb_lags(n) if lags is None else int(lags)
+    h = _lags(lags, "lags", default_lb_lags(n))
     if not 1 <= h < n:
         raise ValueError(f"lags must be in [1, {n - 1}] for {n} samples, got {lags}")
     _, r = autocorrelation(e, h)
@@ -244,6 +269,7 @@ def cumulated_periodogram(e, alpha: float = 0.05) -> CumulatedPeriodogram:
     periodogram of the amplitude-modulated series; a few percent of gaps barely change it.
     """
     e = _vector(e)
+    alpha = _alpha(alpha)
     n = e.size
     d, _ = _centred(e)
     q = (n - 1) // 2  # Fourier frequencies strictly between 0 and Nyquist
@@ -423,15 +449,12 @@ def analyse_residuals(
     Returns:
         :class:`ResidualAnalysis`.
     """
-    e = np.asarray(residuals, dtype=float)
+    e = _floats(residuals, "residuals")
     if e.ndim == 1:
         e = e[:, None]
     if e.ndim != 2:
         raise ValueError(f"residuals must have shape [N] or [N, outputs], got {e.shape}")
-    if isinstance(alpha, bool) or not isinstance(alpha, int | float | np.floating):
-        raise ValueError(f"alpha must be a significance level in (0, 1), e.g. 0.05; got {alpha!r}")
-    if not 0.0 < alpha < 1.0:
-        raise ValueError(f"alpha must be a significance level in (0, 1), e.g. 0.05; got {alpha}")
+    alpha = _alpha(alpha)
     n, p = e.shape
     if output_names is None:
         output_names = [f"y{j}" for j in range(p)]
@@ -441,7 +464,7 @@ def analyse_residuals(
     if inputs is None:
         u = np.zeros((n, 0))
     else:
-        u = np.asarray(inputs, dtype=float)
+        u = _floats(inputs, "inputs")
         if u.ndim == 1:
             u = u[:, None]
         if u.shape[0] != n:
@@ -451,7 +474,7 @@ def analyse_residuals(
     )
     if len(in_names) != u.shape[1]:
         raise ValueError(f"{len(in_names)} input names for {u.shape[1]} input columns")
-    L = default_max_lag(n) if max_lag is None else int(max_lag)
+    L = _lags(max_lag, "max_lag", default_max_lag(n))
     measured = int(np.isfinite(e).all(axis=1).sum()) if e.size else n
     band = float(stats.norm.ppf(1 - alpha / 2) / np.sqrt(max(measured, 1)))
     outs = []

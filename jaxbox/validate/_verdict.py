@@ -54,6 +54,7 @@ from ._args import (
     check_positive,
     check_range,
 )
+from ._own import check_own
 from ._residuals import ResidualAnalysis
 
 __all__ = [
@@ -789,29 +790,6 @@ def _optional_range(value, what: str, unit: str):
     return None if value is None else check_range(value, what, unit, lower=0.0)
 
 
-def _own(result, uncertainty, validation):
-    """``(uncertainty, validation)`` checked to be those of ``result`` (or None)."""
-    from ._postsim import Validation
-    from ._uncertainty import Uncertainty
-
-    check_instance(uncertainty, Uncertainty, "uncertainty", "jaxbox.validate.uncertainty")
-    check_instance(validation, Validation, "validation", "jaxbox.validate.validate")
-    if uncertainty is not None and tuple(uncertainty.free) != tuple(result.free):
-        raise ValueError(
-            f"uncertainty is of a fit with the free parameters {', '.join(uncertainty.free)}, "
-            f"not of this one ({', '.join(result.free)}); pass uncertainty(result)"
-        )
-    if validation is not None and (
-        validation.model != result.model.name or len(validation.y_auto) != len(result.data)
-    ):
-        raise ValueError(
-            f"validation is of another fit (model {validation.model}, {len(validation.y_auto)} "
-            f"identification samples), not of this one (model {result.model.name}, "
-            f"{len(result.data)} samples); pass validate(result, valid)"
-        )
-    return uncertainty, validation
-
-
 def check_validity(
     result,
     uncertainty=None,
@@ -878,7 +856,7 @@ def check_validity(
             or ``validation`` of another fit.
     """
     result = check_fit(result, needs=_VERDICT_NEEDS)
-    uncertainty, validation = _own(result, uncertainty, validation)
+    uncertainty, validation = check_own(result, uncertainty, validation)
     ctx = _judged(
         result,
         uncertainty,

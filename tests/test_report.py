@@ -52,3 +52,27 @@ def test_report_without_a_valid_model(tmp_path):
     )
     text = greybox_report(GreyBox(data))
     assert "No valid model" in text
+
+
+def test_hostile_report_arguments_are_refused_by_name(greybox, tmp_path):
+    """None or a Dataset for the GreyBox, a string for the selection and a number for the
+    title raised AttributeError or were printed; a folder as the path failed in os.replace
+    naming a temporary file; a selection naming a case of another GreyBox raised KeyError."""
+    from jaxbox.select import Selection
+
+    with pytest.raises(TypeError, match="gb must be a jaxbox.select.GreyBox, got NoneType"):
+        greybox_report(None)
+    with pytest.raises(TypeError, match="gb must be a jaxbox.select.GreyBox, got Dataset"):
+        greybox_report(greybox.data)
+    with pytest.raises(TypeError, match="selection must be a Selection"):
+        greybox_report(greybox, "Zon")
+    with pytest.raises(TypeError, match="title must be text"):
+        greybox_report(greybox, title=5)
+    other = Selection(greybox, "ZonWal", ("ZonWal",), "done", (), 0.0)
+    with pytest.raises(ValueError, match="accepted 'ZonWal', which is not a fitted case"):
+        greybox_report(greybox, other)
+    with pytest.raises(IsADirectoryError, match="is a folder; give a file name in it"):
+        write_report(greybox, tmp_path)
+    with pytest.raises(TypeError, match="path must be a file path"):
+        write_report(greybox, None)
+    assert list(tmp_path.iterdir()) == []  # nothing written, no temporary file left

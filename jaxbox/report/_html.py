@@ -12,6 +12,7 @@ import html
 import io
 import math
 from datetime import datetime
+from os import PathLike
 from pathlib import Path
 
 from .._io import atomic_write_text
@@ -245,9 +246,27 @@ def greybox_report(gb, selection=None, *, title: str | None = None) -> str:
             the best valid case is shown.
         title: page title (default from the GreyBox's name).
     """
+    from ..select import GreyBox, Selection
+
+    if not isinstance(gb, GreyBox):
+        raise TypeError(f"gb must be a jaxbox.select.GreyBox, got {type(gb).__name__}")
+    if selection is not None and not isinstance(selection, Selection):
+        raise TypeError(
+            "selection must be a Selection (from GreyBox.select or GreyBox.search) or None, "
+            f"got {type(selection).__name__}"
+        )
+    if title is not None and not isinstance(title, str):
+        raise TypeError(f"title must be text or None, got {type(title).__name__}")
     accepted = None
     if selection is not None:
         accepted = selection.accepted
+        case = gb.cases.get(accepted) if accepted is not None else None
+        if accepted is not None and (case is None or not case.done):
+            raise ValueError(
+                f"the selection accepted {accepted!r}, which is not a fitted case of this "
+                f"GreyBox ({', '.join(c.name for c in gb.cases.values() if c.done) or 'none'}); "
+                "pass the selection made on this GreyBox"
+            )
     else:
         best = gb.best()
         accepted = None if best is None else best.name
@@ -269,6 +288,34 @@ def greybox_report(gb, selection=None, *, title: str | None = None) -> str:
     return "\n".join(parts)
 
 
+def _report_path(path) -> Path:
+    """``path`` as a file path to write (its folder is created when missing)."""
+    if not isinstance(path, str | PathLike):
+        raise TypeError(f"path must be a file path such as 'report.html', got {path!r}")
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(
+            f"path {str(path)!r} is a folder; give a file name in it such as "
+            f"{str(path / 'report.html')!r}"
+        )
+    return path
+
+
 def write_report(gb, path, selection=None, **kw) -> Path:
-    """Write :func:`greybox_report` to ``path`` atomically; returns the path."""
-    return atomic_write_text(Path(path), greybox_report(gb, selection, **kw))
+    """Write :func:`greybox_report` to ``path`` atomically (the whole page or nothing: a failure
+    leaves no partial file and an earlier report in place); returns the path. A missing folder
+    is created.
+
+    Raises:
+        TypeError: ``path`` is not a path, or an argument of :func:`greybox_report` is wrong.
+        IsADirectoryError: ``path`` is a folder.
+        OSError: the file cannot be written there (the message names the path).
+    """
+    path = _report_path(path)
+    text = greybox_report(gb, selection, **kw)
+    try:
+        return atomic_write_text(path, text)
+    except OSError as err:
+        raise type(err)(
+            err.errno, f"cannot write the report to {str(path)!r}: {err.strerror}"
+        ) from None

@@ -173,3 +173,35 @@ def test_the_single_tests_check_alpha_and_lags_too():
         analyse_residuals(e, max_lag=2.5)
     with pytest.raises(TypeError, match="residuals must be numbers"):
         analyse_residuals("residuals")
+
+
+def test_a_perfect_fit_is_white_by_definition():
+    """All-zero residuals (a perfect fit) gave nan test statistics, p-values and correlations
+    (0 / 0), judged 'not white'; now white by definition with a note saying why."""
+    rng = np.random.default_rng(3)
+    e = np.zeros((60, 2))
+    e[:, 1] = rng.standard_normal(60)  # a noisy output beside it keeps its ordinary tests
+    e[7, 0] = np.nan  # an output gap changes nothing
+    u = rng.standard_normal((60, 1))
+    a = analyse_residuals(e, u, output_names=["T_zon", "T_int"], input_names=["T_amb"])
+    o = a["T_zon"]
+    assert o.white and a["T_int"].white and a.white
+    assert (o.ljung_box.statistic, o.ljung_box.p_value) == (0.0, 1.0)
+    assert (o.periodogram.statistic, o.periodogram.p_value) == (0.0, 1.0)
+    assert o.periodogram.critical > 0
+    np.testing.assert_array_equal(o.periodogram.cumulated, o.periodogram.expected)
+    np.testing.assert_array_equal(o.acf, np.r_[1.0, np.zeros(o.lags.size - 1)])
+    np.testing.assert_array_equal(o.ccf["T_amb"], np.zeros(o.ccf_lags.size))
+    assert o.acf_outside() == 0.0 and o.ccf_outside() == {"T_amb": 0.0}
+    assert "perfect fit" in o.note and a["T_int"].note == ""
+    assert o.stats["std"] == 0.0 and o.stats["skewness"] == 0.0 and o.stats["kurtosis"] == 0.0
+    assert o.stats["normality_p"] == 1.0
+    d = a.to_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["T_zon"]["white"] and "perfect fit" in d["T_zon"]["note"]
+    assert "note" not in d["T_int"]
+    assert d["T_zon"]["acf"]["lag1"] == 0.0
+    # the single tests too; a constant offset has nothing left to test either (its mean shows it)
+    for series in (np.zeros(30), np.full(30, 0.4)):
+        assert ljung_box(series).white and cumulated_periodogram(series).white
+    assert "constant offset" in analyse_residuals(np.full(30, 0.4))[0].note

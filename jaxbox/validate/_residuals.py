@@ -95,6 +95,26 @@ def _centred(e) -> tuple[np.ndarray, np.ndarray]:
     return d, seen
 
 
+def _flat(e) -> bool:
+    """No fluctuation: every measured sample of ``e`` the same (all 0 for a perfect fit).
+
+    The tests below run on the series minus its mean, which is then 0 throughout: nothing is
+    left to correlate, so the series is white by definition (statistics 0, p-values 1) rather
+    than ``0 / 0``. A constant offset shows in :func:`residual_stats` (``mean``)."""
+    seen = e[np.isfinite(e)]
+    return bool(seen.size) and bool(np.all(seen == seen[0]))
+
+
+def _flat_note(e) -> str:
+    seen = e[np.isfinite(e)]
+    what = (
+        "every measured residual is 0 (a perfect fit)"
+        if not seen.any()
+        else f"every measured residual is {float(seen[0]):.6g} (a constant offset, no fluctuation)"
+    )
+    return f"{what}: white by definition (test statistics 0, p-values 1, correlations 0)"
+
+
 def default_max_lag(n: int) -> int:
     """Lags shown by default: ``min(48, N // 4)`` (two days of hourly data)."""
     return int(max(1, min(48, n // 4)))
@@ -203,7 +223,8 @@ def ljung_box(e, lags: int | None = None, alpha: float = 0.05) -> LjungBox:
     """Ljung–Box test on ``lags`` autocorrelations (default :func:`default_lb_lags`).
 
     With missing samples the autocorrelations are those of :func:`autocorrelation` and ``N``
-    is the number of measured samples.
+    is the number of measured samples. A series without fluctuation (all 0: a perfect fit) is
+    white by definition: ``Q = 0``, p-value 1.
     """
     e = _vector(e)
     alpha = _alpha(alpha)
@@ -211,6 +232,8 @@ def ljung_box(e, lags: int | None = None, alpha: float = 0.05) -> LjungBox:
     h = _lags(lags, "lags", default_lb_lags(n))
     if not 1 <= h < n:
         raise ValueError(f"lags must be in [1, {n - 1}] for {n} samples, got {lags}")
+    if _flat(e):  # nothing left to correlate: white by definition (was nan, 'not white')
+        return LjungBox(statistic=0.0, lags=h, p_value=1.0, alpha=alpha)
     _, r = autocorrelation(e, h)
     k = np.arange(1, h + 1)
     q = float(n * (n + 2) * np.sum(r[1:] ** 2 / (n - k)))
@@ -267,6 +290,8 @@ def cumulated_periodogram(e, alpha: float = 0.05) -> CumulatedPeriodogram:
 
     Missing samples (NaN) are set to the mean of the measured ones (0 after centring), the
     periodogram of the amplitude-modulated series; a few percent of gaps barely change it.
+    A series without fluctuation (all 0: a perfect fit) is white by definition: the cumulated
+    periodogram is the diagonal, ``D = 0``, p-value 1.
     """
     e = _vector(e)
     alpha = _alpha(alpha)
@@ -276,6 +301,9 @@ def cumulated_periodogram(e, alpha: float = 0.05) -> CumulatedPeriodogram:
     power = np.abs(np.fft.rfft(d)[1 : q + 1]) ** 2
     freq = np.arange(1, q + 1) / n
     total = float(power.sum())
+    if _flat(e) and q >= 2:  # nothing left: white by definition (was nan, 'not white')
+        diagonal = np.arange(1, q + 1) / q
+        return CumulatedPeriodogram(freq, diagonal, 0.0, _ks_critical(alpha, q - 1), 1.0, alpha)
     if total == 0 or q < 2:
         nan = float("nan")
         return CumulatedPeriodogram(freq, np.full(q, nan), nan, nan, nan, alpha)
@@ -298,7 +326,8 @@ def residual_stats(e) -> dict[str, float]:
     """Summary statistics of a residual series [unit of the output, K for temperatures].
 
     Keys: ``n``, ``mean``, ``std`` (N − 1), ``rmse``, ``mae``, ``min``, ``max``, ``max_abs``,
-    ``skewness``, ``kurtosis`` (excess), ``normality_p`` (Jarque–Bera); over the measured
+    ``skewness``, ``kurtosis`` (excess), ``normality_p`` (Jarque–Bera; for a series without
+    fluctuation, a perfect fit, skewness and kurtosis are 0 and normality_p 1); over the measured
     samples (NaN, an output gap, is left out; ``n`` counts the measured ones).
     """
     e = _vector(e)
@@ -313,9 +342,9 @@ def residual_stats(e) -> dict[str, float]:
         "min": float(e.min()),
         "max": float(e.max()),
         "max_abs": float(np.max(np.abs(e))),
-        "skewness": float("nan") if const else float(stats.skew(e)),
-        "kurtosis": float("nan") if const else float(stats.kurtosis(e)),
-        "normality_p": float("nan") if const else float(stats.jarque_bera(e).pvalue),
+        "skewness": 0.0 if const else float(stats.skew(e)),
+        "kurtosis": 0.0 if const else float(stats.kurtosis(e)),
+        "normality_p": 1.0 if const else float(stats.jarque_bera(e).pvalue),
     }
 
 
@@ -334,6 +363,8 @@ class OutputResiduals:
         ccf_lags: lags −L … L of the cross-correlations.
         ccf: input name -> cross-correlation ``corr(e_{t+k}, u_t)``.
         alpha: significance level.
+        note: why the tests are decided without data, or ``""``: a series without fluctuation
+            (all 0, a perfect fit) is white by definition, its correlations 0.
     """
 
     name: str
@@ -347,6 +378,7 @@ class OutputResiduals:
     ccf_lags: np.ndarray
     ccf: dict
     alpha: float
+    note: str = ""
 
     @property
     def white(self) -> bool:
@@ -388,6 +420,7 @@ class OutputResiduals:
                 "max_lag": int(self.lags[-1]),
             },
             "ccf": ccf,
+            **({"note": self.note} if self.note else {}),
         }
 
 
@@ -447,7 +480,9 @@ def analyse_residuals(
         alpha: significance level of the tests and bands.
 
     Returns:
-        :class:`ResidualAnalysis`.
+        :class:`ResidualAnalysis`. An output whose residuals do not fluctuate (all 0: a perfect
+        fit) is white by definition: test statistics 0, p-values 1, correlations 0 at every
+        lag but 0, with a ``note`` saying so (they were ``nan``, judged 'not white').
     """
     e = _floats(residuals, "residuals")
     if e.ndim == 1:
@@ -485,6 +520,11 @@ def analyse_residuals(
         ccf_lags = np.arange(-L, L + 1)
         for i, un in enumerate(in_names):
             ccf_lags, ccf[un] = cross_correlation(ej, u[:, i], L)
+        note = ""
+        if _flat(_vector(ej)):  # a perfect fit: correlations 0 / 0, defined as none (white)
+            note = _flat_note(ej)
+            r = np.where(lags == 0, 1.0, 0.0)
+            ccf = {un: np.zeros(ccf_lags.size) for un in ccf}
         outs.append(
             OutputResiduals(
                 name=name,
@@ -498,6 +538,7 @@ def analyse_residuals(
                 ccf_lags=ccf_lags,
                 ccf=ccf,
                 alpha=alpha,
+                note=note,
             )
         )
     return ResidualAnalysis(outputs=tuple(outs), inputs=in_names, alpha=alpha)

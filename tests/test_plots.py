@@ -242,3 +242,55 @@ def test_save_plots_checks_its_options_before_writing(fitted, tmp_path):
         save_plots(res, valid, tmp_path / "c")
     with pytest.raises(TypeError, match="validation must be a Validation"):
         fit_report(res, valid, validation="cached")
+
+
+def test_save_plots_replaces_earlier_plots_atomically(fitted, tmp_path, monkeypatch):
+    """Saving again into the same folder replaces the plots (other files are left alone, no
+    temporary file stays); a write that fails leaves the earlier plot whole (savefig wrote over
+    it in place)."""
+    import os
+
+    res, _, v = fitted
+    unc = uncertainty(res)
+    out = tmp_path / "plots"
+    out.mkdir()
+    (out / "fit.png").write_bytes(b"an earlier plot")
+    (out / "notes.txt").write_text("mine")
+    paths = save_plots(res, v, out, uncertainty=unc, dpi=50)
+    assert (out / "fit.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert save_plots(res, v, out, uncertainty=unc, dpi=50) == paths
+    assert sorted(p.name for p in out.iterdir()) == sorted([p.name for p in paths] + ["notes.txt"])
+    assert (out / "notes.txt").read_text() == "mine"
+
+    (out / "fit.png").write_bytes(b"an earlier plot")
+
+    def refused(src, dst):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(os, "replace", refused)
+    with pytest.raises(PermissionError):
+        save_plots(res, v, out, uncertainty=unc, dpi=50)
+    monkeypatch.undo()
+    assert (out / "fit.png").read_bytes() == b"an earlier plot"
+    assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_save_plots_refuses_a_file_where_a_folder_is_needed(fitted, tmp_path):
+    """A file given as the folder (or above it) raised FileExistsError from mkdir, naming no
+    argument; now refused by name before anything is computed. A folder named like a plot is
+    refused before any plot is written (it failed half-way, in savefig)."""
+    res, _, v = fitted
+    file = tmp_path / "plots.png"
+    file.write_bytes(b"not a folder")
+    with pytest.raises(NotADirectoryError, match="plots.png' is a file, not a folder"):
+        save_plots(res, v, file)
+    with pytest.raises(NotADirectoryError, match="lies under .*plots.png', which is a file"):
+        save_plots(res, v, file / "sub")
+    assert file.read_bytes() == b"not a folder"
+    with pytest.raises(TypeError, match="directory must be a folder path"):
+        save_plots(res, v, None)
+    blocked = tmp_path / "blocked"
+    (blocked / "residuals.png").mkdir(parents=True)
+    with pytest.raises(IsADirectoryError, match="folders named residuals.png where the plots go"):
+        save_plots(res, v, blocked, uncertainty=uncertainty(res), dpi=50)
+    assert [p.name for p in blocked.iterdir()] == ["residuals.png"]

@@ -9,12 +9,14 @@ are written as ``None`` so that the dict serialises to strict JSON.
 
 from __future__ import annotations
 
+import io
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 
-from .._io import to_jsonable
+from .._io import atomic_write_bytes, remove_stale_temporaries, to_jsonable
 
 __all__ = ["fit_report", "save_plots", "jsonable"]
 
@@ -46,6 +48,44 @@ def _image_format(fmt) -> str:
             f"{', '.join(sorted(formats))}), got {fmt!r}"
         )
     return fmt.lower().lstrip(".")
+
+
+def _plot_folder(directory) -> Path:
+    """``directory`` as the folder to write the plots into: a folder (existing or not) whose
+    nearest existing ancestor is a folder too. A file in the way is refused before anything is
+    computed or written (``mkdir`` raised ``FileExistsError`` naming no argument)."""
+    if isinstance(directory, bool) or not isinstance(directory, str | os.PathLike):
+        raise TypeError(f"directory must be a folder path such as 'plots', got {directory!r}")
+    out = Path(directory)
+    for folder in (out, *out.parents):
+        if folder.exists() or folder.is_symlink():
+            if not folder.is_dir():
+                where = "is" if folder == out else f"lies under {str(folder)!r}, which is"
+                raise NotADirectoryError(
+                    f"directory {str(out)!r} {where} a file, not a folder; give a folder for "
+                    "the plots (written into it as fit.png, residuals.png…)"
+                )
+            break
+    return out
+
+
+def _write_figures(out: Path, figures: dict, fmt: str, dpi: float) -> list[Path]:
+    """Each figure written to ``out/<name>.<fmt>`` atomically (rendered in memory, written to a
+    temporary file, then renamed over an earlier plot of the same name)."""
+    paths = [out / f"{name}.{fmt}" for name in figures]
+    taken = [p.name for p in paths if p.is_dir()]
+    if taken:
+        raise IsADirectoryError(
+            f"directory {str(out)!r} holds folders named {', '.join(taken)} where the plots go; "
+            "remove them or give another folder"
+        )
+    out.mkdir(parents=True, exist_ok=True)
+    remove_stale_temporaries(out)
+    for path, fig in zip(paths, figures.values(), strict=True):
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format=fmt, dpi=dpi)
+        atomic_write_bytes(path, buffer.getvalue())
+    return paths
 
 
 def fit_report(
@@ -195,6 +235,9 @@ def save_plots(
 ) -> list[Path]:
     """Write every validation plot of a fit into ``directory`` (created if needed).
 
+    Plots of an earlier call in the same folder are replaced, each atomically (the new image or
+    the old one, never half of one); other files there are left alone.
+
     Args:
         result: a :class:`~jaxbox.fit.FitResult`.
         validation: its :class:`~jaxbox.validate.Validation` (``None``: auto-validation only).
@@ -209,6 +252,12 @@ def save_plots(
         The paths written: ``fit``, ``residuals``, ``residuals_vs_inputs``, ``autocorrelation``,
         ``cross_correlation``, ``confidence_intervals``, ``multistart``, ``prediction`` (and
         ``autocorrelation_validation`` with validation data).
+
+    Raises:
+        NotADirectoryError: ``directory`` (or a folder above it) is a file (before anything is
+            computed).
+        IsADirectoryError: a folder in ``directory`` has the name of a plot (before any is
+            written).
     """
     from . import _plots
     from ._args import check_dataset, check_fit, check_positive
@@ -223,8 +272,7 @@ def save_plots(
         check_dataset(valid, "valid (the validation data)")
     fmt = _image_format(fmt)
     dpi = check_positive(dpi, "dpi (dots per inch)")
-    out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
+    out = _plot_folder(directory)
     if validation is None:
         validation = validate(result, valid)
     if uncertainty is None:
@@ -256,9 +304,4 @@ def save_plots(
         figures["prediction"] = _plots.plot_prediction(prediction_performance(result, valid))
     except ValueError:
         pass
-    paths = []
-    for name, fig in figures.items():
-        path = out / f"{name}.{fmt}"
-        fig.savefig(path, dpi=dpi)
-        paths.append(path)
-    return paths
+    return _write_figures(out, figures, fmt, dpi)

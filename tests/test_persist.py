@@ -176,6 +176,89 @@ def test_max_gap_stuck_hours_and_infinite_bounds_come_back(greybox, tmp_path):
     assert back["Zon"].result.params == gb["Zon"].result.params
 
 
+def test_a_custom_model_named_like_a_library_model_loads_as_itself(greybox, tmp_path):
+    """A custom model saved under a library model's name came back as the library model: a
+    two-state network named 'Zon' as the one-state Zon, a Zon with other bounds with the
+    library's bounds (and the fit's estimation problem with them)."""
+    two_states = get_model("ZonWal").renamed("Zon", "two states under the name Zon")
+    narrow = get_model("Zon").with_parameters({"R_wal": {"upper": 0.5}, "gA": {"default": 1.0}})
+    unbounded = get_model("Zon").with_parameters({"gA": {"upper": float("inf")}})
+    assert narrow.name == two_states.name == "Zon"
+    gb = GreyBox(greybox.data, name="custom")
+    gb.add_case(two_states, name="two states")
+    gb.identify(narrow, name="narrow", starts=1, max_steps=20)
+    gb.add_case(unbounded, name="unbounded")
+    gb.add_case("Zon", name="library")
+    back = load_greybox(gb.save(tmp_path / "gb"))
+    for name in ("two states", "narrow", "unbounded", "library"):
+        assert back[name].model == gb[name].model, name
+    assert back["two states"].model.states == ("T_zon", "T_wal")
+    assert back["unbounded"].model.parameter("gA").upper == float("inf")
+    assert back["narrow"].result.problem.bounds == gb["narrow"].result.problem.bounds
+    assert back["narrow"].result.params == gb["narrow"].result.params
+    # the model given on load must be the one saved; one of the same declaration is taken
+    with pytest.raises(PersistError, match=r"cases\[0\]: models\['Zon'\] is not the model"):
+        load_greybox(tmp_path / "gb", models={"Zon": get_model("Zon")})
+    one = GreyBox(greybox.data, name="narrow only")
+    one.add_case(narrow, name="narrow")
+    one.save(tmp_path / "one")
+    with pytest.raises(PersistError, match=r"\(R_wal upper 10.0 \(saved: 0.5\); gA default"):
+        load_greybox(tmp_path / "one", models={"Zon": get_model("Zon")})
+    described = narrow.renamed("Zon", "the same model, described otherwise")
+    assert load_greybox(tmp_path / "one", models={"Zon": described})["narrow"].model == described
+
+
+def test_every_library_model_and_grammar_structure_is_declared_faithfully():
+    """A model's declaration, through JSON, builds the same model again (a save refuses a
+    model that would not): every library model, structures of the grammar, a segmented model
+    (saved without its segments) and a model with a parameter share of a resistance."""
+    from jaxbox.models import Grammar, RCNetwork, library_models, random_structure
+    from jaxbox.models import components as c
+    from jaxbox.select._persist import declared_model, model_declaration
+
+    def again(model):
+        return declared_model(json.loads(json.dumps(model_declaration(model), allow_nan=False)))
+
+    for model in library_models():
+        assert again(model) == model, model.name
+    columns = ["T_zon", "T_amb", "T_bou", "Q_hea", "I_glo_hor", "I_s", "I_e", "I_w", "P_ele"]
+    grammar = Grammar.from_columns(columns)
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        model = random_structure(grammar, rng).build(grammar)
+        assert again(model) == model, model.name
+    zonwal = get_model("ZonWal")
+    assert again(zonwal.segmented(3)) == zonwal
+    shared = (
+        RCNetwork("Share", "a wall capacity inside R_wal")
+        .node("zon", output=True)
+        .node("wal")
+        .constant("gro")
+        .resistance("zon", "gro", "R_gro")
+        .resistance("zon", "wal", "R_wal", scale="0.5*fra_wal")
+        .resistance("wal", "T_amb", "R_wal", scale="1-fra_wal")
+        .heat("zon", "Q_hea")
+        .heat("zon", "I_glo_hor", gain="gA*0.25")
+        .parameter("fra_wal", lower=0.1, upper=0.9)
+        .add(c.sensor_offset)
+        .build({"C_wal": {"upper": 1e9}})
+    )
+    assert again(shared) == shared
+
+
+def test_a_save_of_an_earlier_version_finds_its_models_by_name(saved):
+    """Cases saved without their model's declaration load the library model of that name, or
+    the model given in models=."""
+    folder, doc = saved
+    for case in doc["cases"]:
+        del case["declaration"]
+    _rewrite(folder, doc)
+    back = load_greybox(folder)
+    assert back["Zon"].model == get_model("Zon") and back["Zon"].done
+    with pytest.raises(PersistError, match=r"cases\[0\]"):
+        load_greybox(folder, models={"Zon": get_model("ZonWal")})
+
+
 def test_load_names_a_models_entry_that_is_not_a_model(saved):
     folder, _ = saved
     with pytest.raises(TypeError, match=r"models\['Zon'\] must be an RCModel"):
@@ -283,6 +366,15 @@ def _set(doc, path, value):
         (["cases", 0, "seed"], -5, "cases[0].seed"),
         (["cases", 0, "starts"], 10**12, "cases[0].starts"),
         (["cases", 0, "free"], ["C_zon"], "cases[0].result.free"),
+        # the declaration of a case's model is checked and built again
+        (["cases", 0, "declaration"], [], "cases[0].declaration"),
+        (["cases", 0, "declaration", "name"], "Other", "cases[0].model is 'Zon'"),
+        (["cases", 0, "declaration", "network", "nodes", 0, "name"], 3, "nodes[0].name"),
+        (["cases", 0, "declaration", "network", "edges"], KeyError, "network.edges"),
+        (["cases", 0, "declaration", "network", "edges", 0, "R"], "R_x", "cases[0].declaration"),
+        (["cases", 0, "declaration", "parameters", 0, "lower"], "low", "parameters[0].lower"),
+        (["cases", 0, "declaration", "parameters", 0, "upper"], -1, "cases[0].declaration"),
+        (["cases", 0, "declaration", "network", "sources", 0, "gain"], [], "gain"),
     ],
 )
 def test_a_malformed_index_gives_one_error_naming_the_field(saved, path, value, field):

@@ -477,7 +477,12 @@ def load_greybox(path, *, models: Mapping[str, RCModel] | None = None) -> GreyBo
 
     Args:
         path: the folder (or the index file in it).
-        models: ``{name: RCModel}`` for cases whose model is not in the library.
+        models: ``{name: RCModel}``, rarely needed: a save holds the declaration of every
+            case's model and loads it as it was fitted (a custom model, even one named like a
+            library model, included). A model given here for a name must be that model (it may
+            differ in its descriptions only; a :class:`PersistError` names the differences);
+            saves of earlier versions, which hold no declarations, take it for a model not in
+            the library.
 
     The fits are rebuilt from the stored values (no refit): parameters, costs and every start's
     outcome are identical, so validating them again gives identical numbers. The validation and

@@ -2,10 +2,12 @@
 
 A saved GreyBox is a folder with
 
-* ``greybox.json`` — the index: name, periods, and per case its model (library name, or the full
-  declaration of a custom model is not stored: such cases need ``models=`` on load), guess and
-  its source, free/fixed/bounds, settings, parent, notes, the estimate (every parameter), the
-  best start and every start's status, and the validation errors and verdict as they were;
+* ``greybox.json`` — the index: name, periods, and per case its model (its name and its full
+  declaration: nodes, resistances, heat inputs and every parameter's unit, default and bounds,
+  so that a custom model — even one named like a library model, or a library model with other
+  bounds — loads as the model that was fitted), guess and its source, free/fixed/bounds,
+  settings, parent, notes, the estimate (every parameter), the best start and every start's
+  status, and the validation errors and verdict as they were;
 * ``arrays-<digest>.npz`` — the data (values, time stamps in ns, column names) and every case's
   start values, final values, costs and iteration counts (plain arrays, loaded with
   ``allow_pickle=False``).
@@ -46,7 +48,7 @@ from .._io import atomic_write_bytes, atomic_write_json, remove_stale_temporarie
 from ..data import DataError, Dataset
 from ..data._checks import offset_text
 from ..data._plausible import STUCK_HOURS
-from ..models import ModelError, RCModel, get_model
+from ..models import ModelError, Parameter, RCModel, RCNetwork, get_model
 from ._cases import Case, check_seed, check_settings, check_starts, verdict_of
 from ._guess import Guess
 
@@ -124,6 +126,18 @@ _TYPES: dict[str, Callable] = {
     "an object of [lower, upper] pairs": _dict_of(
         lambda v: isinstance(v, list) and len(v) == 2 and all(_is_number(x) for x in v)
     ),
+    "a number, 'inf' or '-inf'": lambda v: _is_number(v) or v in ("inf", "-inf"),
+    "a list of objects": lambda v: isinstance(v, list) and all(isinstance(x, dict) for x in v),
+    "a list of [kind, value] pairs": lambda v: (
+        isinstance(v, list)
+        and all(
+            isinstance(x, list)
+            and len(x) == 2
+            and _is_str(x[0])
+            and (_is_str(x[1]) or _is_number(x[1]))
+            for x in v
+        )
+    ),
     # an infinite bound (an unbounded parameter) is saved as null
     "an object of [lower, upper] pairs of numbers or nulls": _dict_of(
         lambda v: isinstance(v, list) and len(v) == 2 and all(_or_none(_is_number)(x) for x in v)
@@ -160,8 +174,52 @@ _CASE = {
     "notes": ("a list of strings", False),
     "timing": ("an object of numbers", True),
     "result": ("an object", True),
+    "declaration": ("an object", False),
 }
-_CASE_OPTIONAL = {"timing"}
+#: saves of earlier versions hold no declaration (their models are found by name)
+_CASE_OPTIONAL = {"timing", "declaration"}
+#: the declaration of a case's model (:func:`model_declaration`)
+_DECLARATION = {
+    "name": ("a string", False),
+    "description": ("a string", False),
+    "network": ("an object", False),
+    "parameters": ("a list of objects", False),
+}
+_NETWORK = {
+    "name": ("a string", False),
+    "description": ("a string", False),
+    "nodes": ("a list of objects", False),
+    "edges": ("a list of objects", False),
+    "sources": ("a list of objects", False),
+    "specs": ("a list of objects", False),
+}
+_NODE = {
+    "name": ("a string", False),
+    "C": ("a string", False),
+    "T0": ("a string", False),
+    "output": ("a string", True),
+    "constant": ("true or false", False),
+}
+_EDGE = {
+    "a": ("a string", False),
+    "b": ("a string", False),
+    "R": ("a string", False),
+    "scale": ("a number", False),
+    "factors": ("a list of [kind, value] pairs", False),
+}
+_SOURCE = {
+    "node": ("a string", False),
+    "input": ("a string", False),
+    "gain": ("a list of [kind, value] pairs", False),
+}
+_PARAMETER = {
+    "name": ("a string", False),
+    "unit": ("a string", False),
+    "default": ("a number, 'inf' or '-inf'", False),
+    "lower": ("a number, 'inf' or '-inf'", False),
+    "upper": ("a number, 'inf' or '-inf'", False),
+    "description": ("a string", False),
+}
 _GUESS = {
     "values": ("an object of numbers", False),
     "source": ("a string", False),
@@ -275,6 +333,178 @@ def _check_arrays(arrays: dict, doc: dict, path: Path) -> None:
             )
 
 
+# ---- the model of a case ----------------------------------------------------------------------
+
+
+def _number_doc(x: float):
+    """A number of a declaration: as it is when finite, ``"inf"``/``"-inf"`` otherwise (JSON has
+    no infinity, and null would not say which)."""
+    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+
+
+def _parameter_doc(p: Parameter) -> dict:
+    return {
+        "name": p.name,
+        "unit": p.unit,
+        "default": _number_doc(p.default),
+        "lower": _number_doc(p.lower),
+        "upper": _number_doc(p.upper),
+        "description": p.description,
+    }
+
+
+def model_declaration(model: RCModel) -> dict:
+    """The declaration of ``model`` as plain JSON: its name and description, its network (nodes,
+    resistances, heat inputs, declared parameter specs) and every parameter's unit, default
+    and bounds; without the segments of the data it was fitted to (a load segments it again,
+    as the fit did). :func:`declared_model` builds the model back from it."""
+    base = model.segmented(1)
+    net = base.network
+    return {
+        "name": base.name,
+        "description": base.description,
+        "network": {
+            "name": net.name,
+            "description": net.description,
+            "nodes": [
+                {"name": n.name, "C": n.C, "T0": n.T0, "output": n.output, "constant": n.constant}
+                for n in net.nodes
+            ],
+            "edges": [
+                {
+                    "a": e.a,
+                    "b": e.b,
+                    "R": e.R,
+                    "scale": e.scale,
+                    "factors": [[k, v] for k, v in e.factors],
+                }
+                for e in net.edges
+            ],
+            "sources": [
+                {"node": x.node, "input": x.input, "gain": [[k, v] for k, v in x.gain]}
+                for x in net.sources
+            ],
+            "specs": [_parameter_doc(p) for p in net.specs],
+        },
+        "parameters": [_parameter_doc(p) for p in base.parameters],
+    }
+
+
+def _factor_text(kind: str, value) -> str:
+    """One factor of a gain or of a resistance's share, as the declaration methods read it."""
+    if kind == "const" and _is_number(value):
+        return repr(float(value))
+    if kind == "param" and _is_str(value):
+        return value
+    if kind == "compl" and _is_str(value):
+        return f"1-{value}"
+    raise ModelError(f"unknown factor [{kind!r}, {value!r}]")
+
+
+def _parameter(doc: dict) -> Parameter:
+    return Parameter(
+        name=doc["name"],
+        unit=doc["unit"],
+        default=float(doc["default"]),
+        lower=float(doc["lower"]),
+        upper=float(doc["upper"]),
+        description=doc["description"],
+    )
+
+
+def declared_model(doc: dict, where: str = "declaration") -> RCModel:
+    """The model of a declaration (:func:`model_declaration`), built again through the
+    declaration methods of :class:`~jaxbox.models.RCNetwork` (which check every node,
+    resistance, heat input and parameter) and required to declare exactly ``doc``.
+
+    Raises:
+        ModelError: the declaration is malformed or does not describe a model (the message
+            names the field under ``where``).
+    """
+
+    def fail(field: str, problem: str):
+        raise ModelError(f"{field} {problem}")
+
+    _check_fields(doc, _DECLARATION, where, fail)
+    nd = doc["network"]
+    _check_fields(nd, _NETWORK, f"{where}.network", fail)
+    for key, schema in (("nodes", _NODE), ("edges", _EDGE), ("sources", _SOURCE)):
+        for i, item in enumerate(nd[key]):
+            _check_fields(item, schema, f"{where}.network.{key}[{i}]", fail)
+    for key, items in (("network.specs", nd["specs"]), ("parameters", doc["parameters"])):
+        for i, item in enumerate(items):
+            _check_fields(item, _PARAMETER, f"{where}.{key}[{i}]", fail)
+    try:
+        net = RCNetwork(nd["name"], nd["description"])
+        for n in nd["nodes"]:
+            if n["constant"]:
+                net = net.constant(n["name"], T0=n["T0"])
+            else:
+                net = net.node(n["name"], C=n["C"], T0=n["T0"], output=n["output"])
+        for e in nd["edges"]:
+            factors = [_factor_text(k, v) for k, v in e["factors"]]
+            scale = "*".join([repr(float(e["scale"])), *factors]) if factors else e["scale"]
+            net = net.resistance(e["a"], e["b"], e["R"], scale=scale)
+        for x in nd["sources"]:
+            net = net.heat(
+                x["node"], x["input"], gain="*".join(_factor_text(*f) for f in x["gain"])
+            )
+        for p in nd["specs"]:
+            net = net.parameter(p["name"], spec=_parameter(p))
+        model = net.build({p["name"]: _parameter(p) for p in doc["parameters"]})
+    except (TypeError, ValueError) as err:  # ModelError, or what a builder did not foresee
+        raise ModelError(f"{where} does not describe a model: {err}") from None
+    if (model.name, model.description) != (doc["name"], doc["description"]):
+        model = dataclasses.replace(model, name=doc["name"], description=doc["description"])
+    if model_declaration(model) != doc:
+        raise ModelError(
+            f"{where} does not describe a model: it reads back as another declaration "
+            f"({_differences(doc, model_declaration(model)) or 'in its names or descriptions'})"
+        )
+    return model
+
+
+def _differences(saved: dict, other: dict, limit: int = 4) -> str:
+    """How the declaration ``other`` differs from ``saved`` in what shapes a fit (names of
+    the model and its parameters, network, units, defaults, bounds; not the descriptions), in
+    words; ``""`` when it does not."""
+    out = []
+    if other["name"] != saved["name"]:
+        out.append(f"name {other['name']!r} (saved: {saved['name']!r})")
+    shape = ("nodes", "edges", "sources")
+    if [other["network"][k] for k in shape] != [saved["network"][k] for k in shape]:
+        out.append("another network (nodes, resistances or heat inputs)")
+    mine = {p["name"]: p for p in other["parameters"]}
+    theirs = {p["name"]: p for p in saved["parameters"]}
+    out += [f"no parameter {n} (saved with it)" for n in theirs if n not in mine]
+    out += [f"a parameter {n} (saved without it)" for n in mine if n not in theirs]
+    for n in (n for n in theirs if n in mine):
+        for f in ("unit", "default", "lower", "upper"):
+            if mine[n][f] != theirs[n][f]:
+                out.append(f"{n} {f} {mine[n][f]!r} (saved: {theirs[n][f]!r})")
+    more = f"; and {len(out) - limit} more" if len(out) > limit else ""
+    return "; ".join(out[:limit]) + more
+
+
+def _checked_declaration(case: Case) -> dict:
+    """The declaration of ``case``'s model, checked to build the model back exactly (a save
+    never writes a model that would load as another)."""
+    doc = model_declaration(case.model)
+    try:
+        back = declared_model(json.loads(json.dumps(doc, allow_nan=False)))
+    except (TypeError, ValueError) as err:  # ModelError, or what json or a builder refused
+        back, why = None, str(err)
+    else:
+        why = "it builds back as another model"
+    if back != case.model.segmented(1):
+        raise PersistError(
+            f"case {case.name!r} cannot be saved: the declaration of its model "
+            f"{case.model.name!r} does not give the model back ({why}); declare the model with "
+            "jaxbox.models.RCNetwork and its components"
+        )
+    return doc
+
+
 def _arrays(gb) -> dict[str, np.ndarray]:
     frame = gb.data.frame
     out = {
@@ -310,6 +540,7 @@ def _case_doc(i: int, case: Case) -> dict:
         "notes": list(case.notes),
         "timing": dict(case.timing),
         "result": None,
+        "declaration": _checked_declaration(case),
     }
     r = case.result
     if r is not None:
@@ -448,15 +679,48 @@ def _named_arrays(index: Path) -> str | None:
 
 
 def _model(name: str, models, where: str, index: Path) -> RCModel:
+    """The model of a case saved without its declaration (by an earlier version): given in
+    ``models``, or the library model of that name."""
     try:
         if models and name in models:
             return get_model(models[name])
         return get_model(name)
     except ModelError as err:
         raise PersistError(
-            f"{index}: {where} {err}; pass models={{{name!r}: model}} for a model that is not in "
-            "the library"
+            f"{index}: {where}.model: {err}; pass models={{{name!r}: model}} for a model that is "
+            "not in the library"
         ) from None
+
+
+def _case_model(cd: dict, models, where: str, index: Path) -> RCModel:
+    """The model of saved case ``cd``: built from its declaration (the model that was fitted,
+    custom or not); one given in ``models`` under its name must be that model (it may differ
+    only in descriptions). Saves without declarations find it by name (:func:`_model`)."""
+    name, doc = cd["model"], cd.get("declaration")
+    if doc is None:
+        return _model(name, models, where, index)
+    given = _model(name, models, where, index) if models and name in models else None
+    try:
+        model = declared_model(doc, f"{where}.declaration")
+    except (TypeError, ValueError) as err:  # ModelError, or what a builder did not foresee
+        if given is not None:  # a declaration this version cannot build: the model given
+            return given
+        raise PersistError(
+            f"{index}: {err}; pass models={{{name!r}: model}} with the model case "
+            f"{cd['name']!r} was fitted with"
+        ) from None
+    if model.name != name:
+        raise PersistError(
+            f"{index}: {where}.model is {name!r} but its declaration is of model {model.name!r}"
+        )
+    if given is None:
+        return model
+    if differences := _differences(doc, model_declaration(given)):
+        raise PersistError(
+            f"{index}: {where}: models[{name!r}] is not the model case {cd['name']!r} was fitted "
+            f"and saved with ({differences}); leave it out of models= to load the saved model"
+        )
+    return given
 
 
 def _read(index: Path) -> tuple[dict, dict]:
@@ -543,7 +807,7 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
     from ..validate import validate
 
     where = f"cases[{i}]"
-    model = _model(cd["model"], models, f"{where}.model:", index)
+    model = _case_model(cd, models, where, index)
     try:
         check_settings(cd["settings"])
     except (TypeError, ValueError) as err:

@@ -101,9 +101,19 @@ def test_stock_optimistix_lm_reaches_the_same_optimum(building, name):
     np.testing.assert_allclose(stock.cost, ours.cost, rtol=1e-6)
 
 
-def test_other_optimistix_solvers_plug_in(building):
+#: jaxbox's solver, tight: the reference fit and the single starts below share one compiled solve
+TIGHT = dict(rtol=1e-12, atol=1e-20, max_steps=500)
+
+
+@pytest.fixture(scope="module")
+def reference(building):
+    """ZonWal from one start with jaxbox's solver at tight tolerances."""
+    return fit_model("ZonWal", building, starts=1, **TIGHT)
+
+
+def test_other_optimistix_solvers_plug_in(building, reference):
     tight = dict(rtol=1e-10, atol=1e-12)
-    ref = fit_model("ZonWal", building, starts=1, max_steps=500, rtol=1e-12, atol=1e-20)
+    ref = reference
     for solver in (optx.Dogleg(**tight), optx.GaussNewton(**tight)):
         r = fit_model("ZonWal", building, starts=1, max_steps=500, solver=solver)
         assert r.cost <= ref.cost * (1 + 1e-5), type(solver).__name__
@@ -114,10 +124,10 @@ def test_a_solver_that_is_not_one_is_refused(building):
         fit_model("Zon", building, solver="lm")
 
 
-def test_slot_refilling_batch_equals_one_start_at_a_time(building):
+def test_slot_refilling_batch_equals_one_start_at_a_time(building, reference):
     """The batched multistart, with few slots that refill, gives each start the result it gets
-    when solved alone."""
-    tight = dict(rtol=1e-12, atol=1e-20, max_steps=300)
+    when solved alone (the program of the reference fit: one start, the same settings)."""
+    tight = TIGHT
     batched = fit_model("ZonWal", building, starts=6, seed=2, slots=2, **tight)
     wide = fit_model("ZonWal", building, starts=6, seed=2, slots=6, **tight)
     x0 = batched.starts.initial

@@ -55,6 +55,19 @@ def series():
     return u, y, w
 
 
+@jax.jit
+def _fused(prim, tang, gain, u, y, w):
+    """The fused pass with a per-member gain (one compiled program for every case)."""
+    return normal_equations(prim, tang, OUTPUTS, u, y, w, chunk=4, gain=gain)
+
+
+@jax.jit
+def _written_out(v, gain, u, y, w):
+    """The written-out recursion's residuals and their Jacobian (autodiff), compiled once."""
+    ref = lambda v: _reference_residuals(v, gain, u, y, w)  # noqa: E731
+    return ref(v), jax.jacfwd(ref)(v)
+
+
 @pytest.mark.parametrize("gains", [(0.0, 0.0), (0.9, 0.3), (1.0, 0.05)])
 def test_normal_equations_with_an_observer_gain(series, gains):
     """Cost, Jᵀr and JᵀJ of the fused pass with a per-member gain equal those of autodiff
@@ -64,13 +77,9 @@ def test_normal_equations_with_an_observer_gain(series, gains):
     prim = jax.vmap(_matrices)(V)
     tang = jax.vmap(jax.jacfwd(_matrices))(V)
     args = tuple(jnp.asarray(a)[:, None] for a in (u, y, w))
-    cost, g, H = jax.jit(
-        lambda p, t, gain: normal_equations(p, t, OUTPUTS, *args, chunk=4, gain=gain)
-    )(prim, tang, jnp.asarray(gains))
+    cost, g, H = _fused(prim, tang, jnp.asarray(gains), *args)
     for b in range(2):
-        ref = lambda v: _reference_residuals(v, gains[b], u, y, w)  # noqa: B023, E731
-        r = np.asarray(ref(V[b]))
-        J = np.asarray(jax.jacfwd(ref)(V[b]))
+        r, J = (np.asarray(a) for a in _written_out(V[b], gains[b], u, y, w))
         np.testing.assert_allclose(cost[b], r @ r, rtol=1e-12)
         np.testing.assert_allclose(g[b], J.T @ r, rtol=1e-10, atol=1e-12 * np.abs(J.T @ r).max())
         np.testing.assert_allclose(H[b], J.T @ J, rtol=1e-10, atol=1e-12 * np.abs(J.T @ J).max())

@@ -46,10 +46,11 @@ def test_one_state_matches_analytic_ramp_response():
         np.testing.assert_allclose(np.asarray(y[:, 0]), analytic, atol=1e-8, rtol=0)
 
 
-@pytest.mark.parametrize("name", ["Zon", "ZonWal"])
-def test_exact_and_diffrax_agree_at_tight_tolerance(inputs, name):
+def test_exact_and_diffrax_agree_at_tight_tolerance(inputs):
+    """Two states under switching heating (kinks the step control must land on); the one-state
+    model's diffrax route is held to its analytic solution above."""
     t, u = inputs
-    m = get_model(name)
+    m = get_model("ZonWal")
     th = m.defaults() | {"T_zon0": 24.0}
     y1, x1 = simulate_arrays(m, th, t, _u(m, u), method="exact")
     y2, x2 = simulate_arrays(m, th, t, _u(m, u), method="diffrax", rtol=1e-10, atol=1e-10)
@@ -84,7 +85,7 @@ def test_simulate_on_a_dataset_and_vmap_over_parameters(inputs):
     assert sim.y.shape == (len(t), 1) and sim.x.shape == (len(t), 1)
     th = {k: np.full(5, v) for k, v in m.defaults().items()}
     th["R_wal"] = np.linspace(0.005, 0.02, 5)
-    ys, _ = jax.vmap(lambda p: simulate_arrays(m, p, t, _u(m, u)))(th)
+    ys, _ = jax.jit(jax.vmap(lambda p: simulate_arrays(m, p, t, _u(m, u))))(th)
     assert ys.shape == (5, len(t), 1)
     y2, _ = simulate_arrays(m, {k: v[2] for k, v in th.items()}, t, _u(m, u))
     np.testing.assert_allclose(np.asarray(ys[2]), np.asarray(y2), rtol=1e-12)

@@ -146,10 +146,18 @@ def test_criterion_gradient_matches_finite_differences(planned):
     ctx = planned.context
     losses = [_loss(ctx, c) for c in design.CRITERIA]
     args = _solver_args(ctx)
-    value = jax.jit(lambda z, a: jnp.stack([f(z, a) for f in losses]))
-    grad = jax.jit(jax.jacrev(lambda z, a: jnp.stack([f(z, a) for f in losses])))
+
+    def stacked(z, a):
+        return jnp.stack([f(z, a) for f in losses])
+
+    # one compiled program gives the values (for the differences) and the reverse-mode gradient
+    both = jax.jit(lambda z, a: (stacked(z, a), jax.jacrev(stacked)(z, a)))
+
+    def value(z, a):
+        return both(z, a)[0]
+
     z = jnp.asarray(np.random.default_rng(0).normal(0.0, 1.0, ctx.n))
-    g = np.asarray(grad(z, args))  # [criteria, N]
+    g = np.asarray(both(z, args)[1])  # [criteria, N]
     h = 1e-3  # smaller steps lose more to round-off than they gain
     for k in (0, 5, ctx.n // 2, ctx.n - 1):
         e = np.zeros(ctx.n)

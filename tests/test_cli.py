@@ -206,20 +206,20 @@ def test_command_line_keeps_a_persistent_compilation_cache(tmp_path):
     env = {**os.environ, "JAXBOX_CACHE": "1", "JAXBOX_CACHE_DIR": str(tmp_path / "cache")}
     cmd = [sys.executable, "-m", "jaxbox", "fit", "twinhouse_exp1:N2", "--model", "Zon"]
     cmd += ["--starts", "1", "--json"]
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    assert any((tmp_path / "cache").iterdir())
     (tmp_path / "unwritable").write_text("a file where a folder should be")
-    env["JAXBOX_CACHE_DIR"] = str(tmp_path / "unwritable" / "x")
-    proc = subprocess.run(
-        [sys.executable, "-m", "jaxbox", "models", "--json"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
+    unwritable = {**env, "JAXBOX_CACHE_DIR": str(tmp_path / "unwritable" / "x")}
+    # the two processes are independent: they run side by side
+    pipes = dict(stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    fit = subprocess.Popen(cmd, env=env, **pipes)
+    models = subprocess.Popen(
+        [sys.executable, "-m", "jaxbox", "models", "--json"], env=unwritable, **pipes
     )
-    assert proc.returncode == 0, proc.stderr
-    assert json.loads(proc.stdout)["models"]
+    out, err = fit.communicate(timeout=300)
+    assert fit.returncode == 0, err
+    assert any((tmp_path / "cache").iterdir())
+    out, err = models.communicate(timeout=300)
+    assert models.returncode == 0, err
+    assert json.loads(out)["models"]
 
 
 def test_select_writes_its_outputs_at_once(csv_file, capsys, tmp_path):

@@ -100,15 +100,7 @@ def test_fleet_command_on_a_separately_started_cluster(fleet, inline, cache, tmp
         )
     ]
     try:
-        deadline = time.monotonic() + 60
-        while True:  # the scheduler is up once it accepts a client
-            try:
-                with Client(address, timeout="2s"):
-                    break
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.5)
+        # the workers start beside the scheduler (each keeps trying to connect until it is up)
         for _ in range(2):
             procs.append(
                 subprocess.Popen(
@@ -129,6 +121,15 @@ def test_fleet_command_on_a_separately_started_cluster(fleet, inline, cache, tmp
                     stderr=subprocess.STDOUT,
                 )
             )
+        deadline = time.monotonic() + 60
+        while True:  # the scheduler is up once it accepts a client
+            try:
+                with Client(address, timeout="2s"):
+                    break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.5)
         with Client(address, timeout="10s") as client:
             client.wait_for_workers(2, timeout=60)
         out = tmp_path / "out"

@@ -433,3 +433,23 @@ def test_select_command_on_two_buildings(data, tmp_path, capsys):
     for name in ("a", "b"):
         assert (out / name / "report.html").exists()
         assert (out / name / "greybox" / "greybox.json").exists()
+
+
+def test_command_line_says_when_no_candidate_could_be_identified(capsys):
+    """`jaxbox select`'s last lines tell a selection whose fits all failed from one whose fitted
+    models were all rejected."""
+    from types import SimpleNamespace
+
+    from jaxbox.cli._select import _print_table
+
+    def run(done):
+        gb = SimpleNamespace(
+            table_text=lambda: "table",
+            cases={"Zon": SimpleNamespace(done=done), "ZonWal": SimpleNamespace(done=False)},
+        )
+        sel = SimpleNamespace(stopped="stopped", case=None)
+        _print_table(gb, sel)
+        return capsys.readouterr().out.strip().splitlines()[-1]
+
+    assert run(done=False).startswith("no model: none of the candidates could be identified")
+    assert run(done=True) == "no valid model: none accepted"

@@ -262,7 +262,12 @@ def _print_table(gb, sel) -> None:
         print()
     print(sel.stopped)
     if sel.case is None:
-        print("no valid model: none accepted")
+        identified = any(getattr(case, "done", False) for case in gb.cases.values())
+        print(
+            "no valid model: none accepted"
+            if identified
+            else "no model: none of the candidates could be identified (see the notes above)"
+        )
     else:
         print(f"accepted: {sel.accepted}")
         print(sel.case.result.summary())

@@ -31,6 +31,7 @@ __all__ = [
     "check_starts",
     "check_whole",
     "run_cases",
+    "verdict_text",
 ]
 
 Progress = Callable[[str], None]
@@ -383,6 +384,16 @@ def run_cases(
             case.notes.append(f"failed: {err}")
             told(f"  {case.name}: failed ({err})")
     return list(cases)
+
+
+def verdict_text(cases: Mapping[str, Case], names, accepted: Case | None) -> str:
+    """What a selection over ``names`` (keys of ``cases``) accepted, in words: the accepted
+    case's name, or why none was: no valid model among those identified, or none identified."""
+    if accepted is not None:
+        return accepted.name
+    if any(cases[n].done for n in names):
+        return "none (no valid model)"
+    return "none (no model could be identified)"
 
 
 def fmt_se(x: float) -> str:

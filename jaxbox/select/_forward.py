@@ -25,7 +25,16 @@ import pandas as pd
 from ..data import Dataset
 from ..fit import DEFAULT_STARTS
 from ..models import RCModel, get_model, list_models
-from ._cases import Case, Progress, check_seed, check_settings, check_starts, quiet, run_cases
+from ._cases import (
+    Case,
+    Progress,
+    check_seed,
+    check_settings,
+    check_starts,
+    quiet,
+    run_cases,
+    verdict_text,
+)
 from ._greybox import GreyBox
 from ._guess import state_ranges
 
@@ -264,12 +273,7 @@ class _Climb:
                 key=lambda c: c.score,
                 default=None,
             )
-        if accepted is not None:
-            verdict = accepted.name
-        elif any(gb.cases[n].done for n in order):
-            verdict = "none (no valid model)"
-        else:
-            verdict = "none (no model could be identified)"
+        verdict = verdict_text(gb.cases, order, accepted)
         self.say(f"accepted: {verdict}; {self.stopped} ({elapsed:.0f} s)")
         return Selection(
             greybox=gb,

@@ -73,7 +73,7 @@ from ..models._grammar import (
     roots,
 )
 from ..validate import MAX_REL_CI
-from ._cases import Case, Progress, check_whole, quiet, run_cases
+from ._cases import Case, Progress, check_whole, quiet, run_cases, verdict_text
 from ._forward import (
     Selection,
     _as_greybox,
@@ -599,12 +599,7 @@ def structure_search(
         if accepted is not None and name == accepted.name:
             node["status"] = "accepted"
     tree = tuple(SearchNode(**nodes[n]) for n in nodes)
-    if accepted is not None:
-        verdict = accepted.name
-    elif any(gb.cases[n].done for n in nodes):
-        verdict = "none (no valid model)"
-    else:
-        verdict = "none (no model could be identified)"
+    verdict = verdict_text(gb.cases, nodes, accepted)
     say(f"accepted: {verdict}; {stopped} ({elapsed:.0f} s, {len(nodes)} candidates)")
     return Search(
         greybox=gb,

@@ -242,3 +242,19 @@ def test_one_set_of_defaults_in_python_the_selection_and_the_command_line():
     args = parser.parse_args(["design", "--model", "Zon", "--out", "x.csv"])
     assert args.starts is None
     assert inspect.signature(plan).parameters["starts"].default >= 1
+
+
+def test_fraction_bounds_and_fixed_fractions_stay_physical():
+    """A fraction fra_* given bounds or a fixed value outside [0, 1] is refused by name, as a
+    model's own parameter specs are (resistances and capacities > 0 are refused already)."""
+    from jaxbox.datasets import twinhouse_exp1
+
+    ident, _ = twinhouse_exp1("N2").split()
+    model = get_model("BM_TiTe")
+    for kw in ({"bounds": {"fra_wal": (0.0, 1.5)}}, {"bounds": {"fra_wal": (-0.1, 0.5)}}):
+        with pytest.raises(FitError, match=r"bounds of fra_wal: .*within \[0, 1\]"):
+            make_problem(model, ident, **kw)
+    with pytest.raises(FitError, match=r"fixed value of fra_wal is 1.2; a fraction"):
+        make_problem(model, ident, fixed={"fra_wal": 1.2})
+    make_problem(model, ident, fixed={"fra_wal": 1.0})
+    assert make_problem(model, ident, bounds={"fra_wal": (0.0, 1.0)}).transform is not None

@@ -177,6 +177,19 @@ def _positive(name: str) -> bool:
     return name.startswith(("R_", "C_"))
 
 
+def _physical(spec, lower: float, upper: float) -> bool | str:
+    """True when bounds [lower, upper] keep the parameter ``spec`` physical (the rules of
+    :class:`jaxbox.models.Parameter`: resistances and capacities positive, fractions within
+    [0, 1]), else the reason, in words."""
+    from ..models import ModelError
+
+    try:
+        spec.replace(lower=lower, upper=upper, default=min(max(spec.default, lower), upper))
+    except ModelError as err:
+        return str(err).split(": ", 1)[-1]
+    return True
+
+
 def number(value, what: str) -> float:
     """A real number given for ``what`` (``"fixed value of R_wal"``): a Python or NumPy scalar,
     not a bool, a string, ``None`` or a list, which are a :class:`FitError` naming ``what``."""
@@ -263,6 +276,12 @@ def make_problem(
             raise FitError(f"fixed value of {n} is {v}; give a finite number")
         if _positive(n) and not v > 0:
             raise FitError(f"fixed value of {n} is {v:g}; resistances and capacities must be > 0")
+        spec = model.parameter(n)
+        if _physical(spec, min(v, spec.lower), max(v, spec.upper)) is not True:
+            raise FitError(
+                f"fixed value of {n} is {v:g}; a fraction fra_* lies within [0, 1] (fra_ele, a "
+                "share of the electricity use, within [0, ∞))"
+            )
     lo, hi, g = [], [], []
     for n in free:
         spec = model.parameter(n)
@@ -279,6 +298,9 @@ def make_problem(
                 f"bounds of {n}: lower {blo:g} must be > 0 (resistances and capacities are "
                 "positive); give e.g. (1e-5, 10) for a resistance, (1e4, 1e10) for a capacity"
             )
+        why = _physical(spec, blo, bhi)
+        if why is not True:
+            raise FitError(f"bounds of {n}: {why}")
         gn = full_guess[n]
         if not np.isfinite(gn):
             raise FitError(f"guess of {n} is {gn}; give a finite number")

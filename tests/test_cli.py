@@ -1,6 +1,7 @@
 """The command line: JSON shape, exit codes, one-line errors."""
 
 import json
+import os
 
 import numpy as np
 import pandas as pd
@@ -264,3 +265,46 @@ def test_a_warning_is_given_once_per_command(capsys):
     with warnings.catch_warnings():  # a new command starts afresh
         assert main(["models", "--json"]) == 0
     assert not _main._SHOWN
+
+
+def test_a_staging_folder_is_recorded_before_it_is_made(tmp_path, monkeypatch):
+    """Ctrl-C the moment a command's staging folder is made leaves nothing behind (the folder
+    is in the list its clean-up removes before it exists), and a staging folder of a process
+    killed outright is removed by the next command writing there."""
+    from pathlib import Path
+
+    from jaxbox.cli._outputs import Outputs
+
+    made = Path.mkdir
+
+    def mkdir_then_ctrl_c(self, *args, **kwargs):
+        made(self, *args, **kwargs)
+        raise KeyboardInterrupt
+
+    target = tmp_path / "plots"
+    target.mkdir()
+    monkeypatch.setattr(Path, "mkdir", mkdir_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt), Outputs() as outputs:
+        outputs.folder(target)
+    monkeypatch.setattr(Path, "mkdir", made)
+    assert list(target.iterdir()) == []
+    # a dead process's staging folder (its pid in the name, the ".tmp" suffix)
+    import subprocess
+    import sys
+
+    from jaxbox._io import temporary_prefix
+
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    stale = target / temporary_prefix("jaxbox-out").replace(f"-{os.getpid()}.", f"-{dead}.")
+    stale = stale.with_name(stale.name + "abc123.tmp")
+    stale.mkdir()
+    (stale / "fit.png").write_bytes(b"half")
+    with Outputs() as outputs:
+        staging = outputs.folder(target)
+        assert staging.name.endswith(".tmp") and not stale.exists()
+    assert list(target.iterdir()) == []

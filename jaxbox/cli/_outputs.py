@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import secrets
 import shutil
 import tempfile
 from collections.abc import Callable
@@ -111,9 +112,18 @@ class Outputs:
         target = Path(target)
         self._made += _make_folder(target)
         remove_stale_temporaries(target)
-        staging = Path(tempfile.mkdtemp(prefix=temporary_prefix("jaxbox-out"), dir=target))
-        self._staged.append((staging, target))
-        return staging
+        # named and recorded before it is made: a Ctrl-C between the two finds it in the list
+        # (a folder made by mkdtemp and lost before it was recorded stayed behind); the
+        # ".tmp" suffix lets the next run writing here remove it if this process is killed
+        while True:
+            staging = target / f"{temporary_prefix('jaxbox-out')}{secrets.token_hex(6)}.tmp"
+            self._staged.append((staging, target))
+            try:
+                staging.mkdir()
+            except FileExistsError:  # this process's own (the name holds its pid): draw again
+                self._staged.pop()
+                continue
+            return staging
 
     def after(self, action: Callable[[], object]) -> None:
         """Run ``action`` at commit, after the staged files are in place."""

@@ -262,7 +262,7 @@ def _print_table(gb, sel) -> None:
         print()
     print(sel.stopped)
     if sel.case is None:
-        identified = any(getattr(case, "done", False) for case in gb.cases.values())
+        identified = any(case.done for case in gb.cases.values())
         print(
             "no valid model: none accepted"
             if identified

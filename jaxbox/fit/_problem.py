@@ -293,12 +293,7 @@ def make_problem(
         blo, bhi = (number(b[0], f"lower bound of {n}"), number(b[1], f"upper bound of {n}"))
         if not blo < bhi:
             raise FitError(f"bounds of {n}: lower {blo:g} must be below upper {bhi:g}")
-        if _positive(n) and not blo > 0:
-            raise FitError(
-                f"bounds of {n}: lower {blo:g} must be > 0 (resistances and capacities are "
-                "positive); give e.g. (1e-5, 10) for a resistance, (1e4, 1e10) for a capacity"
-            )
-        why = _physical(spec, blo, bhi)
+        why = _physical(spec, blo, bhi)  # resistances and capacities > 0, fractions in [0, 1]
         if why is not True:
             raise FitError(f"bounds of {n}: {why}")
         gn = full_guess[n]

@@ -158,9 +158,8 @@ def _token_problem(token: str) -> tuple[str, str | None] | None:
         if m[2]:
             return "only a boundary or the coupling has a capacity variant: BouC, CplC", base
         return "", _nearest(token)
-    near = difflib.get_close_matches(base.lower(), _SPELLING, n=1, cutoff=_TYPO)
-    if near and base != "Bou":
-        meant = _SPELLING[near[0]]
+    meant = _nearest(base, _TYPO)
+    if meant and base != "Bou":
         why = f"a boundary to a column T_{base.lower()} would read like a typo of {meant}"
         return why, meant
     return None
@@ -434,7 +433,7 @@ def is_boundary_token(token: str) -> bool:
 
 def _spell(states, tokens, bound) -> str:
     """The canonical name of these fields (checked or not)."""
-    words = ["Zon" if z == 0 else f"Zon{z}" for z in states]
+    words = [_zone_word(z) for z in states]
     for z in states:
         suffix = "" if z == 0 else str(z)
         words += [t + suffix for t in sorted((t for zz, t in tokens if zz == z), key=_rank)]

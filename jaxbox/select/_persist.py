@@ -343,14 +343,9 @@ def _number_doc(x: float):
 
 
 def _parameter_doc(p: Parameter) -> dict:
-    return {
-        "name": p.name,
-        "unit": p.unit,
-        "default": _number_doc(p.default),
-        "lower": _number_doc(p.lower),
-        "upper": _number_doc(p.upper),
-        "description": p.description,
-    }
+    """``p`` as :meth:`~jaxbox.models.Parameter.to_dict` gives it, infinite numbers as text."""
+    numbers = ("default", "lower", "upper")
+    return {k: _number_doc(v) if k in numbers else v for k, v in p.to_dict().items()}
 
 
 def model_declaration(model: RCModel) -> dict:
@@ -402,14 +397,9 @@ def _factor_text(kind: str, value) -> str:
 
 
 def _parameter(doc: dict) -> Parameter:
-    return Parameter(
-        name=doc["name"],
-        unit=doc["unit"],
-        default=float(doc["default"]),
-        lower=float(doc["lower"]),
-        upper=float(doc["upper"]),
-        description=doc["description"],
-    )
+    """The parameter of a checked ``_PARAMETER`` document (``"inf"`` read back as a number)."""
+    numbers = ("default", "lower", "upper")
+    return Parameter(**{k: float(doc[k]) if k in numbers else doc[k] for k in _PARAMETER})
 
 
 def declared_model(doc: dict, where: str = "declaration") -> RCModel:

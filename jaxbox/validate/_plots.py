@@ -66,16 +66,22 @@ def _group_inputs(names):
     return list(groups.items())
 
 
+def _required(obj, cls: type, what: str, first: str):
+    """``obj`` when it is a ``cls``; a ``TypeError`` naming ``what`` and the call ``first`` that
+    makes one otherwise."""
+    if isinstance(obj, cls):
+        return obj
+    a = "an" if cls.__name__[0] in "AEIOU" else "a"
+    raise TypeError(
+        f"{what} must be {a} {cls.__name__}, got {type(obj).__name__}; use {first} first"
+    )
+
+
 def _validation(obj):
     """``obj`` when it is a :class:`~jaxbox.validate.Validation`; a ``TypeError`` otherwise."""
     from ._postsim import Validation
 
-    if isinstance(obj, Validation):
-        return obj
-    raise TypeError(
-        f"validation must be a Validation, got {type(obj).__name__}; use "
-        "validate(result, valid) first"
-    )
+    return _required(obj, Validation, "validation", "validate(result, valid)")
 
 
 def _shown_inputs(v, inputs) -> list[str]:
@@ -318,11 +324,7 @@ def plot_confidence_intervals(uncertainty, *, max_rel_ci: float | None = MAX_REL
     from ._args import check_positive
     from ._uncertainty import Uncertainty
 
-    if not isinstance(uncertainty, Uncertainty):
-        raise TypeError(
-            f"uncertainty must be an Uncertainty, got {type(uncertainty).__name__}; use "
-            "uncertainty(result) first"
-        )
+    _required(uncertainty, Uncertainty, "uncertainty", "uncertainty(result)")
     if max_rel_ci is not None:
         max_rel_ci = check_positive(max_rel_ci, "max_rel_ci")
     u = uncertainty
@@ -414,11 +416,9 @@ def plot_prediction(performance, *, title: str | None = None):
     """k-step-ahead prediction error against the horizon, with the simulation error."""
     from ._prediction import PredictionPerformance
 
-    if not isinstance(performance, PredictionPerformance):
-        raise TypeError(
-            f"performance must be a PredictionPerformance, got {type(performance).__name__}; "
-            "use prediction_performance(result, valid) first"
-        )
+    _required(
+        performance, PredictionPerformance, "performance", "prediction_performance(result, valid)"
+    )
     pf = performance
     fig, axes = _figure(1, 1, width=7.0, height=3.6)
     ax = axes[0, 0]

@@ -158,6 +158,20 @@ def test_subpackages_are_not_shadowed_by_verbs():
     assert jaxbox.fit.fit_model is jaxbox.fit_model
 
 
+def test_guess_on_its_bound_up_to_rounding_is_clipped(zonwal_data):
+    """An estimate on its bound handed back as a guess (a parent's optimum, a retry's start)
+    comes out of the transform a rounding off the bound; it is clipped onto it, while a guess
+    truly outside is refused by name."""
+    lo, hi = get_model("ZonWal").parameter("R_wal").lower, 0.1
+    for g, want in ((lo * (1 - 4e-16), lo), (hi * (1 + 4e-16), hi), (lo, lo)):
+        p = make_problem("ZonWal", zonwal_data, bounds={"R_wal": (lo, hi)}, guess={"R_wal": g})
+        assert p.guess_dict["R_wal"] == want
+    with pytest.raises(FitError, match=r"guess of R_wal = .* outside its bounds.*widen"):
+        make_problem("ZonWal", zonwal_data, bounds={"R_wal": (lo, hi)}, guess={"R_wal": lo * 0.9})
+    with pytest.raises(FitError, match="guess of R_wal.*outside its bounds"):
+        make_problem("ZonWal", zonwal_data, bounds={"R_wal": (lo, hi)}, guess={"R_wal": hi * 1.01})
+
+
 @pytest.mark.parametrize(
     "kwargs, match",
     [

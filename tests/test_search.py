@@ -545,6 +545,34 @@ def _heater_case(c_hea: float, noise: float, name: str):
     return truth, gb, case
 
 
+def test_a_retry_that_cannot_be_posed_does_not_end_the_search(monkeypatch):
+    """A retry of an invalid child that its own problem check refuses (here by a stand-in; in
+    the zoo an estimate on its floor handed back as a guess was refused) is a note on that
+    child: the search goes on and accepts a model, with no traceback."""
+    from jaxbox.fit import FitError
+    from jaxbox.select import _search
+
+    truth = {"C_zon": 4e6, "C_hea": 2e5, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
+    truth.update(T_zon0=20.0, T_hea0=25.0)
+    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=0.05)
+    tried = []
+
+    def refused(gb, case, names, say):
+        tried.append(case.name)
+        raise FitError(f"guess of {names[0]} = 1e-05 lies outside its bounds (test)")
+
+    monkeypatch.setattr(_search, "_settled_retry", refused)
+    lines = []
+    s = structure_search(
+        GreyBox(data, name="refused"), starts=2, max_depth=1, progress=lines.append
+    )
+    assert tried, "the stand-in was never asked for a retry"
+    case = s.greybox.cases[tried[0]]
+    assert any(n.startswith("retry failed: guess of") for n in case.notes)
+    assert any("retry failed" in line for line in lines)
+    assert s.accepted is not None and lines[-1].startswith("accepted:")
+
+
 def test_a_fast_capacity_the_data_cannot_see_is_settled():
     """Hourly data see a 20-minute heater's lag, not its capacity: the capacity's interval
     invalidates the fit, and the retry with it fixed at its estimate is valid and as good."""

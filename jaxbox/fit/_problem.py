@@ -30,6 +30,15 @@ class FitError(ValueError):
     """The estimation problem is ill-posed or every start failed; the message says why."""
 
 
+def within_rounding(value: float, lower: float, upper: float) -> bool:
+    """Whether ``value`` lies within ``[lower, upper]`` up to the rounding of a value that went
+    through a bound transform (relative 1e-9 of the bound, plus 1e-12 of the range): an
+    estimate on its bound, handed back as a guess (a parent's optimum, a retry's start), reads
+    ``9.999999999999999e-06`` for a floor of ``1e-05`` and is clipped, not refused."""
+    slack = 1e-12 * (upper - lower)
+    return lower - (1e-9 * abs(lower) + slack) <= value <= upper + (1e-9 * abs(upper) + slack)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Problem:
     """Everything static about an estimation problem (no data arrays).
@@ -300,8 +309,11 @@ def make_problem(
         if not np.isfinite(gn):
             raise FitError(f"guess of {n} is {gn}; give a finite number")
         if not blo <= gn <= bhi:
-            if n in user_guess:
-                raise FitError(f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]")
+            if n in user_guess and not within_rounding(gn, blo, bhi):
+                raise FitError(
+                    f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]; give a "
+                    "guess within them or widen the bounds"
+                )
             gn = float(np.clip(gn, blo, bhi))
             full_guess[n] = gn
         lo.append(blo)

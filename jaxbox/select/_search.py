@@ -505,20 +505,21 @@ def structure_search(
                 continue
             if child.is_valid or child.verdict is None:
                 continue
-            if cut := _resistances_at_their_top(child):
-                retry = _cut_retry(gb, child, cut, say)
-                how = f"{', '.join(cut)} cut (fixed at the upper bound)"
-            elif fast := _fast_capacities(child):
-                retry = _settled_retry(gb, child, fast, say)
-                how = f"{', '.join(fast)} fixed at the estimate (only its lag shows)"
-            elif pinned := _pinned_unmeasured_states(child):
-                try:
+            try:  # a retry that cannot be posed is a note, never the end of the search
+                if cut := _resistances_at_their_top(child):
+                    retry = _cut_retry(gb, child, cut, say)
+                    how = f"{', '.join(cut)} cut (fixed at the upper bound)"
+                elif fast := _fast_capacities(child):
+                    retry = _settled_retry(gb, child, fast, say)
+                    how = f"{', '.join(fast)} fixed at the estimate (only its lag shows)"
+                elif pinned := _pinned_unmeasured_states(child):
                     retry = _narrowed_retry(gb, child, pinned, say)
-                except ValueError as err:
-                    say(f"  retry failed ({err})")
+                    how = f"{', '.join(pinned)} narrowed"
+                else:
                     continue
-                how = f"{', '.join(pinned)} narrowed"
-            else:
+            except ValueError as err:  # (FitError, ModelError too)
+                say(f"  {child.name}: retry failed ({err})")
+                child.notes.append(f"retry failed: {err}")
                 continue
             nodes[retry.name] = dict(
                 node, case=retry.name, added=f"{node['added']}; retried with {how}"

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..data import check_mapping
-from ..fit._problem import FitError, Problem, make_problem
+from ..fit._problem import FitError, Problem, make_problem, within_rounding
 from ..fit._transforms import Transform, make_transform
 from ..models import RCModel
 from ._checks import as_data, number, regular_step, x0_stds
@@ -331,8 +331,11 @@ def make_stochastic_problem(
         if not np.isfinite(gn):
             raise FitError(f"guess of {n} is {gn}; give a finite number")
         if not blo <= gn <= bhi:
-            if n in guess_n:
-                raise FitError(f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]")
+            if n in guess_n and not within_rounding(gn, blo, bhi):
+                raise FitError(
+                    f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]; give a "
+                    "guess within them or widen the bounds"
+                )
             gn = float(np.clip(gn, blo, bhi))
         lo.append(blo)
         hi.append(bhi)

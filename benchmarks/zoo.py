@@ -24,6 +24,7 @@ Targets (issue: any real building): recovery ≥ 80 %, validation RMSE ≤ 1.5×
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import platform
@@ -52,7 +53,7 @@ def _without_offsets(name: str) -> str:
     return type(s)(s.states, frozenset(t for t in s.tokens if t[1] != "Off"), s.bound_zones).name
 
 
-def run_one(b, starts: int, offsets: bool = True) -> dict:
+def run_one(b, starts: int, offsets: bool = True, beam: int | None = None) -> dict:
     import dataclasses
 
     import jaxbox
@@ -77,7 +78,8 @@ def run_one(b, starts: int, offsets: bool = True) -> dict:
             gb = jaxbox.GreyBox(b.data, name=b.name)
             grammar = Grammar.from_columns(gb.data.columns)
             grammar = dataclasses.replace(grammar, offsets=offsets)
-            s = jaxbox.structure_search(gb, starts=starts, grammar=grammar)
+            kw = {} if beam is None else {"beam": beam}
+            s = jaxbox.structure_search(gb, starts=starts, grammar=grammar, **kw)
     except Exception as err:  # noqa: BLE001 - a benchmark row records any failure
         row.update(status="failed", error=f"{type(err).__name__}: {err}"[:300])
         row["search_s"] = time.perf_counter() - t0
@@ -124,10 +126,12 @@ def markdown(doc: dict) -> str:
         "## Structure search on the zoo (benchmarks/zoo.py)",
         "",
         f"Written by `python benchmarks/zoo.py{' --only …' if doc.get('only') else ''}"
-        f"{'' if doc.get('offsets', True) else ' --no-offsets'}` on {doc['date']}"
+        f"{'' if doc.get('offsets', True) else ' --no-offsets'}"
+        f"{' --beam ' + str(doc['beam']) if doc.get('beam_given') else ''}` on {doc['date']}"
         f"{'' if 'offsets' in doc else ' (before the sensor-offset token `Off`)'}; "
         f"{doc['machine']}; raw numbers in `benchmarks/zoo.json`. Default `select` (structure "
-        f"search, criterion cv, {doc['starts']} starts per candidate, data split in halves)."
+        f"search, criterion cv, beam {doc.get('beam', 1)}, {doc['starts']} starts per "
+        f"candidate, data split in halves)."
         f"{partial}",
         "",
         "| buildings | accepted a valid model | exact structure | equivalent | "
@@ -189,10 +193,10 @@ def _write(path: Path, text: str) -> None:
 
 def _worker(args) -> dict:
     """One building in a worker process (``--jobs``): the CPU backend, the shared cache."""
-    b, starts, offsets = args
+    b, starts, offsets, beam = args
     import jaxbox
 
-    row = run_one(b, starts, offsets=offsets)
+    row = run_one(b, starts, offsets=offsets, beam=beam)
     jaxbox._compiled.release()
     return row
 
@@ -204,14 +208,14 @@ def _init_worker() -> None:
     jaxbox.enable_compilation_cache()
 
 
-def _rows(zoo, starts: int, offsets: bool, jobs: int):
+def _rows(zoo, starts: int, offsets: bool, jobs: int, beam: int | None = None):
     """The rows of the buildings ``zoo``, one at a time or ``jobs`` processes at once (in the
     order they finish)."""
     import jaxbox
 
     if jobs <= 1:
         for b in zoo:
-            yield run_one(b, starts, offsets=offsets)
+            yield run_one(b, starts, offsets=offsets, beam=beam)
             jaxbox._compiled.release()  # every building compiles new structures
         return
     import multiprocessing as mp
@@ -222,7 +226,7 @@ def _rows(zoo, starts: int, offsets: bool, jobs: int):
     # two-zone buildings first: their searches are the longest, and the pool ends sooner
     zoo = sorted(zoo, key=lambda b: -len(b.data.columns))
     with ctx.Pool(jobs, initializer=_init_worker) as pool:
-        yield from pool.imap_unordered(_worker, [(b, starts, offsets) for b in zoo])
+        yield from pool.imap_unordered(_worker, [(b, starts, offsets, beam) for b in zoo])
 
 
 def main(argv=None) -> None:
@@ -239,6 +243,9 @@ def main(argv=None) -> None:
     ap.add_argument("--only", default="", help="comma list of buildings (z003,…) to run alone")
     ap.add_argument(
         "--no-offsets", action="store_true", help="search without the sensor-offset token Off"
+    )
+    ap.add_argument(
+        "--beam", type=int, default=None, help="the search's beam (default: select's default)"
     )
     ap.add_argument(
         "--jobs",
@@ -269,6 +276,8 @@ def main(argv=None) -> None:
         "rows": [],
     }
     doc["offsets"] = not args.no_offsets
+    doc["beam_given"] = args.beam is not None
+    doc["beam"] = args.beam or inspect.signature(jaxbox.structure_search).parameters["beam"].default
     if args.only:
         chosen = set(args.only.split(","))
         zoo = [b for b in zoo if b.name in chosen]
@@ -280,7 +289,7 @@ def main(argv=None) -> None:
     if args.jobs > 1:
         doc["machine"] += f", {args.jobs} buildings at once (one process each, CPU)"
     order = {b.name: k for k, b in enumerate(zoo)}
-    for row in _rows(zoo, args.starts, not args.no_offsets, args.jobs):
+    for row in _rows(zoo, args.starts, not args.no_offsets, args.jobs, args.beam):
         doc["rows"].append(row)
         doc["rows"].sort(key=lambda r: order.get(r["building"], 0))
         print(json.dumps(row), flush=True)

@@ -545,6 +545,31 @@ def _heater_case(c_hea: float, noise: float, name: str):
     return truth, gb, case
 
 
+def test_a_beam_case_is_stuck_on_its_own():
+    """With a beam of two, a case whose children all fail is stuck (stepping stones, then a
+    look one component back) even while the other beam case improves: on a zoo building the
+    other branch's winners hid it, and the removal of an early facade window that brought the
+    validation SE from 0.17 K to 0.025 K was never tried (0.16 K accepted instead)."""
+    from types import SimpleNamespace as NS
+
+    from jaxbox.select._search import _best_per_lineage, _Judge, _stuck
+
+    def case(score, zones=("T_zon",)):
+        return NS(done=True, score=score, model=NS(outputs=zones))
+
+    a, b = case(0.17), case(0.24)
+    a1, b1, b2 = case(0.18), case(0.20), case(0.16)
+    children = [(a1, a), (b1, b), (b2, b)]
+    assert _stuck([a, b], [b1, b2], children) == [a]
+    assert _stuck([a, b], [a1, b2], children) == []
+    assert _stuck([a, b], [], children) == [a, b]
+    judge = _Judge("cv", 0.02, 0.05)
+    # the winners of a step's extensions, stones and removals, the best `beam` per lineage
+    other = case(0.5, ("T_zon1",))
+    assert _best_per_lineage([b1, a1, b2, other, b2], judge, 2) == [b2, a1, other]
+    assert _best_per_lineage([b1, a1, b2, other], judge, 1) == [b2, other]
+
+
 def test_a_retry_that_cannot_be_posed_does_not_end_the_search(monkeypatch):
     """A retry of an invalid child that its own problem check refuses (here by a stand-in; in
     the zoo an estimate on its floor handed back as a guess was refused) is a note on that

@@ -26,16 +26,17 @@ use them), and a child made invalid only by the interval of a fast node's capaci
 constant under two sampling steps) or by that capacity on its lower bound, with that capacity
 fixed at its estimate (the data see the node's lag, or no lag at all, not its capacity).
 
-When no child of a beam improves, the search looks one component further before it stops: the
-``lookahead`` children that fit the identification data best (relative to their parent, at
-least 10 % better) are grown all the same as *stepping stones*, and their children are judged
-against the beam's case. Components that help only together (an envelope capacity and an
-internal mass: either alone can fit worse on validation than neither) are found that way. Then
-it looks one component back: the structures one component smaller than each beam case
+When no child of a beam case improves, the search looks one component further from that case
+before it gives it up: the ``lookahead`` children that fit the identification data best
+(relative to it, at least 10 % better) are grown all the same as *stepping stones*, and their
+children are judged against the case. Components that help only together (an envelope capacity
+and an internal mass: either alone can fit worse on validation than neither) are found that
+way. Then it looks one component back: the structures one component smaller than the case
 (:func:`jaxbox.models.reductions`) are identified, judged against it, and one that improves
 carries the search on (a component taken early, a facade's sun for what an envelope and a mass
-explain together, may be worse than none once they are in). The search stops when none of
-these steps improves.
+explain together, may be worse than none once they are in). A case is stuck on its own: with a
+beam of two, the other case's improving children do not spare it these looks. The search stops
+when none of these steps improves for any beam case.
 
 With two measured zones the roots are both zones as states (coupled) and each zone alone with
 the other's measured temperature as a boundary input (a zone held by its thermostat behaves as
@@ -558,11 +559,12 @@ def structure_search(
         if not children:
             stopped = "the grammar has no further extension the data can drive"
             break
-        # a lineage whose every extension fails to improve looks one component further, from
+        # a beam case whose every extension fails to improve looks one component further, from
         # the extensions that fit its identification data best (components that help only
-        # together, such as an envelope and an internal mass)
-        stuck = {_lineage(c) for c in beam_cases} - {_lineage(w) for w in winners}
-        stones = _stepping_stones([cr for cr in children if _lineage(cr[0]) in stuck], lookahead)
+        # together, such as an envelope and an internal mass); stuck is a property of the case,
+        # not of its lineage: another beam case that still improves must not hide it
+        stuck = _stuck(beam_cases, winners, children)
+        stones = _stepping_stones([cr for cr in children if cr[1] in stuck], lookahead)
         if stones and depth < max_depth:
             for stone, _ in stones:
                 node = nodes[stone.name]
@@ -573,14 +575,15 @@ def structure_search(
                 + ", ".join(s.model.name for s, _ in stones)
             )
             depth += 1
-            further, _ = grow(stones, depth)
+            further, more = grow(stones, depth)
             winners += further
-        if not winners and depth < max_depth:
-            # before it stops, the search looks one component back: a component taken early (a
-            # facade's sun for what an envelope and a mass explain together) may be worse than
-            # none once the others are in
+            stuck = _stuck(stuck, further, more)
+        if stuck and depth < max_depth:
+            # before a stuck case is given up, the search looks one component back from it: a
+            # component taken early (a facade's sun for what an envelope and a mass explain
+            # together) may be worse than none once the others are in
             depth += 1
-            winners = shrink(beam_cases, depth)
+            winners += shrink(stuck, depth)
         if not winners:
             stopped = (
                 f"step {depth}: no extension improves significantly"
@@ -588,7 +591,7 @@ def structure_search(
                 + ", nor a removal"
             )
             break
-        beam_cases = winners
+        beam_cases = _best_per_lineage(winners, judge, beam)
     elapsed = time.perf_counter() - t0
 
     valid = [gb.cases[n] for n in nodes if gb.cases[n].done and gb.cases[n].verdict is not None]
@@ -614,10 +617,27 @@ def structure_search(
     )
 
 
+def _stuck(cases: list[Case], winners: list[Case], children: list[tuple[Case, Case]]) -> list[Case]:
+    """The ``cases`` none of whose children (``(child, case judged against)`` pairs) is among
+    the ``winners``."""
+    won = {id(ref) for child, ref in children if any(child is w for w in winners)}
+    return [c for c in cases if id(c) not in won]
+
+
+def _best_per_lineage(cases: list[Case], judge: _Judge, beam: int) -> list[Case]:
+    """The ``beam`` best of ``cases`` by the criterion in each lineage (a step's winners come
+    from its extensions, its stepping stones and its removals: together they may be more)."""
+    out: list[Case] = []
+    for c in sorted(cases, key=lambda c: _rank(c, judge)):
+        if all(c is not o for o in out) and sum(_lineage(o) == _lineage(c) for o in out) < beam:
+            out.append(c)
+    return out
+
+
 def _stepping_stones(children: list[tuple[Case, Case]], n: int) -> list[tuple[Case, Case]]:
-    """Per lineage, the ``n`` children that fit the identification data best relative to the
-    case they were judged against, among those fitting it clearly better (cost at least 10 %
-    lower), with that case."""
+    """Per case judged against, the ``n`` children that fit the identification data best
+    relative to it, among those fitting it clearly better (cost at least 10 % lower), with that
+    case."""
     fitted = [
         (c.result.cost / ref.result.cost, c, ref)
         for c, ref in children
@@ -629,7 +649,7 @@ def _stepping_stones(children: list[tuple[Case, Case]], n: int) -> list[tuple[Ca
     fitted.sort(key=lambda x: x[0])
     out: list[tuple[Case, Case]] = []
     for _, c, ref in fitted:
-        if sum(_lineage(o) == _lineage(c) for o, _ in out) < n:
+        if sum(r is ref for _, r in out) < n:
             out.append((c, ref))
     return out
 

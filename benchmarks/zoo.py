@@ -53,7 +53,7 @@ def _without_offsets(name: str) -> str:
     return type(s)(s.states, frozenset(t for t in s.tokens if t[1] != "Off"), s.bound_zones).name
 
 
-def run_one(b, starts: int, offsets: bool = True, beam: int | None = None) -> dict:
+def run_one(b, starts: int, offsets: bool = True, beam: int = 1) -> dict:
     import dataclasses
 
     import jaxbox
@@ -78,8 +78,7 @@ def run_one(b, starts: int, offsets: bool = True, beam: int | None = None) -> di
             gb = jaxbox.GreyBox(b.data, name=b.name)
             grammar = Grammar.from_columns(gb.data.columns)
             grammar = dataclasses.replace(grammar, offsets=offsets)
-            kw = {} if beam is None else {"beam": beam}
-            s = jaxbox.structure_search(gb, starts=starts, grammar=grammar, **kw)
+            s = jaxbox.structure_search(gb, starts=starts, grammar=grammar, beam=beam)
     except Exception as err:  # noqa: BLE001 - a benchmark row records any failure
         row.update(status="failed", error=f"{type(err).__name__}: {err}"[:300])
         row["search_s"] = time.perf_counter() - t0
@@ -208,7 +207,7 @@ def _init_worker() -> None:
     jaxbox.enable_compilation_cache()
 
 
-def _rows(zoo, starts: int, offsets: bool, jobs: int, beam: int | None = None):
+def _rows(zoo, starts: int, offsets: bool, jobs: int, beam: int):
     """The rows of the buildings ``zoo``, one at a time or ``jobs`` processes at once (in the
     order they finish)."""
     import jaxbox
@@ -277,7 +276,8 @@ def main(argv=None) -> None:
     }
     doc["offsets"] = not args.no_offsets
     doc["beam_given"] = args.beam is not None
-    doc["beam"] = args.beam or inspect.signature(jaxbox.structure_search).parameters["beam"].default
+    default = inspect.signature(jaxbox.structure_search).parameters["beam"].default
+    doc["beam"] = default if args.beam is None else args.beam
     if args.only:
         chosen = set(args.only.split(","))
         zoo = [b for b in zoo if b.name in chosen]
@@ -289,7 +289,7 @@ def main(argv=None) -> None:
     if args.jobs > 1:
         doc["machine"] += f", {args.jobs} buildings at once (one process each, CPU)"
     order = {b.name: k for k, b in enumerate(zoo)}
-    for row in _rows(zoo, args.starts, not args.no_offsets, args.jobs, args.beam):
+    for row in _rows(zoo, args.starts, not args.no_offsets, args.jobs, doc["beam"]):
         doc["rows"].append(row)
         doc["rows"].sort(key=lambda r: order.get(r["building"], 0))
         print(json.dumps(row), flush=True)

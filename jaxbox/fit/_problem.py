@@ -30,13 +30,24 @@ class FitError(ValueError):
     """The estimation problem is ill-posed or every start failed; the message says why."""
 
 
-def within_rounding(value: float, lower: float, upper: float) -> bool:
-    """Whether ``value`` lies within ``[lower, upper]`` up to the rounding of a value that went
-    through a bound transform (relative 1e-9 of the bound, plus 1e-12 of the range): an
-    estimate on its bound, handed back as a guess (a parent's optimum, a retry's start), reads
-    ``9.999999999999999e-06`` for a floor of ``1e-05`` and is clipped, not refused."""
+def guess_within(name: str, value: float, lower: float, upper: float, given: bool) -> float:
+    """The guess ``value`` of parameter ``name`` within its bounds ``[lower, upper]``.
+
+    A default guess outside them is clipped onto them; so is a ``given`` one that lies outside
+    by no more than the rounding of a value that went through a bound transform (relative 1e-9
+    of the bound, plus 1e-12 of the range): an estimate on its bound, handed back as a guess (a
+    parent's optimum, a retry's start), reads ``9.999999999999999e-06`` for a floor of
+    ``1e-05``. A given guess further out is refused (``FitError``, naming the parameter)."""
+    if lower <= value <= upper:
+        return value
     slack = 1e-12 * (upper - lower)
-    return lower - (1e-9 * abs(lower) + slack) <= value <= upper + (1e-9 * abs(upper) + slack)
+    near = lower - (1e-9 * abs(lower) + slack) <= value <= upper + (1e-9 * abs(upper) + slack)
+    if given and not near:
+        raise FitError(
+            f"guess of {name} = {value:g} lies outside its bounds [{lower:g}, {upper:g}]; give "
+            "a guess within them or widen the bounds"
+        )
+    return float(np.clip(value, lower, upper))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -308,14 +319,7 @@ def make_problem(
         gn = full_guess[n]
         if not np.isfinite(gn):
             raise FitError(f"guess of {n} is {gn}; give a finite number")
-        if not blo <= gn <= bhi:
-            if n in user_guess and not within_rounding(gn, blo, bhi):
-                raise FitError(
-                    f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]; give a "
-                    "guess within them or widen the bounds"
-                )
-            gn = float(np.clip(gn, blo, bhi))
-            full_guess[n] = gn
+        gn = full_guess[n] = guess_within(n, gn, blo, bhi, n in user_guess)
         lo.append(blo)
         hi.append(bhi)
         g.append(gn)

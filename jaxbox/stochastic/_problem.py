@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..data import check_mapping
-from ..fit._problem import FitError, Problem, make_problem, within_rounding
+from ..fit._problem import FitError, Problem, guess_within, make_problem
 from ..fit._transforms import Transform, make_transform
 from ..models import RCModel
 from ._checks import as_data, number, regular_step, x0_stds
@@ -330,13 +330,7 @@ def make_stochastic_problem(
         gn = float(guess_n.get(n, spec.default))
         if not np.isfinite(gn):
             raise FitError(f"guess of {n} is {gn}; give a finite number")
-        if not blo <= gn <= bhi:
-            if n in guess_n and not within_rounding(gn, blo, bhi):
-                raise FitError(
-                    f"guess of {n} = {gn:g} lies outside its bounds [{blo:g}, {bhi:g}]; give a "
-                    "guess within them or widen the bounds"
-                )
-            gn = float(np.clip(gn, blo, bhi))
+        gn = guess_within(n, gn, blo, bhi, n in guess_n)
         lo.append(blo)
         hi.append(bhi)
         g.append(gn)

@@ -121,3 +121,21 @@ def test_estimate_with_initial_spreads_of_another_model_is_one_line(csv_file, tm
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "x0_std holds 2 value(s) but BM_Ti has 1 state(s)" in err[0]
+
+
+@pytest.mark.parametrize("json_out", [True, False], ids=["json", "text"])
+def test_fit_method_ml_without_validation(csv_file, capsys, json_out):
+    """``--validate none`` with ``--method ml``: no validation period, so its entries are null
+    (once an internal error reading the length of a validation that does not exist)."""
+    argv = ["fit", str(csv_file), "--model", "BM_Ti", "--method", "ml", "--validate", "none"]
+    code = main([*argv, "--starts", "2", *(["--json"] if json_out else [])])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    if json_out:
+        doc = json.loads(out.out)
+        assert doc["validation"] is None and doc["residuals"]["validation"] is None
+        assert doc["simulation_rmse"]["validation"] is None
+        assert doc["data"]["n_validate"] == 0 and doc["data"]["n_train"] == 300
+        assert set(doc["simulation_rmse"]["identification"]) == {"T_zon"}
+    else:
+        assert "validation: none" in out.out

@@ -100,20 +100,26 @@ def ml_fit_command(args) -> int:
         ks = ", ".join(f"{k}: {v[model.outputs[0]]:.3f} K" for k, v in doc["k_step_rmse"].items())
         print(f"k-step RMSE (identification, {model.outputs[0]}) {ks}")
         sim = doc["simulation_rmse"]
+        cross = (
+            "none"
+            if sim["validation"] is None
+            else ", ".join(f"{o} {v:.3f} K" for o, v in sim["validation"].items())
+        )
         print(
             "open-loop RMSE: "
             + ", ".join(f"{o} {v:.3f} K" for o, v in sim["identification"].items())
-            + " | validation: "
-            + ", ".join(f"{o} {v:.3f} K" for o, v in sim["validation"].items())
+            + f" | validation: {cross}"
         )
     return 0
 
 
 def ml_json(result, ident, valid, spec, total_s: float) -> dict:
     """The JSON document of a maximum-likelihood fit."""
-    tests = result.innovation_tests()
-    valid_states = result.states(valid)
     from ..stochastic import innovation_tests
+
+    tests = result.innovation_tests()
+    # ``valid`` is None with --validate none: the validation entries are null
+    valid_states = None if valid is None else result.states(valid)
 
     doc = result.to_dict()
     starts = list(result.starts.status)
@@ -130,20 +136,24 @@ def ml_json(result, ident, valid, spec, total_s: float) -> dict:
             "kind": "standardised one-step innovations",
             "white": tests.white,
             "outputs": {o.name: o.to_dict() for o in tests},
-            "validation": {o.name: o.to_dict() for o in innovation_tests(valid_states)},
+            "validation": None
+            if valid_states is None
+            else {o.name: o.to_dict() for o in innovation_tests(valid_states)},
         },
-        validation={"loglik": valid_states.loglik, "n": len(valid)},
+        validation=None
+        if valid_states is None
+        else {"loglik": valid_states.loglik, "n": len(valid)},
         k_step_rmse={str(k): v["rmse"] for k, v in result.states().k_step_errors(K_STEPS).items()},
         simulation_rmse={
             "identification": result.simulation_rmse(),
-            "validation": result.simulation_rmse(valid),
+            "validation": None if valid is None else result.simulation_rmse(valid),
         },
         data=data_info(spec, ident, valid),
     )
     doc["timing"] = {**doc["timing"], "total_s": total_s}
     for o in doc["residuals"]["outputs"].values():
         o.pop("residuals", None)
-    for o in doc["residuals"]["validation"].values():
+    for o in (doc["residuals"]["validation"] or {}).values():
         o.pop("residuals", None)
     return doc
 

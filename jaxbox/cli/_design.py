@@ -163,6 +163,9 @@ def design_command(args) -> int:
         seed=args.seed,
         **({} if args.starts is None else {"starts": args.starts}),
     )
+    # everything computed before the file is written: an error leaves no file behind
+    doc = {**design.to_dict(), "out": str(out)} if args.json else None
+    summary = None if args.json else design.summary()
     fd, tmp = tempfile.mkstemp(prefix=".jaxbox-design-", suffix=".csv", dir=out.parent or ".")
     os.close(fd)
     try:
@@ -171,11 +174,9 @@ def design_command(args) -> int:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    if args.json:
-        doc = design.to_dict()
-        doc["out"] = str(out)
+    if doc is not None:
         print_json(doc)
     else:
-        print(design.summary())
+        print(summary)
         print(f"schedule written to {out}", file=sys.stderr)
     return 0

@@ -245,9 +245,7 @@ def estimate_command(args) -> int:
     except FitError as err:
         raise UsageError(str(err)) from None
     frame = est.to_frame(("filtered", "smoothed"))
-    tmp = out.with_name(out.name + ".part")
-    frame.to_csv(tmp, index_label="time")
-    tmp.replace(out)
+    # everything computed before the file is written: an error leaves no file behind
     summary = {
         "model": model.name,
         "out": str(out),
@@ -255,6 +253,12 @@ def estimate_command(args) -> int:
         "loglik": est.loglik,
         "current": est.current(),
     }
+    tmp = out.with_name(out.name + ".part")
+    try:
+        frame.to_csv(tmp, index_label="time")
+        tmp.replace(out)
+    finally:
+        tmp.unlink(missing_ok=True)
     if args.json:
         print_json(summary)
     else:

@@ -3,9 +3,20 @@
 Compiled solves are kept in JAX's persistent compilation cache between runs (see
 :func:`jaxbox.enable_compilation_cache`; ``JAXBOX_CACHE=0`` turns it off).
 
-Exit codes: 0 success; 2 bad input (one line ``error: …`` on stderr, no traceback); 130 Ctrl-C
-(one line, no partial output file); 1 an unexpected internal error (one line; set
-``JAXBOX_DEBUG=1`` for the traceback).
+Exit codes:
+
+* 0 success;
+* 1 ``select`` found no valid model (its last line says why);
+* 2 bad input: one line ``error: …`` on stderr naming the option, column, row or parameter and
+  the fix, no traceback, no output file;
+* 3 an internal error (a fault of jaxbox, not of the input): one line ``error: internal error
+  (…)`` on stderr saying where the traceback went — a log file ``jaxbox-error-*.log`` in the
+  temporary folder, or stderr itself with ``JAXBOX_DEBUG=1`` — and no partial output file;
+* 130 Ctrl-C: one line, no partial output file.
+
+Data that are plausible but suspicious (a unit that looks wrong, a long gap) give
+``warning: …`` lines and the command goes on; each names the option that removes the doubt
+(``--scale``, ``--counter``, ``--range``).
 """
 
 from __future__ import annotations
@@ -188,10 +199,11 @@ def _os_error(err: OSError) -> str:
 def main(argv: list[str] | None = None, *, exit_at_once: bool = False) -> int:
     """Entry point of the ``jaxbox`` console script; returns the exit code.
 
-    0 success; 2 bad input, with one line ``error: …`` on stderr (no traceback); 130 Ctrl-C,
-    with one line and no partial output file; 1 an unexpected internal error, with one line
-    (``JAXBOX_DEBUG=1`` shows the traceback). With ``exit_at_once`` (the console script) Ctrl-C
-    ends the process in the signal handler, after removing the partial outputs.
+    0 success; 1 no valid model (``select``); 2 bad input, with one line ``error: …`` on
+    stderr (no traceback); 3 an internal error, with one line saying where the traceback went
+    (:func:`_internal_error`); 130 Ctrl-C, with one line and no partial output file. With
+    ``exit_at_once`` (the console script) Ctrl-C ends the process in the signal handler, after
+    removing the partial outputs.
     """
     previous = signal.getsignal(signal.SIGINT)
     install_interrupt_handler(exit_at_once)
@@ -216,21 +228,48 @@ def main(argv: list[str] | None = None, *, exit_at_once: bool = False) -> int:
             _error(cli_message(str(err)))
         return 2
     except Exception as err:  # last resort, keeps the one-line contract
-        if os.environ.get("JAXBOX_DEBUG"):
-            raise
         if _SOLVER_STEPS in str(err):  # an adaptive simulation gave up (a stiff model)
             _error(
                 "a simulation needed more solver steps than allowed: the model is too stiff for "
                 "the data (very small capacities or resistances); narrow --bounds or --fix"
             )
             return 2
-        _error(
-            f"internal error ({type(err).__name__}: {cli_message(str(err))}); rerun with "
-            "JAXBOX_DEBUG=1 for the traceback"
-        )
-        return 1
+        return _internal_error(err)
     finally:
         try:
             signal.signal(signal.SIGINT, previous)
         except (ValueError, TypeError):
             pass
+
+
+#: exit code of an internal error (a fault of jaxbox, not of the input)
+INTERNAL_ERROR = 3
+
+
+def _internal_error(err: BaseException) -> int:
+    """Report an unexpected exception: one line on stderr saying where its traceback went, exit
+    :data:`INTERNAL_ERROR`. The traceback goes to stderr with ``JAXBOX_DEBUG=1``, otherwise to a
+    new log file ``jaxbox-error-<time>-<random>.log`` in the temporary folder (stderr if even that
+    cannot be written). The outputs were staged and are already discarded (``Outputs``)."""
+    import tempfile
+    import traceback
+    from datetime import datetime
+
+    trace = "".join(traceback.format_exception(type(err), err, err.__traceback__))
+    first = str(err).splitlines()[0] if str(err).strip() else ""
+    what = f"internal error ({type(err).__name__}: {cli_message(first)})"
+    where = None
+    if not os.environ.get("JAXBOX_DEBUG"):
+        stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+        try:
+            fd, where = tempfile.mkstemp(prefix=f"jaxbox-error-{stamp}-", suffix=".log")
+            with os.fdopen(fd, "w", encoding="utf-8") as log:
+                log.write(f"jaxbox {_version()}\n{trace}")
+        except OSError:
+            where = None
+    if where is None:
+        print(trace, end="", file=sys.stderr, flush=True)
+        _error(f"{what}; the traceback is above; please report it")
+    else:
+        _error(f"{what}; traceback in {where}; please report it")
+    return INTERNAL_ERROR

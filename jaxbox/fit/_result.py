@@ -182,6 +182,22 @@ class FitResult:
             lines.append(f"sensor offset of {output}: {kelvin:+.3f} K (the constant heat input)")
         return "\n".join(lines)
 
+    # ---- use of the model ------------------------------------------------------------------
+    def stochastic_form(self):
+        """The fit as a stochastic state-space model (:func:`jaxbox.forecast.stochastic_form`):
+        its noise estimated from its residuals, once per result."""
+        from ..forecast import stochastic_form
+
+        return stochastic_form(self)
+
+    def forecast(self, history, future, *, horizon="24h", x0=None):
+        """Forecast of the outputs with 50 % and 95 % bands from the state the Kalman filter
+        estimates at the end of ``history``, driven by the inputs of ``future`` over ``horizon``
+        (samples or a duration such as ``"24h"``): :func:`jaxbox.forecast.forecast`."""
+        from ..forecast import forecast
+
+        return forecast(self, history, future, horizon=horizon, x0=x0)
+
     def __repr__(self) -> str:
         return (
             f"FitResult(model={self.model.name!r}, cost={self.cost:.6g}, "

@@ -1,0 +1,18 @@
+"""Forecasts with uncertainty from a fitted model, and the heat demand for a setpoint.
+
+:func:`stochastic_form` turns a fit into a stochastic state-space model (an output-error fit's
+noise estimated from its residuals); :func:`forecast` filters the history and propagates the
+state over a horizon with future inputs, with 50 % and 95 % bands; :func:`backtest` scores
+forecasts from many origins against measured data (RMSE and band coverage per horizon);
+:func:`plot_forecast` draws one.
+"""
+
+from ._forecast import BANDS as BANDS
+from ._forecast import backtest as backtest
+from ._forecast import forecast as forecast
+from ._forecast import propagate as propagate
+from ._form import DiscreteSystem as DiscreteSystem
+from ._form import FilterRun as FilterRun
+from ._form import StochasticForm as StochasticForm
+from ._form import stochastic_form as stochastic_form
+from ._plot import plot_forecast as plot_forecast

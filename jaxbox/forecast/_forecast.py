@@ -1,0 +1,266 @@
+"""Forecasts with uncertainty from a fitted model.
+
+From the data up to a time ``t`` (the *history*) the Kalman filter of the fit's stochastic form
+(:mod:`jaxbox.forecast._form`) gives the state at ``t``, ``x̂_{t|t}`` with covariance ``P_{t|t}``.
+Over the horizon the mean and the covariance are propagated with the future inputs (a weather
+forecast, planned heating) and no measurement::
+
+    x̂_{k+1} = Φ x̂_k + Γ0 u_k + Γ1 (u_{k+1} − u_k),     P_{k+1} = Φ P_k Φᵀ + Q,
+    ŷ_k = C x̂_k + D u_k,                               S_k = C P_k Cᵀ + diag(r²),
+
+so that ``y_k ~ N(ŷ_k, S_k)`` for a measured output (``sd = √diag S``); the 50 % and 95 % bands
+are the Gaussian quantiles ``ŷ ± 0.674 sd`` and ``ŷ ± 1.960 sd``. These bands hold the
+measured temperatures (measurement noise included); they do not include the uncertainty of the
+parameters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from ..fit._problem import FitError
+from ..stochastic._checks import as_data, regular_step
+from ._form import DiscreteSystem, StochasticForm, stochastic_form
+
+__all__ = ["forecast", "backtest", "propagate", "horizon_steps", "future_inputs", "BANDS"]
+
+#: the central bands reported, as fractions
+BANDS = (0.5, 0.95)
+_Z = {b: float(stats.norm.ppf(0.5 + b / 2)) for b in BANDS}
+
+
+def horizon_steps(horizon, dt: float) -> int:
+    """The horizon as a whole number of samples of ``dt`` [s]: an integer (samples) or a
+    duration (``"24h"``, a :class:`pandas.Timedelta`)."""
+    if isinstance(horizon, int | np.integer) and not isinstance(horizon, bool):
+        steps = int(horizon)
+    else:
+        try:
+            seconds = pd.Timedelta(horizon).total_seconds()
+        except (TypeError, ValueError):
+            raise FitError(
+                f"horizon must be a number of samples or a duration such as '24h', got {horizon!r}"
+            ) from None
+        steps = int(round(seconds / dt))
+        if steps < 1 or abs(steps * dt - seconds) > 1e-6 * dt:
+            raise FitError(
+                f"horizon {horizon!r} is not a whole number of samples of the data's step "
+                f"({dt:g} s)"
+            )
+    if steps < 1:
+        raise FitError(f"horizon must be at least one sample, got {horizon!r}")
+    return steps
+
+
+def future_inputs(model, history, future, steps: int) -> np.ndarray:
+    """The inputs ``u_t, u_{t+1}, …, u_{t+steps}`` [steps + 1, m]: the last row of ``history``
+    (time ``t``) and the rows of ``future`` after ``t``, which must continue the history at its
+    step and cover the horizon."""
+    future.require(list(model.inputs), what=f"the future inputs of model {model.name}")
+    dt = history.step
+    after = future.index > history.index[-1]
+    times = future.index[after]
+    u = np.asarray(future.array(list(model.inputs)), float)[after]
+    first = history.index[-1] + pd.Timedelta(seconds=dt)
+    if len(times) == 0 or times[0] != first:
+        got = "nothing after it" if len(times) == 0 else f"its first row after it at {times[0]}"
+        raise FitError(
+            f"the future inputs must continue the history at its step: the history ends at "
+            f"{history.index[-1]}, the next sample is {first}, the future inputs hold {got}"
+        )
+    if len(times) < steps:
+        last = history.index[-1] + pd.Timedelta(seconds=dt * steps)
+        raise FitError(
+            f"the horizon reaches {last} but the future inputs end at {times[-1]} "
+            f"({len(times)} of {steps} samples): give inputs up to {last} or a shorter horizon"
+        )
+    steps_ok = np.diff(times[: steps + 1].asi8) / 1e9 if steps > 1 else np.asarray([dt])
+    if np.any(np.abs(steps_ok - dt) > 1e-6 * dt):
+        raise FitError(
+            f"the future inputs are not sampled at the history's step ({dt:g} s) over the horizon"
+        )
+    u = u[:steps]
+    bad = ~np.isfinite(u)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise FitError(
+            f"future input {model.inputs[col]} is missing (NaN) at {times[row]}; a forecast "
+            "needs every input over the horizon"
+        )
+    hist_u = np.asarray(history.array(list(model.inputs)), float)[-1:]
+    return np.concatenate([hist_u, u], axis=0)
+
+
+def propagate(sysm: DiscreteSystem, m, P, u) -> dict[str, np.ndarray]:
+    """Mean and covariance over a horizon from state(s) ``m`` [..., n] with covariance(s)
+    ``P`` [..., n, n] and inputs ``u`` [..., H + 1, m] (``u[..., 0]`` at the origin).
+
+    Returns ``x`` [..., H, n], ``Px`` [..., H, n, n] (the states), ``y`` [..., H, p] and
+    ``var`` [..., H, p] (the measured outputs, measurement noise included), at the samples
+    ``1 … H`` after the origin.
+    """
+    u = np.asarray(u, float)
+    m = np.asarray(m, float)
+    P = np.asarray(P, float)
+    H = u.shape[-2] - 1
+    drive = u[..., :-1, :] @ sysm.G0.T + (u[..., 1:, :] - u[..., :-1, :]) @ sysm.G1.T
+    xs, Ps = [], []
+    for k in range(H):
+        m = m @ sysm.Phi.T + drive[..., k, :]
+        P = sysm.Phi @ P @ sysm.Phi.T + sysm.Q
+        P = 0.5 * (P + np.swapaxes(P, -1, -2))
+        xs.append(m)
+        Ps.append(P)
+    x = np.stack(xs, axis=-2)
+    Px = np.stack(Ps, axis=-3)
+    y = x @ sysm.C.T + u[..., 1:, :] @ sysm.D.T
+    var = np.einsum("ij,...jk,ik->...i", sysm.C, Px, sysm.C) + sysm.r**2
+    return {"x": x, "Px": Px, "y": y, "var": var}
+
+
+def _frame(outputs: Sequence[str], index, y, var, measured=None) -> pd.DataFrame:
+    sd = np.sqrt(np.clip(var, 0.0, None))
+    cols: dict[str, np.ndarray] = {"step": np.arange(1, len(index) + 1)}
+    for j, o in enumerate(outputs):
+        cols[f"{o}_mean"] = y[:, j]
+        cols[f"{o}_sd"] = sd[:, j]
+        for b in BANDS:
+            pct = int(round(100 * b))
+            cols[f"{o}_lo{pct}"] = y[:, j] - _Z[b] * sd[:, j]
+            cols[f"{o}_hi{pct}"] = y[:, j] + _Z[b] * sd[:, j]
+        if measured is not None:
+            cols[f"{o}_measured"] = measured[:, j]
+    frame = pd.DataFrame(cols, index=index)
+    frame.index.name = "time"
+    return frame
+
+
+def forecast(
+    result,
+    history,
+    future,
+    *,
+    horizon: int | str | pd.Timedelta = "24h",
+    x0: Mapping[str, float] | None = None,
+) -> pd.DataFrame:
+    """Forecast the outputs of a fitted model with their uncertainty.
+
+    Args:
+        result: a fit (:class:`~jaxbox.fit.FitResult`, :class:`~jaxbox.stochastic.MLResult`)
+            or its :class:`~jaxbox.forecast.StochasticForm`. An output-error fit's noise is
+            estimated from its residuals (once per result; ``frame.attrs["noise"]`` says so).
+        history: the data up to the forecast's origin ``t`` (its last sample): inputs and
+            outputs at one regular step, outputs may be missing. The filter starts at the fit's
+            initial state ``T_*0`` (or ``x0`` [°C] per state), so the history should start
+            where the fit's data start, or be long enough to forget the start.
+        future: the inputs after ``t`` (°C, W, W/m²), continuing the history at its step, at
+            least up to ``t + horizon``; outputs in it, if any, are reported as ``*_measured``.
+        horizon: samples, or a duration (``"24h"``).
+        x0: initial state [°C] per state name, instead of the fit's ``T_*0``.
+
+    Returns:
+        A DataFrame indexed by time (``t + step`` … ``t + horizon``): ``step`` (samples after
+        ``t``) and per output ``<output>_mean``, ``_sd``, ``_lo50``, ``_hi50``, ``_lo95``,
+        ``_hi95`` [°C, K] (and ``_measured`` where ``future`` holds the output). ``attrs``:
+        ``model``, ``origin``, ``noise`` (where the noise comes from), ``state`` and
+        ``state_cov`` (the filtered state at ``t`` [°C] and its covariance [K²]).
+    """
+    form = stochastic_form(result)
+    model = form.model
+    history = as_data(history, "history")
+    future = as_data(future, "future")
+    run = form.filter(history, x0=x0)
+    dt = regular_step(history)
+    steps = horizon_steps(horizon, dt)
+    u = future_inputs(model, history, future, steps)
+    out = propagate(run.system, run.m[-1], run.P[-1], u)
+    index = history.index[-1] + pd.to_timedelta(np.arange(1, steps + 1) * dt, unit="s")
+    measured = None
+    if all(o in future.columns for o in model.outputs):
+        meas = future.frame[list(model.outputs)].reindex(index)
+        measured = meas.to_numpy(dtype=float)
+    frame = _frame(model.outputs, index, out["y"], out["var"], measured)
+    frame.attrs.update(_attrs(form, history.index[-1], run.m[-1], run.P[-1]))
+    return frame
+
+
+def _attrs(form: StochasticForm, origin, m, P) -> dict:
+    return {
+        "model": form.model.name,
+        "outputs": list(form.model.outputs),
+        "origin": str(origin),
+        "noise": form.note,
+        "source": form.source,
+        "states": list(form.model.states),
+        "state": [float(v) for v in m],
+        "state_cov": np.asarray(P, float).tolist(),
+    }
+
+
+def backtest(
+    result,
+    data,
+    *,
+    start=None,
+    horizon: int | str | pd.Timedelta = "24h",
+    every: int = 1,
+) -> pd.DataFrame:
+    """Forecasts from many origins over measured data, scored against the measurements.
+
+    The filter runs once over ``data``; from every ``every``-th sample at or after ``start``
+    (default: the first) whose horizon lies within the data, the measured inputs drive a
+    forecast (:func:`forecast`), which is compared with the measured outputs.
+
+    Returns:
+        One row per horizon step and output: ``step``, ``hours``, ``output``, ``n`` (scored
+        forecasts), ``rmse`` [K], ``bias`` [K], ``cover50``, ``cover95`` (fraction of the
+        measurements inside the 50 % and 95 % bands), ``sd`` [K] (mean forecast sd).
+    """
+    form = stochastic_form(result)
+    model = form.model
+    data = as_data(data)
+    run = form.filter(data)
+    dt = regular_step(data)
+    steps = horizon_steps(horizon, dt)
+    n = len(data)
+    first = 0 if start is None else int(np.searchsorted(data.index, pd.Timestamp(start)))
+    if not isinstance(every, int | np.integer) or isinstance(every, bool) or every < 1:
+        raise FitError(f"every must be a whole number of samples ≥ 1, got {every!r}")
+    origins = np.arange(first, n - steps, int(every))
+    if origins.size == 0:
+        raise FitError(
+            f"no origin at or after {start} leaves a horizon of {steps} samples within the data "
+            f"(which end at {data.index[-1]})"
+        )
+    u = np.stack([run.u[o : o + steps + 1] for o in origins])
+    out = propagate(run.system, run.m[origins], run.P[origins], u)
+    meas = np.stack([run.y[o + 1 : o + steps + 1] for o in origins])  # [O, H, p]
+    sd = np.sqrt(out["var"])
+    rows = []
+    for j, o in enumerate(model.outputs):
+        err = meas[..., j] - out["y"][..., j]
+        ok = np.isfinite(err)
+        z = np.abs(err) / sd[..., j]
+        for h in range(steps):
+            k = ok[:, h]
+            e = err[k, h]
+            rows.append(
+                {
+                    "step": h + 1,
+                    "hours": (h + 1) * dt / 3600.0,
+                    "output": o,
+                    "n": int(k.sum()),
+                    "rmse": float(np.sqrt(np.mean(e**2))) if e.size else np.nan,
+                    "bias": float(np.mean(e)) if e.size else np.nan,
+                    "cover50": float(np.mean(z[k, h] <= _Z[0.5])) if e.size else np.nan,
+                    "cover95": float(np.mean(z[k, h] <= _Z[0.95])) if e.size else np.nan,
+                    "sd": float(np.mean(sd[k, h, j])) if e.size else np.nan,
+                }
+            )
+    table = pd.DataFrame(rows)
+    table.attrs.update({"model": model.name, "noise": form.note, "origins": int(origins.size)})
+    return table

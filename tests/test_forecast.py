@@ -1,0 +1,185 @@
+"""Forecasts with uncertainty: the mean against an independent simulation, the bands against a
+Monte Carlo of the stochastic model, an output-error fit's noise, coverage, bad input."""
+
+import numpy as np
+import pandas as pd
+import pytest
+import scipy.signal
+
+import jaxbox
+from jaxbox.fit import FitError
+from jaxbox.forecast import StochasticForm, backtest, forecast, plot_forecast, stochastic_form
+from jaxbox.stochastic import simulate_sde
+
+STEP = 3600.0
+TRUE = {
+    "C_zon": 4.0e6,
+    "C_wal": 3.0e7,
+    "R_wal": 0.008,
+    "gA": 2.0,
+    "T_zon0": 20.0,
+    "T_wal0": 15.0,
+    "sigma_zon": 4e-4,
+    "sigma_wal": 1e-4,
+    "sigma_y_zon": 0.05,
+}
+
+
+def _inputs(n: int, seed: int = 1) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * STEP
+    day = 2 * np.pi * t / 86400.0
+    return {
+        "T_amb": 5.0 + 4.0 * np.sin(day - 2.0) + rng.normal(0, 0.3, n),
+        "I_glo_hor": np.clip(400.0 * np.sin(day - np.pi / 2), 0.0, None),
+        "Q_hea": np.where(rng.random(n) < 0.5, 0.0, 1500.0),
+    }
+
+
+@pytest.fixture(scope="module")
+def data():
+    """Eight days of hourly data of ZonWal's stochastic form with the parameters TRUE."""
+    n = 8 * 24 + 1
+    u = _inputs(n)
+    base = jaxbox.data.Dataset.from_arrays(np.arange(n) * STEP, {**u, "T_zon": np.zeros(n)})
+    y, _ = simulate_sde("ZonWal", TRUE, base, seed=3, x0_std=0.0)
+    return base.with_columns(T_zon=y[:, 0])
+
+
+def _form(params: dict, x0_std: float = 0.0) -> StochasticForm:
+    model = jaxbox.get_model("ZonWal")
+    return StochasticForm(
+        model=model,
+        params=dict(params),
+        hold="foh",
+        x0_std=(x0_std,) * model.n_states,
+        source="ml",
+        note="given",
+        step=STEP,
+    )
+
+
+def test_mean_is_the_simulation_when_the_state_is_known(data):
+    """No diffusion and an exactly known initial state: the filter's state is the simulated
+    one whatever the measurements say, so the forecast mean is the open-loop simulation
+    (here scipy's, linear inputs between samples) and its sd is the measurement noise."""
+    params = {**TRUE, "sigma_zon": 0.0, "sigma_wal": 0.0}
+    form = _form(params)
+    garbage = data.with_columns(T_zon=np.full(len(data), 35.0))
+    history = garbage.slice(None, data.index[100])
+    out = forecast(form, history, data, horizon="30h")
+    model = form.model
+    A, B, C, D = model.state_space_numpy(params)
+    u = data.array(list(model.inputs))
+    t = np.arange(len(data)) * STEP
+    _, ysim, _ = scipy.signal.lsim((A, B, C, D), u, t, X0=[20.0, 15.0], interp=True)
+    np.testing.assert_allclose(out["T_zon_mean"], ysim[101:131], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(out["T_zon_sd"], 0.05, rtol=1e-12)
+    assert list(out["step"]) == list(range(1, 31))
+    assert out.index[0] == data.index[101]
+    lo, hi = out["T_zon_lo95"], out["T_zon_hi95"]
+    np.testing.assert_allclose(hi - lo, 2 * 1.959963984540054 * 0.05, rtol=1e-9)
+
+
+def _monte_carlo(form, m, P, u, steps, n_paths=20000, sub=120, seed=0):
+    """Euler–Maruyama of ``dx = (A x + B u(t)) dt + σ dω`` with inputs linear between samples,
+    ``sub`` substeps per sample, from ``x ~ N(m, P)``; the measured outputs at the samples."""
+    rng = np.random.default_rng(seed)
+    model = form.model
+    A, B, C, _ = model.state_space_numpy(form.params)
+    sig = np.asarray([form.params["sigma_zon"], form.params["sigma_wal"]])
+    L = np.linalg.cholesky(P + 1e-15 * np.eye(len(m)))
+    x = m + rng.standard_normal((n_paths, len(m))) @ L.T
+    h = STEP / sub
+    out = []
+    for k in range(steps):
+        for j in range(sub):
+            a = (j + 0.5) / sub
+            uk = (1 - a) * u[k] + a * u[k + 1]
+            x = x + h * (x @ A.T + uk @ B.T) + np.sqrt(h) * sig * rng.standard_normal(x.shape)
+        out.append(x @ C.T + form.params["sigma_y_zon"] * rng.standard_normal((n_paths, 1)))
+    return np.stack(out, axis=1)[..., 0]  # [paths, steps]
+
+
+def test_bands_match_a_monte_carlo_of_the_stochastic_model(data):
+    form = _form(TRUE, x0_std=1.0)
+    history = data.slice(None, data.index[60])
+    steps = 12
+    out = forecast(form, history, data, horizon=steps)
+    m = np.asarray(out.attrs["state"])
+    P = np.asarray(out.attrs["state_cov"])
+    u = data.array(list(form.model.inputs))[60 : 60 + steps + 1]
+    y = _monte_carlo(form, m, P, u, steps)
+    mean, sd = out["T_zon_mean"].to_numpy(), out["T_zon_sd"].to_numpy()
+    # the Monte Carlo's mean within 4 standard errors plus the Euler scheme's O(h) drift
+    se = sd / np.sqrt(len(y))
+    assert np.all(np.abs(y.mean(axis=0) - mean) < 4 * se + 2e-3)
+    np.testing.assert_allclose(y.std(axis=0), sd, rtol=0.03)
+    inside95 = np.mean((y >= out["T_zon_lo95"].to_numpy()) & (y <= out["T_zon_hi95"].to_numpy()), 0)
+    inside50 = np.mean((y >= out["T_zon_lo50"].to_numpy()) & (y <= out["T_zon_hi50"].to_numpy()), 0)
+    assert np.all(np.abs(inside95 - 0.95) < 0.01)
+    assert np.all(np.abs(inside50 - 0.50) < 0.02)
+    # the uncertainty grows with the horizon (diffusion, no measurement)
+    assert np.all(np.diff(sd) > 0)
+
+
+def test_backtest_of_the_true_model_covers_at_its_nominal_levels(data):
+    """Forecasts of data drawn from the model itself: the 95 % band holds about 95 % of the
+    measurements at every horizon, the 50 % band about half."""
+    table = backtest(_form(TRUE, x0_std=1.0), data, start=data.index[24], horizon="12h")
+    assert set(table["step"]) == set(range(1, 13))
+    assert table["n"].min() > 100
+    assert table["cover95"].mean() == pytest.approx(0.95, abs=0.03)
+    assert table["cover50"].mean() == pytest.approx(0.50, abs=0.08)
+    # the forecast sd at 1 h is near the measurement noise plus one hour of diffusion
+    assert table["sd"].iloc[0] == pytest.approx(np.hypot(0.05, 4e-4 * 60), rel=0.25)
+
+
+@pytest.fixture(scope="module")
+def oe_fit(data):
+    ident = data.slice(None, data.index[24 * 6])
+    return jaxbox.fit_model("ZonWal", ident, starts=2)
+
+
+def test_output_error_fit_gets_noise_from_its_residuals_and_says_so(oe_fit, data):
+    form = stochastic_form(oe_fit)
+    assert form.source == "oe" and "residuals" in form.note
+    assert stochastic_form(oe_fit) is form  # estimated once per result
+    assert set(form.params) == set(TRUE)
+    # the innovations' level: measurement noise plus an hour of diffusion, within 30 %
+    one_step = np.hypot(form.params["sigma_y_zon"], form.params["sigma_zon"] * 60)
+    assert one_step == pytest.approx(np.hypot(0.05, 4e-4 * 60), rel=0.3)
+    history = data.slice(None, data.index[24 * 6])
+    out = oe_fit.forecast(history, data, horizon="24h")
+    assert out.attrs["source"] == "oe" and "residuals" in out.attrs["noise"]
+    assert "T_zon_measured" in out
+    z = (out["T_zon_measured"] - out["T_zon_mean"]) / out["T_zon_sd"]
+    assert np.mean(np.abs(z) < 1.96) >= 0.8  # 24 correlated values: a loose check
+
+
+def test_bad_input_gets_one_clear_line(data):
+    form = _form(TRUE, x0_std=1.0)
+    history = data.slice(None, data.index[150])
+    with pytest.raises(FitError, match=r"horizon reaches .* but the future inputs end at"):
+        forecast(form, history, data, horizon="72h")
+    with pytest.raises(FitError, match="continue the history"):
+        forecast(form, history, data.slice(data.index[160], None), horizon=2)
+    with pytest.raises(FitError, match="whole number of samples"):
+        forecast(form, history, data, horizon="90min")
+    with pytest.raises(TypeError, match="expected a fit"):
+        forecast({"C_zon": 1.0}, history, data, horizon=2)
+    gap = data.frame.copy()
+    gap.loc[data.index[152], "Q_hea"] = np.nan
+    with pytest.raises(FitError, match="future input Q_hea is missing"):
+        forecast(form, history, jaxbox.data.Dataset(gap, check=False), horizon=5)
+
+
+def test_plot_forecast_draws_one_panel_per_output(data):
+    form = _form(TRUE, x0_std=1.0)
+    history = data.slice(None, data.index[100])
+    out = forecast(form, history, data, horizon=24)
+    fig = plot_forecast(out, history)
+    assert len(fig.axes) == 1
+    assert fig.axes[0].get_ylabel() == "T_zon [°C]"
+    with pytest.raises(TypeError, match="DataFrame of a forecast"):
+        plot_forecast(pd.DataFrame({"a": [1]}))

@@ -183,3 +183,81 @@ def test_plot_forecast_draws_one_panel_per_output(data):
     assert fig.axes[0].get_ylabel() == "T_zon [°C]"
     with pytest.raises(TypeError, match="DataFrame of a forecast"):
         plot_forecast(pd.DataFrame({"a": [1]}))
+
+
+# ---- jaxbox forecast ----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def files(data, tmp_path_factory):
+    """The data as a CSV, an ML-like fit file (noise given) and an output-error one."""
+    import json
+
+    folder = tmp_path_factory.mktemp("forecast")
+    csv = folder / "building.csv"
+    data.frame.to_csv(csv, index_label="time")
+    ml = folder / "ml.json"
+    ml.write_text(json.dumps({"model": "ZonWal", "params": TRUE, "x0_std": [1.0, 1.0]}))
+    oe = folder / "oe.json"
+    phys = {n: {"value": v, "unit": "?"} for n, v in TRUE.items() if not n.startswith("sigma")}
+    oe.write_text(json.dumps({"model": "ZonWal", "params": phys}))
+    return folder, csv, ml, oe
+
+
+def _cli(args, capsys):
+    from jaxbox.cli._main import main
+
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_cli_backtest_prints_rmse_and_coverage_and_writes_the_csv(files, data, capsys):
+    folder, csv, ml, _ = files
+    out, png = folder / "f.csv", folder / "f.png"
+    at = str(data.index[120])
+    code, stdout, err = _cli(
+        ["forecast", csv, "--params", ml, "--at", at, "--horizon", "24h", "--out", out]
+        + ["--plot", png],
+        capsys,
+    )
+    assert code == 0, err
+    assert "backtest T_zon: RMSE" in stdout and "95 % band holds" in stdout
+    frame = pd.read_csv(out, index_col="time", parse_dates=True)
+    assert len(frame) == 24 and frame.index[0] == data.index[121]
+    assert {"T_zon_mean", "T_zon_sd", "T_zon_lo95", "T_zon_hi95", "T_zon_measured"} <= set(frame)
+    # the same numbers as the library's forecast
+    ref = forecast(_form(TRUE, 1.0), data.slice(None, at), data, horizon="24h")
+    np.testing.assert_allclose(frame["T_zon_mean"], ref["T_zon_mean"], rtol=1e-10)
+    err_ = frame["T_zon_measured"] - frame["T_zon_mean"]
+    rmse = float(np.sqrt(np.mean(err_**2)))
+    assert f"RMSE {rmse:.3f} K" in stdout
+    assert png.stat().st_size > 1000
+
+
+def test_cli_future_inputs_and_the_output_error_noise(files, data, capsys):
+    folder, csv, _, oe = files
+    future = folder / "future.csv"
+    data.frame[["T_amb", "Q_hea", "I_glo_hor"]].iloc[101:113].to_csv(future, index_label="time")
+    out = folder / "g.csv"
+    args = ["forecast", csv, "--params", oe, "--at", data.index[100], "--out", out]
+    code, stdout, err = _cli([*args, "--inputs", future, "--horizon", "12h"], capsys)
+    assert code == 0, err
+    assert "noise estimated from its residuals" in stdout and "backtest" not in stdout
+    assert len(pd.read_csv(out)) == 12
+    # a horizon beyond the future inputs: one line
+    code, _, err = _cli([*args, "--inputs", future, "--horizon", "24h"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert "horizon reaches" in err and "future inputs end at" in err
+
+
+def test_cli_fit_file_of_another_model(files, data, capsys):
+    folder, csv, ml, _ = files
+    args = ["forecast", csv, "--at", data.index[100], "--out", folder / "h.csv"]
+    code, _, err = _cli([*args, "--params", ml, "--model", "Zon"], capsys)
+    assert code == 2 and "is a fit of ZonWal, not of --model Zon" in err
+    other = folder / "other.json"
+    other.write_text('{"params": {"C_zon": 1e6, "R_wal": 0.01, "gA": 1, "T_zon0": 20}}')
+    code, _, err = _cli([*args, "--params", other, "--model", "ZonWal"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert "was it fitted with another model?" in err

@@ -39,6 +39,7 @@ from ._common import (
 from ._design import add_design_arguments, design_command
 from ._estimate import add_estimate_arguments, estimate_command
 from ._fleet import add_fleet_arguments, fleet_command
+from ._forecast import add_forecast_arguments, forecast_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
 
 __all__ = ["main", "build_parser"]
@@ -54,6 +55,9 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
                                      states of a stochastic (--method ml) fit, to a CSV
   jaxbox fleet DIR --out OUT         every building of a fleet on Dask: models, KPIs, Parquet
   jaxbox design --model NAME --out CSV   plan the heating of an identification experiment
+  jaxbox forecast DATA --params FIT.json --at TIME --horizon 24h --out CSV
+                                     forecast with 50 % and 95 % bands (a backtest without
+                                     --inputs FUTURE.csv)
 """
 
 
@@ -93,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("fleet", help="a fleet of buildings on Dask (or: fleet make DIR --n N)")
     add_fleet_arguments(p)
     add_design_arguments(sub.add_parser("design", help="plan an identification experiment"))
+    add_forecast_arguments(sub.add_parser("forecast", help="forecast with bands from a fit file"))
     return parser
 
 
@@ -147,6 +152,7 @@ _COMMANDS = {
     "estimate": estimate_command,
     "fleet": fleet_command,
     "design": design_command,
+    "forecast": forecast_command,
 }
 
 

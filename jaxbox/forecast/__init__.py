@@ -14,5 +14,6 @@ from ._forecast import propagate as propagate
 from ._form import DiscreteSystem as DiscreteSystem
 from ._form import FilterRun as FilterRun
 from ._form import StochasticForm as StochasticForm
+from ._form import noise_from_residuals as noise_from_residuals
 from ._form import stochastic_form as stochastic_form
 from ._plot import plot_forecast as plot_forecast

@@ -240,15 +240,36 @@ def _noise_program(model: RCModel, hold: str, names: tuple[str, ...], shapes):
 
 
 def _oe_form(result) -> StochasticForm:
-    """Noise of an output-error fit by maximum likelihood with the physics held (see above)."""
+    """Noise of an output-error fit from its residuals on its identification data."""
+    form = noise_from_residuals(result.model, result.params, _first_segment(result.data))
+    return dataclasses.replace(form, step=float(result.data.step))
+
+
+def noise_from_residuals(model: RCModel, params: Mapping[str, float], data) -> StochasticForm:
+    """The stochastic form of a model whose physical parameters ``params`` (SI) were estimated
+    by output error: the diffusions and measurement noises that maximise the Kalman filter's
+    likelihood of ``data`` (one regular series, inputs complete, starting at the fit's initial
+    state ``T_*0``) with the physical parameters held (L-BFGS-B in the logarithms of the noise
+    parameters, within their bounds, from three starts)."""
     import scipy.optimize
 
-    model = result.model
-    data = _first_segment(result.data)
+    data = as_data(data)
+    data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     dt = regular_step(data)
     u = np.asarray(data.array(list(model.inputs)), float)
     y = np.asarray(data.array(list(model.outputs)), float)
-    phys = {n: float(result.params[n]) for n in model.param_names}
+    if not np.all(np.isfinite(u)):
+        raise FitError(
+            "the noise of the stochastic form is estimated by the Kalman filter, which needs "
+            "every input: fill or drop the rows where an input is missing"
+        )
+    missing = [n for n in model.param_names if n not in params]
+    if missing:
+        raise FitError(
+            f"parameters of {model.name} missing: {', '.join(missing)} (was it fitted with "
+            "another model?)"
+        )
+    phys = {n: float(params[n]) for n in model.param_names}
     names = tuple(n for n in diffusion_names(model) if n) + measurement_names(model)
     n_diff = len(names) - len(model.outputs)
     x0 = x0_stds(model, None, OE_X0_STD)
@@ -260,7 +281,8 @@ def _oe_form(result) -> StochasticForm:
         jnp.asarray(u),
         jnp.asarray(y),
     )
-    rms = float(np.sqrt(max(result.cost, 1e-8)))
+    sim = _open_loop_rms(model, phys, dt, u, y)
+    rms = max(sim, 1e-4)
     lo = np.log([SIGMA_BOUNDS[0]] * n_diff + [SIGMA_Y_BOUNDS[0]] * len(model.outputs))
     hi = np.log([SIGMA_BOUNDS[1]] * n_diff + [SIGMA_Y_BOUNDS[1]] * len(model.outputs))
 
@@ -300,5 +322,21 @@ def _oe_form(result) -> StochasticForm:
             "output-error fit: noise estimated from its residuals (maximum likelihood of the "
             "diffusions and measurement noise with the physical parameters held)"
         ),
-        step=float(result.data.step),
+        step=dt,
     )
+
+
+def _open_loop_rms(model: RCModel, phys: dict, dt: float, u, y) -> float:
+    """RMS [K] of the open-loop simulation's output errors (the starts' noise level)."""
+    from ..simulate._exact import discretize_foh_numpy
+
+    A, B, C, D = model.state_space_numpy(phys)
+    Phi, G0, G1 = discretize_foh_numpy(A, B, dt)
+    x = np.asarray([phys[node.T0] for node in model.network.nodes], float)
+    drive = u[:-1] @ G0.T + (u[1:] - u[:-1]) @ G1.T
+    xs = [x]
+    for d in drive:
+        x = Phi @ x + d
+        xs.append(x)
+    e = y - (np.asarray(xs) @ C.T + u @ D.T)
+    return float(np.sqrt(np.nanmean(e**2)))

@@ -1,0 +1,242 @@
+"""``jaxbox forecast``: a forecast with bands from a fit file (and the heat demand for a setpoint).
+
+``jaxbox forecast DATA --params FIT.json --at TIME --horizon 24h [--inputs FUTURE.csv]
+--out forecast.csv [--plot forecast.png]``: the Kalman filter of the fit's stochastic form over
+DATA up to ``--at``, then the forecast over the horizon driven by the inputs of ``--inputs`` (a
+weather forecast, planned heating) or, without it, by the measured inputs after ``--at`` (a
+backtest: the forecast's RMSE and the bands' coverage are printed). A fit file of an
+output-error fit has no noise parameters: they are estimated from its residuals over DATA up to
+``--at`` (said so on the output).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ._common import UsageError, print_json
+from ._data import DataOptions, add_data_arguments, load_data
+
+__all__ = ["add_forecast_arguments", "forecast_command", "read_fit", "fit_form"]
+
+
+def add_forecast_arguments(p) -> None:
+    """Declare the arguments of ``jaxbox forecast``."""
+    add_data_arguments(p)
+    p.add_argument(
+        "--params",
+        required=True,
+        metavar="FIT.json",
+        help="the fit: the JSON of `jaxbox fit --json` (output error or --method ml)",
+    )
+    p.add_argument("--model", "-m", help="model name (default: the fit file's)")
+    p.add_argument(
+        "--at",
+        required=True,
+        metavar="TIME",
+        help="origin of the forecast: the data up to TIME are filtered",
+    )
+    p.add_argument(
+        "--horizon", default="24h", metavar="DURATION", help="forecast horizon (default 24h)"
+    )
+    p.add_argument(
+        "--inputs",
+        metavar="FUTURE.csv",
+        help="future inputs (time and the model's input columns) after --at; default: the "
+        "measured inputs of DATA (a backtest, scored against the measurements)",
+    )
+    p.add_argument("--out", required=True, metavar="FORECAST.csv", help="CSV file to write")
+    p.add_argument("--plot", metavar="FORECAST.png", help="also draw the forecast")
+    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+
+
+def read_fit(path: str, option: str = "--params") -> dict:
+    """A fit file: ``model`` (or None), ``params`` {name: SI value}, ``hold``, ``x0_std``, and
+    ``state`` / ``state_cov`` where the file holds a state estimate. Reads the JSON of
+    ``jaxbox fit --json`` (output error: ``params`` of ``{"value": …}``; ``--method ml``:
+    numbers) or a plain ``{name: value}`` object."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except OSError as err:
+        raise UsageError(f"{option} {path}: cannot read it ({err.strerror or err})") from None
+    except json.JSONDecodeError as err:
+        raise UsageError(f"{option} {path}: not JSON ({err.msg} at line {err.lineno})") from None
+    if isinstance(doc, dict) and "fits" in doc:
+        if not isinstance(doc["fits"], list) or len(doc["fits"]) != 1:
+            raise UsageError(f"{option} {path} holds several fits; save the one to use alone")
+        doc = doc["fits"][0]
+    if not isinstance(doc, dict):
+        raise UsageError(f"{option} {path}: expected a JSON object")
+    raw = doc.get("params", doc)
+    params = {}
+    if isinstance(raw, dict):
+        for name, value in raw.items():
+            if isinstance(value, dict):
+                value = value.get("value")
+            if isinstance(value, int | float) and not isinstance(value, bool):
+                params[name] = float(value)
+            elif name in ("model", "method", "hold"):
+                continue
+            else:
+                params = None
+                break
+    if not params:
+        raise UsageError(
+            f"{option} {path}: no parameters; expected the JSON of `jaxbox fit --json` or "
+            "{name: value} (SI)"
+        )
+    model = doc.get("model") if isinstance(doc.get("model"), str) else None
+    return {
+        "model": model,
+        "params": params,
+        "hold": doc.get("hold"),
+        "x0_std": doc.get("x0_std"),
+        "state": doc.get("state"),
+        "state_cov": doc.get("state_cov"),
+    }
+
+
+def fit_model_of(fit: dict, name: str | None, path: str, option: str = "--params"):
+    """The model of a fit file (``--model`` must agree with the file's own)."""
+    from ..models import get_model
+
+    if name and fit["model"] and get_model(name).name != get_model(fit["model"]).name:
+        raise UsageError(
+            f"{option} {path} is a fit of {fit['model']}, not of --model {name}; give the fit "
+            f"file of {name} or leave --model out"
+        )
+    if not (name or fit["model"]):
+        raise UsageError(f"{option} {path} does not name its model; give --model")
+    return get_model(name or fit["model"])
+
+
+def fit_form(fit: dict, model, path: str, data=None, option: str = "--params"):
+    """The stochastic form of a fit file: its noise parameters where it has them (a
+    maximum-likelihood fit), else noise estimated from the residuals over ``data``."""
+    from ..forecast import StochasticForm, noise_from_residuals
+    from ..stochastic import noise_names
+
+    params = fit["params"]
+    noise = noise_names(model)
+    known = set(model.param_names) | set(noise)
+    extra = sorted(set(params) - known)
+    missing = [n for n in model.param_names if n not in params]
+    if extra or missing:
+        what = f"{', '.join(extra)} not parameters of {model.name}" if extra else ""
+        if missing:
+            what += ("; " if what else "") + f"{', '.join(missing)} missing"
+        raise UsageError(f"{option} {path}: {what}; was it fitted with another model?")
+    if all(n in params for n in noise):
+        x0 = fit["x0_std"]
+        if not (isinstance(x0, list) and len(x0) == model.n_states):
+            x0 = [1.0] * model.n_states
+        return StochasticForm(
+            model=model,
+            params={n: params[n] for n in (*model.param_names, *noise)},
+            hold=fit["hold"] or "foh",
+            x0_std=tuple(float(v) for v in x0),
+            source="ml",
+            note="noise parameters of the fit file (maximum likelihood)",
+            step=float(data.step) if data is not None else 3600.0,
+        )
+    if data is None:
+        raise UsageError(
+            f"{option} {path} is an output-error fit without noise parameters; its stochastic "
+            "form needs data to estimate them from"
+        )
+    return noise_from_residuals(model, params, data)
+
+
+def _history(data, at: str):
+    from ..data import DataError
+
+    try:
+        history = data.slice(None, at)
+    except DataError as err:
+        raise UsageError(f"--at {at}: {err}") from None
+    if len(history) < 3:
+        raise UsageError(
+            f"--at {at}: the data hold {len(history)} sample(s) up to it; the filter needs at "
+            f"least 3 (the data start at {data.start})"
+        )
+    return history
+
+
+def forecast_command(args) -> int:
+    """``jaxbox forecast DATA --params FIT.json --at TIME --horizon 24h --out FORECAST.csv``."""
+    import numpy as np
+
+    from ..forecast import forecast, plot_forecast
+
+    opts = DataOptions(args)
+    if len(opts.specs) != 1:
+        raise UsageError("jaxbox forecast takes one DATA")
+    if getattr(opts, "train", None) or getattr(opts, "valid", None):
+        raise UsageError("--train and --validate do not apply to forecast: give --at")
+    out = Path(args.out)
+    if not out.parent.exists():
+        raise UsageError(f"--out {out}: folder {out.parent} does not exist")
+    plot = Path(args.plot) if args.plot else None
+    if plot is not None and not plot.parent.exists():
+        raise UsageError(f"--plot {plot}: folder {plot.parent} does not exist")
+    fit = read_fit(args.params)
+    model = fit_model_of(fit, args.model, args.params)
+    data = load_data(opts.specs[0], opts)
+    history = _history(data, args.at)
+    history.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+    form = fit_form(fit, model, args.params, history)
+    future = data if args.inputs is None else load_data(args.inputs)
+    frame = forecast(form, history, future, horizon=args.horizon)
+    tmp = out.with_name(out.name + ".part")
+    frame.to_csv(tmp, index_label="time")
+    fig = plot_forecast(frame, history) if plot is not None else None
+    tmp.replace(out)
+    if fig is not None:
+        fig.savefig(plot, dpi=110)
+    summary = {
+        "model": model.name,
+        "origin": frame.attrs["origin"],
+        "horizon_samples": len(frame),
+        "noise": form.note,
+        "out": str(out),
+        "outputs": {},
+    }
+    for o in model.outputs:
+        row = {
+            "mean_end": float(frame[f"{o}_mean"].iloc[-1]),
+            "sd_end": float(frame[f"{o}_sd"].iloc[-1]),
+        }
+        if args.inputs is None and f"{o}_measured" in frame:
+            meas = frame[f"{o}_measured"].to_numpy()
+            ok = np.isfinite(meas)
+            err = meas[ok] - frame[f"{o}_mean"].to_numpy()[ok]
+            row.update(
+                n=int(ok.sum()),
+                rmse=float(np.sqrt(np.mean(err**2))) if ok.any() else None,
+                cover50=_inside(frame, o, "50", ok),
+                cover95=_inside(frame, o, "95", ok),
+            )
+        summary["outputs"][o] = row
+    if args.json:
+        print_json(summary)
+        return 0
+    print(f"wrote {len(frame)} rows to {out} ({form.note})")
+    for o, row in summary["outputs"].items():
+        end = frame.index[-1]
+        print(f"{o} at {end}: {row['mean_end']:.2f} ± {row['sd_end']:.2f} °C (mean ± sd)")
+        if "rmse" in row and row["n"]:
+            print(
+                f"backtest {o}: RMSE {row['rmse']:.3f} K over {row['n']} samples; the 95 % "
+                f"band holds {row['cover95']:.0%} of the measurements, the 50 % band "
+                f"{row['cover50']:.0%}"
+            )
+    return 0
+
+
+def _inside(frame, output: str, band: str, ok) -> float | None:
+    if not ok.any():
+        return None
+    meas = frame[f"{output}_measured"].to_numpy()[ok]
+    lo = frame[f"{output}_lo{band}"].to_numpy()[ok]
+    hi = frame[f"{output}_hi{band}"].to_numpy()[ok]
+    return float(((meas >= lo) & (meas <= hi)).mean())

@@ -41,6 +41,7 @@ __all__ = [
 #: answer keys written beside the buildings
 ZOO_TRUTH_CSV = "truth.csv"
 ZOO_TRUTH_JSON = "truth.json"
+"""The answer key as JSON, beside :data:`ZOO_TRUTH_CSV`."""
 #: heating kinds of the (first) zone
 HEATING_KINDS = ("thermostat", "prbs", "rolbs")
 #: sampling steps the zoo knows [s]

@@ -26,5 +26,5 @@ from ._sequences import prbs as prbs
 from ._sequences import rolbs as rolbs
 from ._sequences import step as step
 
-#: the verb, as re-exported at the top level
 design_experiment = plan
+"""The verb :func:`plan`, as re-exported at the top level (``jaxbox.design_experiment``)."""

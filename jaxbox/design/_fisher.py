@@ -41,6 +41,8 @@ from ..simulate._parallel import normal_equations_auto
 __all__ = ["CRITERIA", "Setup", "make_setup", "RATIO_PREFIXES"]
 
 CRITERIA = ("D", "A", "hlc")
+"""Design criteria: log det (``D``) or trace (``A``) of the relative parameter covariance, or
+the variance of the heat-loss coefficient (``hlc``)."""
 #: parameters whose design coordinate is the logarithm (relative precision)
 RATIO_PREFIXES = ("R_", "C_", "gA", "fra_")
 
@@ -130,7 +132,7 @@ class Setup:
     def linearise(self, phis, fixed, dt):
         """What does not depend on the inputs, per prior sample (rows of ``phis`` [S, p]): the
         matrices, their derivatives ``∂/∂φ`` (forward-mode autodiff, a trailing axis of length
-        p), ``c = ∂ log HLC/∂φ`` [S, p] and the HLC [S] [W/K]."""
+        p), ``c = ∂ log HLC/∂φ`` [S, p] and the HLC [W/K], shape [S]."""
 
         def one(phi):
             mats = self.matrices(phi, fixed, dt)

@@ -21,6 +21,7 @@ import numpy as np
 __all__ = ["prbs", "rolbs", "step", "levels", "SEQUENCES"]
 
 SEQUENCES = ("prbs", "rolbs", "step")
+"""The baseline schedules a design is compared with: PRBS, ROLBS and a constant step."""
 
 #: feedback taps of maximal-length Fibonacci LFSRs, by register length
 _TAPS = {

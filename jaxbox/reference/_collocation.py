@@ -40,6 +40,7 @@ from ._transcription import (
 __all__ = ["CollocationResult", "collocation_fit", "collocation_simulate", "OBJECTIVES"]
 
 OBJECTIVES = ("samples", "quadrature")
+"""The collocation objectives: squared errors at the samples, or their quadrature over time."""
 HESSIANS = ("auto", "exact", "gauss-newton")
 
 

@@ -190,8 +190,8 @@ def diffrax_runs_numpy(
     atol: float = ADAPTIVE_ATOL,
 ) -> np.ndarray:
     """States [S, N, n] of S runs of ``dx/dt = A x + B u(t)`` (adaptive Kvaerno3, as
-    :func:`simulate_diffrax`): inputs ``u`` [S, N, m] at the sample times ``t`` [N] [s], from
-    ``x0`` [S, n] [°C]; NumPy in and out. A run that fails is NaN.
+    :func:`simulate_diffrax`): inputs ``u`` [S, N, m] at the sample times ``t`` [s], shape [N], from
+    ``x0`` [°C], shape [S, n]; NumPy in and out. A run that fails is NaN.
 
     The matrices are padded with zeros to multiples of :data:`PAD` states and inputs, and one
     compiled program (kept in the bounded cache of compiled functions) serves every system of a

@@ -19,6 +19,7 @@ from ._parallel import simulate_parallel
 __all__ = ["Simulation", "simulate_model", "simulate_arrays", "check_theta", "METHODS"]
 
 METHODS = ("exact", "diffrax", "parallel")
+"""Simulators: exact discretisation (sequential scan), diffrax, exact parallel in time."""
 
 
 class Simulation(NamedTuple):

@@ -54,7 +54,9 @@ from ._result import MLResult
 __all__ = ["fit_ml", "fit_ml_many", "DEFAULT_ML_STARTS", "DEFAULT_ML_MAX_STEPS"]
 
 DEFAULT_ML_STARTS = 16
+"""Starts of a maximum-likelihood fit (the default guess, then Latin-hypercube samples)."""
 DEFAULT_ML_MAX_STEPS = 1000
+"""BFGS steps at most per maximum-likelihood start."""
 #: a start whose objective has not fallen by ``ML_STALL_RTOL`` of itself for ``ML_STALL_WINDOW``
 #: steps has converged (its coordinates may still creep towards a bound)
 ML_STALL_WINDOW = 50

@@ -40,12 +40,12 @@ class StateEstimate:
         model: the RC model.
         index: time stamps of the samples.
         states, outputs: names.
-        predicted, predicted_cov: one-step predictions ``x̂_{k|k−1}`` [N, n] [°C] and their
-            covariances [N, n, n] [K²].
+        predicted, predicted_cov: one-step predictions ``x̂_{k|k−1}`` [°C], shape [N, n], and
+            their covariances [K²], shape [N, n, n].
         filtered, filtered_cov: ``x̂_{k|k}`` and covariances.
         smoothed, smoothed_cov: ``x̂_{k|N}`` and covariances (RTS).
-        innovations: ``y_k − ŷ_{k|k−1}`` [N, p] [K] (NaN where the output is missing).
-        innovation_cov: their covariances ``S_k`` [N, p, p] [K²].
+        innovations: ``y_k − ŷ_{k|k−1}`` [K], shape [N, p] (NaN where the output is missing).
+        innovation_cov: their covariances ``S_k`` [K²], shape [N, p, p].
         nll: negative log-likelihood (natural log, with the 2π constant).
         matrices: ``(Φ, Γ0, Γ1, Q, C, D)`` of the discrete model (numpy).
     """

@@ -1,0 +1,375 @@
+"""MkDocs hooks of the documentation site (``hooks:`` in mkdocs.yml).
+
+- **Examples**: every notebook in ``notebooks/`` becomes a page ``examples/<name>.ipynb``, listed
+  under *Examples* in the order of ``EXAMPLES`` (a notebook not named there comes after, by
+  name), titled by its first heading. Each is executed when the site is built, in a kernel of its
+  own (a fresh temporary working folder; several notebooks side by side), and the build stops
+  with the notebook's error when a cell fails. The outputs are not stored in git: an executed copy
+  is kept in ``build/docs/notebooks/`` under a key of the notebook, the jaxbox sources and this
+  file, so that a rebuild with nothing changed (``mkdocs serve``) executes nothing again. The
+  kernels share a persistent JAX compilation cache in ``build/docs/jax`` and compile with XLA's
+  backend optimisations off, as the tests do (the notebooks run briefly; compiling dominates).
+- **Figures**: jaxbox's plots return a ``matplotlib.figure.Figure`` without pyplot, which a
+  notebook shows only as the last expression of a cell. So that every plot appears on the site,
+  the kernel displays, after each cell, the figures that the cell bound to a name
+  (``fig = plot_fit(v)``) and had not shown.
+- **API**: ``api/jaxbox.md`` is written from ``jaxbox.__all__`` (each top-level name linked to
+  its definition in a subpackage), and every public name of every subpackage must have a
+  docstring: one without is a warning, which ``mkdocs build --strict`` turns into a failure.
+
+Environment: ``JAXBOX_DOCS_NOTEBOOKS=skip`` renders the notebooks without executing them (to
+draft the prose; never in CI); ``JAXBOX_DOCS_JOBS=N`` runs N notebooks at once (default: the
+number of cores, at most 4); ``JAXBOX_DOCS_TIMEOUT`` is the limit per cell in seconds (600).
+
+Run as a script (``python tools/docs_hooks.py SRC DST``) it executes one notebook: the build
+starts one such process per notebook.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from mkdocs.plugins import event_priority
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = ROOT / "notebooks"
+CACHE = ROOT / "build" / "docs"
+#: the examples in reading order; other notebooks follow by name
+EXAMPLES = (
+    "quickstart",
+    "validation",
+    "selection",
+    "search",
+    "gaps",
+    "stochastic",
+    "fleet",
+    "design",
+    "sweeps",
+)
+
+log = logging.getLogger("mkdocs.plugins.jaxbox")
+
+#: run in the kernel before the notebook's first cell (and removed from the page)
+_PREAMBLE = """\
+def _jaxbox_docs_setup():
+    import matplotlib.figure
+    from IPython import get_ipython
+    from IPython.display import display
+
+    shell = get_ipython()
+    shown = {id(v) for v in shell.user_ns.values() if isinstance(v, matplotlib.figure.Figure)}
+
+    def show_new_figures(result):
+        if not result.success:
+            return
+        for value in list(shell.user_ns.values()):
+            if (
+                isinstance(value, matplotlib.figure.Figure)
+                and id(value) not in shown
+                and getattr(value.canvas, "manager", None) is None  # pyplot shows its own
+            ):
+                shown.add(id(value))
+                if result.result is not value:  # the last expression is shown already
+                    display(value)
+
+    shell.events.register("post_run_cell", show_new_figures)
+
+
+_jaxbox_docs_setup()
+del _jaxbox_docs_setup
+"""
+
+
+def _title(path: Path) -> str:
+    """The notebook's first Markdown heading, else its name."""
+    nb = json.loads(path.read_text(encoding="utf-8"))
+    for cell in nb.get("cells", []):
+        if cell.get("cell_type") == "markdown":
+            for line in "".join(cell.get("source", "")).splitlines():
+                if line.startswith("#"):
+                    return line.lstrip("#").strip()
+    return path.stem
+
+
+def notebooks() -> list[Path]:
+    """The notebooks of ``notebooks/``, in reading order."""
+    found = {p.stem: p for p in NOTEBOOKS.glob("*.ipynb")}
+    order = [name for name in EXAMPLES if name in found]
+    order += sorted(set(found) - set(order))
+    return [found[name] for name in order]
+
+
+def _key(path: Path) -> str:
+    """A hash of the notebook, the jaxbox sources and this file: what its outputs depend on."""
+    digest = hashlib.sha256(path.read_bytes())
+    for source in sorted((ROOT / "jaxbox").rglob("*")):
+        if source.is_file() and source.suffix in (".py", ".csv", ".json", ".gz", ".npz", ".txt"):
+            digest.update(str(source.relative_to(ROOT)).encode())
+            digest.update(source.read_bytes())
+    digest.update(Path(__file__).read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _execute_one(src: Path, dst: Path) -> tuple[Path, float, str]:
+    """Execute ``src`` into ``dst`` in a process of its own; returns (dst, seconds, error)."""
+    start = time.perf_counter()
+    env = {
+        **os.environ,
+        "JAX_ENABLE_X64": "1",
+        "JAX_COMPILATION_CACHE_DIR": str(CACHE / "jax"),
+        "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0.5",
+        "JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES": "0",
+        "XLA_FLAGS": " ".join(
+            [os.environ.get("XLA_FLAGS", ""), "--xla_backend_optimization_level=0"]
+        ).strip(),
+        "JAXBOX_CACHE": "0",
+        "PYTHONWARNINGS": os.environ.get("PYTHONWARNINGS", ""),
+    }
+    env.pop("MPLBACKEND", None)  # the kernel's inline backend draws the figures
+    proc = subprocess.run(
+        [sys.executable, __file__, str(src), str(dst)],
+        env=env,
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    error = "" if proc.returncode == 0 else (proc.stderr or proc.stdout)[-4000:]
+    return dst, time.perf_counter() - start, error
+
+
+def execute_all(paths: list[Path]) -> dict[str, Path]:
+    """Executed copies of ``paths`` (from the cache where nothing changed); raises on a failure."""
+    from mkdocs.exceptions import PluginError
+
+    out = CACHE / "notebooks"
+    out.mkdir(parents=True, exist_ok=True)
+    executed, todo = {}, []
+    for path in paths:
+        dst = out / f"{path.stem}-{_key(path)}.ipynb"
+        executed[path.stem] = dst
+        if not dst.exists():
+            todo.append((path, dst))
+    if not todo:
+        return executed
+    jobs = int(os.environ.get("JAXBOX_DOCS_JOBS", min(4, os.cpu_count() or 1)))
+    log.info(f"executing {len(todo)} notebook(s), {jobs} at a time")
+    start = time.perf_counter()
+    failures = []
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        for dst, seconds, error in pool.map(lambda job: _execute_one(*job), todo):
+            name = dst.name.rsplit("-", 1)[0]
+            if error:
+                failures.append(f"notebooks/{name}.ipynb failed:\n{error}")
+            else:
+                log.info(f"notebooks/{name}.ipynb executed in {seconds:.0f} s")
+    if failures:
+        raise PluginError("\n\n".join(failures))
+    log.info(f"notebooks executed in {time.perf_counter() - start:.0f} s")
+    return executed
+
+
+# -- MkDocs events ----------------------------------------------------------------------------
+
+
+def on_config(config):
+    """Fill the *Examples* section of the nav with every notebook, and the *API reference* with
+    every subpackage."""
+    entries = [{_title(p): f"examples/{p.name}"} for p in notebooks()]
+
+    def is_notebook(entry) -> bool:
+        value = next(iter(entry.values())) if isinstance(entry, dict) else entry
+        return str(value).endswith(".ipynb")
+
+    import jaxbox
+
+    api = [{f"jaxbox.{name}": f"api/jaxbox.{name}.md"} for name in jaxbox._SUBPACKAGES]
+    for item in config["nav"] or []:
+        if isinstance(item, dict) and "Examples" in item:
+            intro = [e for e in item["Examples"] if not is_notebook(e)]
+            item["Examples"] = [*intro, *entries]
+        if isinstance(item, dict) and "API reference" in item:
+            item["API reference"] = ["api/jaxbox.md", *api]
+    return config
+
+
+@event_priority(100)  # before mkdocs-jupyter's, which wraps the notebook files
+def on_files(files, config):
+    """Add the notebooks (executed) as pages and the generated API index."""
+    from mkdocs.structure.files import File
+
+    paths = notebooks()
+    if os.environ.get("JAXBOX_DOCS_NOTEBOOKS", "").strip().lower() == "skip":
+        log.info("JAXBOX_DOCS_NOTEBOOKS=skip: the examples are not executed")
+        sources = {p.stem: p for p in paths}
+    else:
+        sources = execute_all(paths)
+    for path in paths:
+        uri = f"examples/{path.name}"
+        if files.get_file_from_path(uri) is not None:
+            files.remove(files.get_file_from_path(uri))
+        page = CACHE / "pages" / uri  # a real file under a folder of its own: mkdocs-jupyter
+        page.parent.mkdir(parents=True, exist_ok=True)  # reads it through File.src_dir
+        shutil.copyfile(sources[path.stem], page)
+        files.append(
+            File(uri, str(CACHE / "pages"), config["site_dir"], config["use_directory_urls"])
+        )
+    files.append(File.generated(config, "api/jaxbox.md", content=api_index()))
+    import jaxbox
+
+    for package in jaxbox._SUBPACKAGES:
+        content = api_page(package)
+        files.append(File.generated(config, f"api/jaxbox.{package}.md", content=content))
+    for warning in missing_docstrings():
+        log.warning(warning)
+    return files
+
+
+# -- API ----------------------------------------------------------------------------------------
+
+
+def api_index() -> str:
+    """The page of the top-level names: each linked to where it is defined and documented."""
+    import jaxbox
+
+    lines = [
+        "# jaxbox",
+        "",
+        "::: jaxbox",
+        "    options:",
+        "      members: false",
+        "      show_root_heading: false",
+        "",
+        "## Top-level names",
+        "",
+        "Loaded on first use; each is defined and documented in a subpackage.",
+        "",
+        "| name | defined in | summary |",
+        "|---|---|---|",
+    ]
+    names = getattr(jaxbox, "_NAMES", {})
+    for name in sorted(names):
+        module = names[name]
+        target = f"jaxbox.{module}.{name}"
+        obj = getattr(jaxbox, name)
+        summary = ((obj.__doc__ or "").strip().split("\n\n")[0]).replace("\n", " ")
+        summary = summary.replace("|", "\\|")
+        where = "jaxbox" if module.startswith("_") else f"jaxbox.{module}"
+        lines.append(f"| [`{name}`][{target}] | `{where}` | {summary} |")
+    lines += [
+        "",
+        "## Subpackages",
+        "",
+        "| package | |",
+        "|---|---|",
+    ]
+    for package in jaxbox._SUBPACKAGES:
+        module = getattr(jaxbox, package)
+        summary = (module.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
+        lines.append(f"| [`jaxbox.{package}`](jaxbox.{package}.md) | {summary} |")
+    lines += ["", "## Precision and the compilation cache", ""]
+    for target in ("_x64.enable_x64", "_x64.PrecisionError", "_cache.enable_compilation_cache"):
+        lines += [f"::: jaxbox.{target}", "    options:", "      heading_level: 3", ""]
+    return "\n".join(lines)
+
+
+def api_page(package: str) -> str:
+    """The reference page of one subpackage: its docstring, then every public name."""
+    import importlib
+
+    module = importlib.import_module(f"jaxbox.{package}")
+    lines = [f"# jaxbox.{package}", "", f"::: jaxbox.{package}", "    options:"]
+    lines += ["      show_root_heading: false", "      members:"]
+    lines += [f"        - {name}" for name in public_names(module)]
+    return "\n".join(lines) + "\n"
+
+
+def public_names(module) -> list[str]:
+    """The public names of a package: ``__all__``, else the names not starting with ``_``."""
+    import types
+
+    names = getattr(module, "__all__", None)
+    if names is None:
+        names = [n for n in vars(module) if not n.startswith("_")]
+    return [
+        n
+        for n in names
+        if not isinstance(getattr(module, n, None), types.ModuleType) and n != "annotations"
+    ]
+
+
+def missing_docstrings() -> list[str]:
+    """A line for every public name of a jaxbox subpackage that has no docstring (griffe's view:
+    a constant's ``#:`` comment counts)."""
+    import importlib
+
+    import griffe
+
+    import jaxbox
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from griffe_jaxbox import JaxboxDocstrings
+
+    package = griffe.load(
+        "jaxbox",
+        search_paths=[str(ROOT)],
+        resolve_aliases=True,
+        extensions=griffe.load_extensions(JaxboxDocstrings()),
+    )
+    missing = []
+    for sub in jaxbox._SUBPACKAGES:
+        module = package[sub]
+        if not module.docstring:
+            missing.append(f"jaxbox.{sub}: no module docstring")
+        for name in public_names(importlib.import_module(f"jaxbox.{sub}")):
+            member = module.members.get(name)
+            if member is None:
+                missing.append(f"jaxbox.{sub}.{name}: not found by griffe")
+                continue
+            try:
+                target = member.final_target if member.is_alias else member
+            except Exception:  # an alias to outside jaxbox
+                continue
+            if not target.docstring:
+                missing.append(f"jaxbox.{sub}.{name}: no docstring")
+    return missing
+
+
+# -- one notebook, in a process of its own -----------------------------------------------------
+
+
+def _run(src: Path, dst: Path) -> None:
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(src, as_version=4)
+    nb.cells.insert(0, nbformat.v4.new_code_cell(_PREAMBLE))
+    timeout = int(os.environ.get("JAXBOX_DOCS_TIMEOUT", "600"))
+    with tempfile.TemporaryDirectory(prefix=f"jaxbox-docs-{src.stem}-") as work:
+        client = NotebookClient(
+            nb, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": work}}
+        )
+        client.execute()
+    nb.cells.pop(0)
+    for cell in nb.cells:  # number the cells as if the preamble had not run
+        if cell.cell_type == "code" and cell.get("execution_count"):
+            cell.execution_count -= 1
+            for output in cell.get("outputs", []):
+                if output.get("execution_count"):
+                    output["execution_count"] -= 1
+    tmp = dst.with_suffix(".partial")
+    nbformat.write(nb, tmp)
+    tmp.replace(dst)
+
+
+if __name__ == "__main__":
+    _run(Path(sys.argv[1]), Path(sys.argv[2]))

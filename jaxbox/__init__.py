@@ -16,6 +16,7 @@ __version__ = "0.1.0"
 
 #: subpackages, loaded on first use
 _SUBPACKAGES = (
+    "control",
     "data",
     "datasets",
     "design",

@@ -17,7 +17,13 @@ from pathlib import Path
 from ._common import UsageError, print_json
 from ._data import DataOptions, add_data_arguments, load_data
 
-__all__ = ["add_forecast_arguments", "forecast_command", "read_fit", "fit_form"]
+__all__ = [
+    "add_forecast_arguments",
+    "forecast_command",
+    "read_fit",
+    "fit_form",
+    "check_fit_params",
+]
 
 
 def add_forecast_arguments(p) -> None:
@@ -86,7 +92,10 @@ def read_fit(path: str, option: str = "--params") -> dict:
             "{name: value} (SI)"
         )
     model = doc.get("model") if isinstance(doc.get("model"), str) else None
+    info = doc.get("data") if isinstance(doc.get("data"), dict) else {}
+    step = info.get("step_s")
     return {
+        "step": float(step) if isinstance(step, int | float) and step > 0 else None,
         "model": model,
         "params": params,
         "hold": doc.get("hold"),
@@ -110,15 +119,13 @@ def fit_model_of(fit: dict, name: str | None, path: str, option: str = "--params
     return get_model(name or fit["model"])
 
 
-def fit_form(fit: dict, model, path: str, data=None, option: str = "--params"):
-    """The stochastic form of a fit file: its noise parameters where it has them (a
-    maximum-likelihood fit), else noise estimated from the residuals over ``data``."""
-    from ..forecast import StochasticForm, noise_from_residuals
+def check_fit_params(fit: dict, model, path: str, option: str = "--params") -> None:
+    """The parameters of a fit file must be those of ``model`` (its noise parameters may be
+    missing: an output-error fit); else one line asking whether it is another model's."""
     from ..stochastic import noise_names
 
     params = fit["params"]
-    noise = noise_names(model)
-    known = set(model.param_names) | set(noise)
+    known = set(model.param_names) | set(noise_names(model))
     extra = sorted(set(params) - known)
     missing = [n for n in model.param_names if n not in params]
     if extra or missing:
@@ -126,7 +133,23 @@ def fit_form(fit: dict, model, path: str, data=None, option: str = "--params"):
         if missing:
             what += ("; " if what else "") + f"{', '.join(missing)} missing"
         raise UsageError(f"{option} {path}: {what}; was it fitted with another model?")
+
+
+def fit_form(
+    fit: dict, model, path: str, data=None, option: str = "--params", step: float | None = None
+):
+    """The stochastic form of a fit file: its noise parameters where it has them (a
+    maximum-likelihood fit), else noise estimated from the residuals over ``data``."""
+    from ..forecast import StochasticForm, noise_from_residuals
+    from ..stochastic import noise_names
+
+    check_fit_params(fit, model, path, option)
+    params = fit["params"]
+    noise = noise_names(model)
     if all(n in params for n in noise):
+        step = float(data.step) if data is not None else fit["step"] or step
+        if step is None:
+            raise UsageError(f"{option} {path} does not say its sampling step; give --step")
         x0 = fit["x0_std"]
         if not (isinstance(x0, list) and len(x0) == model.n_states):
             x0 = [1.0] * model.n_states
@@ -137,7 +160,7 @@ def fit_form(fit: dict, model, path: str, data=None, option: str = "--params"):
             x0_std=tuple(float(v) for v in x0),
             source="ml",
             note="noise parameters of the fit file (maximum likelihood)",
-            step=float(data.step) if data is not None else 3600.0,
+            step=step,
         )
     if data is None:
         raise UsageError(

@@ -38,6 +38,7 @@ from ._common import (
 )
 from ._design import add_design_arguments, design_command
 from ._estimate import add_estimate_arguments, estimate_command
+from ._export import add_export_arguments, export_command
 from ._fleet import add_fleet_arguments, fleet_command
 from ._forecast import add_forecast_arguments, forecast_command
 from ._select import add_demo_arguments, add_select_arguments, demo_command, select_command
@@ -58,6 +59,8 @@ Identify and validate grey-box RC thermal models of buildings from monitoring da
   jaxbox forecast DATA --params FIT.json --at TIME --horizon 24h --out CSV
                                      forecast with 50 % and 95 % bands (a backtest without
                                      --inputs FUTURE.csv)
+  jaxbox export FIT.json --step 15min --out MODEL.json|.npz|.mo|.py
+                                     discrete state space, Modelica or python-control
 """
 
 
@@ -98,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_fleet_arguments(p)
     add_design_arguments(sub.add_parser("design", help="plan an identification experiment"))
     add_forecast_arguments(sub.add_parser("forecast", help="forecast with bands from a fit file"))
+    add_export_arguments(sub.add_parser("export", help="a fit as a state space or Modelica model"))
     return parser
 
 
@@ -153,6 +157,7 @@ _COMMANDS = {
     "fleet": fleet_command,
     "design": design_command,
     "forecast": forecast_command,
+    "export": export_command,
 }
 
 

@@ -198,6 +198,14 @@ class FitResult:
 
         return forecast(self, history, future, horizon=horizon, x0=x0)
 
+    def to_state_space(self, step=None, *, data=None):
+        """The exact discrete-time state space at ``step`` (seconds or ``"15min"``; default the
+        fit's), with names, units, noise covariances and the last Kalman state estimate over
+        ``data`` (default the fit's): :func:`jaxbox.control.to_state_space`."""
+        from ..control import to_state_space
+
+        return to_state_space(self, step, data=data)
+
     def __repr__(self) -> str:
         return (
             f"FitResult(model={self.model.name!r}, cost={self.cost:.6g}, "

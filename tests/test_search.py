@@ -357,35 +357,6 @@ def test_search_options_refused_before_any_case(building, option, error, words):
 # ---- repairs ------------------------------------------------------------------------------------
 
 
-def _invalid(*flags):
-    from types import SimpleNamespace
-
-    def flagged(kind=None):
-        return tuple(n for f in flags if f.severe for n in f.parameters)
-
-    verdict = SimpleNamespace(valid=False, flags=list(flags), flagged=flagged)
-    return SimpleNamespace(verdict=verdict)
-
-
-def test_a_facade_at_zero_is_dropped():
-    from jaxbox.select._search import _without_dead_facades
-    from jaxbox.validate import Flag
-
-    s = parse_structure("Zon+Wal+WinSEW")
-    at_zero = Flag("at_bound", ("gA_s",), "gA_s at its lower bound 0")
-    what, fixed = _without_dead_facades(s, _invalid(at_zero))
-    assert fixed.name == "Zon+Wal+WinEW" and "S" in what
-    # another reason as well: no repair; nothing left: no repair; no window flagged: no repair
-    other = Flag("at_bound", ("C_wal",), "C_wal at a bound")
-    assert _without_dead_facades(s, _invalid(at_zero, other)) is None
-    assert _without_dead_facades(s, _invalid(Flag("prediction", (), "bad"))) is None
-    one = parse_structure("Zon+WinS")
-    assert _without_dead_facades(one, _invalid(at_zero)) is None
-    two = parse_structure("Zon1+Zon2+WinSE2+Cpl")
-    what, fixed = _without_dead_facades(two, _invalid(Flag("at_bound", ("gA_s2",), "zero")))
-    assert fixed.name == "Zon1+Zon2+WinE2+Cpl"
-
-
 def test_a_searched_greybox_saves_and_loads(search, tmp_path):
     """Grammar structures are found again by name on load; cases never judged stay so."""
     s, _ = search
@@ -507,44 +478,6 @@ def test_stepping_stones_are_the_best_relative_fits_per_lineage():
     assert [s.name for s, _ in stones] == ["Zon+Wal", "Zon2+Wal2+Bz1"]  # one per lineage
 
 
-def test_a_resistance_on_its_upper_bound_is_cut(building):
-    """A heat path the data do not use (its resistance on the upper bound, nothing else wrong
-    but the intervals it blurs) is cut: retried with the resistance fixed at that bound."""
-    from jaxbox.select._cases import run_cases
-    from jaxbox.select._search import _cut_retry, _resistances_at_their_top
-
-    gb = GreyBox(building.data, name="cut")
-    case = gb.add_case("Zon+Wal", starts=3, bounds={"R_wal": (1e-5, 0.004)})
-    run_cases([case])
-    assert not case.is_valid and "R_wal" in case.verdict.flagged("at_bound")
-    assert _resistances_at_their_top(case) == ["R_wal"]
-    retry = _cut_retry(gb, case, ["R_wal"], lambda _: None)
-    run_cases([retry])
-    assert retry.fixed == {"R_wal": pytest.approx(0.004)}
-    assert "R_wal" not in retry.result.free
-    assert any("cut" in n for n in retry.notes)
-    # a lower bound, or another reason, is no unused path
-    low = gb.add_case("Zon+Wal", starts=3, bounds={"R_wal": (0.05, 10.0)})
-    run_cases([low])
-    assert "R_wal" in low.verdict.flagged("at_bound") and _resistances_at_their_top(low) == []
-
-
-def _heater_case(c_hea: float, noise: float, name: str):
-    """A two-week hourly ``Zon+Hea`` building with a heater of capacity ``c_hea`` [J/K] and
-    sensor noise ``noise`` [K], and its ``Zon+Hea`` case run: invalid through the interval of
-    ``C_hea`` alone. Returns ``(truth, greybox, case)``."""
-    from jaxbox.select._cases import run_cases
-
-    truth = {"C_zon": 4e6, "C_hea": c_hea, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
-    truth.update(T_zon0=20.0, T_hea0=25.0)
-    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=noise)
-    gb = GreyBox(data, name=name)
-    case = gb.add_case("Zon+Hea", starts=4)
-    run_cases([case])
-    assert not case.is_valid and "C_hea" in case.verdict.flagged("wide_interval")
-    return truth, gb, case
-
-
 def test_a_beam_case_is_stuck_on_its_own():
     """With a beam of two, a case whose children all fail is stuck (stepping stones, then a
     look one component back) even while the other beam case improves: on a zoo building the
@@ -568,107 +501,6 @@ def test_a_beam_case_is_stuck_on_its_own():
     other = case(0.5, ("T_zon1",))
     assert _best_per_lineage([b1, a1, b2, other, b2], judge, 2) == [b2, a1, other]
     assert _best_per_lineage([b1, a1, b2, other], judge, 1) == [b2, other]
-
-
-def test_a_retry_that_cannot_be_posed_does_not_end_the_search(monkeypatch):
-    """A retry of an invalid child that its own problem check refuses (here by a stand-in; in
-    the zoo an estimate on its floor handed back as a guess was refused) is a note on that
-    child: the search goes on and accepts a model, with no traceback."""
-    from jaxbox.fit import FitError
-    from jaxbox.select import _search
-
-    truth = {"C_zon": 4e6, "C_hea": 2e5, "R_wal": 0.005, "R_hea": 0.006, "gA": 2.0}
-    truth.update(T_zon0=20.0, T_hea0=25.0)
-    data = synthetic_building(get_model("Zon+Hea"), truth, n=336, seed=2, noise=0.05)
-    tried = []
-
-    def refused(gb, case, names, say):
-        tried.append(case.name)
-        raise FitError(f"guess of {names[0]} = 1e-05 lies outside its bounds (test)")
-
-    monkeypatch.setattr(_search, "_settled_retry", refused)
-    lines = []
-    s = structure_search(
-        GreyBox(data, name="refused"), starts=2, max_depth=1, progress=lines.append
-    )
-    assert tried, "the stand-in was never asked for a retry"
-    case = s.greybox.cases[tried[0]]
-    assert any(n.startswith("retry failed: guess of") for n in case.notes)
-    assert any("retry failed" in line for line in lines)
-    assert s.accepted is not None and lines[-1].startswith("accepted:")
-
-
-def test_a_fast_capacity_the_data_cannot_see_is_settled():
-    """Hourly data see a 20-minute heater's lag, not its capacity: the capacity's interval
-    invalidates the fit, and the retry with it fixed at its estimate is valid and as good."""
-    from jaxbox.select._cases import run_cases
-    from jaxbox.select._search import _fast_capacities, _settled_retry
-
-    truth, gb, case = _heater_case(2e5, 0.05, "heater")
-    assert _fast_capacities(case) == ["C_hea"]
-    retry = _settled_retry(gb, case, ["C_hea"], lambda _: None)
-    run_cases([retry])
-    assert retry.is_valid, retry.reasons
-    assert retry.fixed == {"C_hea": pytest.approx(case.result.params["C_hea"])}
-    assert retry.score == pytest.approx(case.score, rel=0.02)
-    # the heater's lag R·C is what the data determine
-    tau = retry.result.params["R_hea"] * retry.fixed["C_hea"]
-    assert tau == pytest.approx(truth["R_hea"] * truth["C_hea"], rel=0.3)
-    # a case not judged yet has nothing to settle
-    assert _fast_capacities(gb.add_case("Zon", starts=1)) == []
-
-
-def test_a_fast_node_on_its_capacity_floor_is_settled():
-    """Zone air of a few seconds' time constant in hourly data, against a heavy internal mass:
-    the fit puts C_zon on its lower bound (the data see the node as instantaneous), which is
-    settled like an undetermined capacity; the retry is valid and as good."""
-    from jaxbox.select._cases import run_cases
-    from jaxbox.select._search import _fast_capacities, _settled_retry
-
-    truth = {"C_zon": 2e3, "C_int": 2e7, "R_wal": 0.005, "R_int": 0.002, "gA": 2.0}
-    truth.update(T_zon0=20.0, T_int0=19.0)
-    data = synthetic_building(get_model("Zon+Int"), truth, n=240, seed=4, noise=0.05)
-    gb = GreyBox(data, name="floor")
-    case = gb.add_case("Zon+Int", starts=4)
-    run_cases([case])
-    assert "C_zon" in case.verdict.flagged("at_bound")
-    assert case.result.bound_position()["C_zon"] < 0.01
-    assert _fast_capacities(case) == ["C_zon"]
-    retry = _settled_retry(gb, case, ["C_zon"], lambda _: None)
-    run_cases([retry])
-    assert retry.is_valid, retry.reasons
-    assert retry.score == pytest.approx(case.score, rel=0.02)
-    assert retry.result.params["R_int"] == pytest.approx(truth["R_int"], rel=0.3)
-
-
-def test_a_capacity_seen_only_through_its_lag_is_settled():
-    """A heater slower than two sampling steps, seen through the zone it warms: the data fix its
-    lag R·C (its interval, by the delta method, within ±100 %) but not how R and C split. The
-    capacity is fixed at its estimate, and the retry's interval of R_hea (now the lag's) agrees
-    with the delta method's interval of the lag."""
-    from jaxbox.select._cases import run_cases
-    from jaxbox.select._search import (
-        _fast_capacities,
-        _own_time_constants,
-        _settled_retry,
-        _time_constant_intervals,
-    )
-    from jaxbox.validate import uncertainty
-
-    truth, gb, case = _heater_case(1e6, 0.3, "slow heater")
-    params = {k: float(v) for k, v in case.result.params.items()}
-    hea = [n.C for n in case.model.network.nodes].index("C_hea")
-    tau = _own_time_constants(case.model, params)[hea]
-    assert tau == pytest.approx(params["R_hea"] * params["C_hea"])
-    assert tau > 2 * 3600.0  # not a fast node: the interval of its lag decides
-    rel = _time_constant_intervals(case, params, [hea])[hea]
-    assert rel < 1.0
-    assert _fast_capacities(case) == ["C_hea"]
-    retry = _settled_retry(gb, case, ["C_hea"], lambda _: None)
-    run_cases([retry])
-    assert retry.is_valid, retry.reasons
-    unc = uncertainty(retry.result)
-    assert unc.rel_ci[list(unc.names).index("R_hea")] == pytest.approx(rel, rel=0.25)
 
 
 def test_a_pinned_initial_temperature_is_narrowed_from_the_data(building):

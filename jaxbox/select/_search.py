@@ -16,15 +16,15 @@ ranked by the criterion:
 A child *improves* when it is valid and beats its parent significantly: a validation SE lower by
 at least ``margin`` (relative), a lower AIC/BIC, or a significant likelihood ratio. The beam of
 the next step holds the best improving children. An invalid child prunes its branch, not the
-search; a child that does not improve is not grown further. A child made invalid only by facade
-apertures at zero or undetermined (a facade that lets no sun in, or too little to tell) is tried
-again without those windows in the same step; so is a child whose unmeasured initial
-temperature ended on its bound, with that bound narrowed to the temperatures around the state
-(as the forward selection does); so is a child made invalid only by resistances on their
-upper bound, with those heat paths cut (the resistances fixed at that bound: the data do not
-use them), and a child made invalid only by the interval of a fast node's capacity (own time
-constant under two sampling steps) or by that capacity on its lower bound, with that capacity
-fixed at its estimate (the data see the node's lag, or no lag at all, not its capacity).
+search; a child that does not improve is not grown further.
+
+**Reduce, don't reject.** A child made invalid only by parameters that sit where their
+component vanishes (an aperture or gain at 0, a fraction at 0 or 1, a resistance on its upper
+bound, a capacity on its lower bound, an offset, gain or aperture whose interval spans zero,
+an initial temperature the outputs forget) is identified again in the same step with those
+parameters fixed there, and the reduced structure is judged against the same parent
+(:func:`~jaxbox.select._reduce.reduction`: the grammar's smaller structure where whole
+components vanish). The tree shows each reduction.
 
 When no child of a beam case improves, the search looks one component further from that case
 before it gives it up: the ``lookahead`` children that fit the identification data best
@@ -73,17 +73,14 @@ from ..models._grammar import (
     reductions,
     roots,
 )
-from ..validate import MAX_REL_CI
 from ._cases import Case, Progress, check_whole, quiet, run_cases, verdict_text
 from ._forward import (
     Selection,
     _as_greybox,
     _fraction,
-    _narrowed_retry,
-    _pinned_unmeasured_states,
-    _retry_of,
     check_run,
 )
+from ._reduce import Reduction, reduction
 
 __all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
 
@@ -309,6 +306,270 @@ def _coupling_cut(case: Case) -> bool:
 
 # ---- the search ---------------------------------------------------------------------------------
 
+#: how many times a step reduces what its reductions left invalid (each round one batched call)
+REDUCTION_ROUNDS = 3
+
+
+class _Search:
+    """One structure search: its candidates and the steps that make them (see the module).
+
+    ``propose`` (:meth:`extensions`, :meth:`removals`, stepping stones), ``identify`` (one
+    batched call a step), ``judge`` (the criterion, then the verdict of what could improve),
+    ``reduce`` (:func:`~jaxbox.select._reduce.reduction`), ``choose`` (:func:`_accept`).
+    """
+
+    def __init__(self, gb, grammar: Grammar, judge: _Judge, *, beam, lookahead, max_depth, kw, say):
+        self.gb, self.grammar, self.rule = gb, grammar, judge
+        self.beam, self.lookahead, self.max_depth = beam, lookahead, max_depth
+        self.kw, self.say = kw, say
+        self.nodes: dict[str, dict] = {}  # case name -> SearchNode fields
+        self.seen: set[str] = set()  # structures (and reduced problems) declared
+        self.reduced: dict[str, str] = {}  # case name -> what it was reduced to, in words
+        self.widest = 0  # the most input columns of a step so far: later steps pad to it
+
+    # ---- propose --------------------------------------------------------------------------------
+
+    def declare(
+        self, structure: Structure, parent: Case | None, added: str, depth: int, **problem
+    ) -> Case:
+        """A new candidate of ``structure`` starting from ``parent``'s optimum (``problem``:
+        ``name``, ``fixed``, ``bounds``; ``tree_parent`` where the tree shows another parent)."""
+        model = structure.build(self.grammar)
+        tree_parent = problem.pop("tree_parent", None if parent is None else parent.name)
+        if parent is None:
+            case = self.gb.add_case(model, **problem, **self.kw)
+        else:
+            case = self.gb.add_case(model, guess="parent", parent=parent.name, **problem, **self.kw)
+        case.settings.setdefault("postsim", "exact")
+        self.seen.add(structure.name)
+        self.nodes[case.name] = dict(
+            case=case.name, structure=structure.name, parent=tree_parent, added=added, depth=depth
+        )
+        return case
+
+    def structure(self, case: Case) -> Structure:
+        return parse_structure(self.nodes[case.name]["structure"])
+
+    def extensions(self, pairs: list[tuple[Case, Case]], depth: int) -> list[tuple[Case, Case]]:
+        """Every new one-component extension of each ``(case, reference)``: ``(child, reference)``
+        pairs, each child starting from ``case``."""
+        out = []
+        for grown, ref in pairs:
+            for added, child in extensions(self.structure(grown), self.grammar):
+                if child.name not in self.seen:
+                    out.append((self.declare(child, grown, added, depth), ref))
+        return out
+
+    def removals(self, cases: list[Case], depth: int) -> list[tuple[Case, Case]]:
+        """Every new structure one component smaller than each of ``cases``, judged against it."""
+        out = []
+        for case in cases:
+            for removed, smaller in reductions(self.structure(case), self.grammar):
+                if smaller.name not in self.seen:
+                    out.append((self.declare(smaller, case, removed, depth), case))
+        return out
+
+    # ---- identify, judge, reduce ----------------------------------------------------------------
+
+    def identify(self, cases: list[Case], depth: int) -> None:
+        self.say(f"step {depth}: {len(cases)} candidate(s) in one batched call")
+        self.widest = max(self.widest, len({u for c in cases for u in c.model.inputs}))
+        run_cases(cases, self.say, catch=True, judge=False, inputs=self.widest)
+
+    def judge(self, children: list[tuple[Case, Case | None]]) -> list[Case]:
+        """The criterion of every child, the verdict of those that could improve (lazily); the
+        improving valid ones, best first."""
+        winners: list[Case] = []
+        for child, parent in sorted(children, key=lambda cp: _rank(cp[0], self.rule)):
+            node = self.nodes[child.name]
+            node["criterion"] = self.rule.value(child)
+            better, why = self.rule.improves(child, parent)
+            if not child.done:
+                node.update(status="failed", why="; ".join(child.notes)[-200:])
+            elif not better:
+                node.update(status="no improvement", why=why)
+            elif sum(_lineage(w) == _lineage(child) for w in winners) >= self.beam:
+                node.update(status="improves", why=why)  # (its lineage's beam is full)
+            else:
+                if child.verdict is None:  # judged lazily: only now that it could improve
+                    child.assess()
+                    if not child.is_valid:
+                        self.say(f"  {child.name}: not valid ({child.reasons[0]})")
+                if child.is_valid:
+                    node.update(status="grown", why=why)
+                    winners.append(child)
+                elif child.name in self.reduced:
+                    node.update(status="reduced", why=self.reduced[child.name])
+                else:
+                    node.update(status="not valid", why=(child.reasons or ("not valid",))[0])
+        return winners
+
+    def reduce(self, children: list[tuple[Case, Case | None]], depth: int) -> list:
+        """Each judged, invalid child that :func:`reduction` reduces, declared again as its
+        reduced structure (a ``(reduced, reference)`` pair), judged against the same reference."""
+        out = []
+        for child, ref in children:
+            if child.verdict is None or child.is_valid or child.name in self.reduced:
+                continue
+            try:  # a reduction that cannot be posed is a note, never the end of the search
+                cut = reduction(child, self.structure(child), self.grammar)
+                case = None if cut is None else self.declare_reduced(child, cut, depth)
+            except ValueError as err:  # (FitError, ModelError too)
+                self.say(f"  {child.name}: reduction failed ({err})")
+                child.notes.append(f"reduction failed: {err}")
+                continue
+            if case is not None:
+                out.append((case, ref))
+        return out
+
+    def declare_reduced(self, child: Case, cut: Reduction, depth: int) -> Case | None:
+        """Declare the reduced candidate of ``child`` (``None`` when that problem was declared
+        already: the smaller structure was a candidate of its own)."""
+        source = self.nodes[child.name]["structure"]
+        text = cut.text(source)
+        _, fixed, bounds = cut.problem(child, self.grammar)
+        key = cut.structure.name
+        if fixed or bounds:
+            key += "|" + ",".join(f"{k}={v:.6g}" for k, v in sorted(fixed.items()))
+            key += "|" + ",".join(f"{k}={a:.6g}:{b:.6g}" for k, (a, b) in sorted(bounds.items()))
+        self.reduced[child.name] = text
+        if key in self.seen:
+            child.notes.append(f"reduces to {cut.structure.name}, a candidate already")
+            return None
+        self.seen.add(key)
+        self.say(f"  {child.name}: {text}")
+        name = cut.structure.name if key == cut.structure.name else None
+        if name is None or name in self.gb.cases:
+            name = self.gb._unique(f"{cut.structure.name}+reduced")
+        node = self.nodes[child.name]
+        case = self.declare(
+            cut.structure,
+            child,
+            f"{node['added']}; {text}",
+            node["depth"],
+            name=name,
+            fixed=fixed,
+            bounds=bounds,
+            tree_parent=node["parent"],
+        )
+        self.seen.add(source)
+        case.notes.append(f"reduced from {child.name}: {text}")
+        child.notes.append(f"reduced to {case.name}: {text}")
+        return case
+
+    def step(self, children: list[tuple[Case, Case | None]], depth: int):
+        """Identify and judge ``children`` in one batched call, then reduce what only vanishing
+        parameters made invalid (up to :data:`REDUCTION_ROUNDS` batched calls more). Returns
+        the winners and every ``(candidate, reference)`` pair of the step."""
+        if not children:
+            return [], []
+        self.identify([c for c, _ in children], depth)
+        winners, fresh = self.judge(children), children
+        for _ in range(REDUCTION_ROUNDS):
+            fresh = self.reduce(fresh, depth)
+            if not fresh:
+                break
+            self.identify([c for c, _ in fresh], depth)
+            children = children + fresh
+            winners = self.judge(children)
+        return winners, children
+
+    # ---- the loop -------------------------------------------------------------------------------
+
+    def start(self) -> list[Case]:
+        """Identify the roots (padded to their children's input columns, so that the first two
+        steps share one compiled program); every root is grown, valid or not (the simplest
+        structure of a set of zones is often too simple to be valid)."""
+        first = roots(self.grammar)
+        self.widest = len(
+            {
+                u
+                for s in first
+                for _, c in extensions(s, self.grammar)
+                for u in c.build(self.grammar).inputs
+            }
+        )
+        self.say(
+            f"structure search ({self.rule.criterion}, beam {self.beam}) from "
+            + ", ".join(s.name for s in first)
+        )
+        winners, children = self.step([(self.declare(s, None, "root", 0), None) for s in first], 0)
+        grown = list(winners)
+        for c, _ in children:
+            node = self.nodes[c.name]
+            if c in grown or not c.done or not np.isfinite(self.rule.value(c)):
+                continue
+            if any(o.parent == c.name for o, _ in children):  # its reduction stands for it
+                continue
+            why = node.get("why") or "not valid"
+            node.update(status="grown", why=f"{why}; a root: grown all the same")
+            grown.append(c)
+        return grown
+
+    def run(self) -> str:
+        """Grow until no step improves; returns why the search stopped."""
+        beam_cases = self.start()
+        if not beam_cases:
+            fitted = [n for n in self.nodes if self.gb.cases[n].done]
+            if fitted:
+                return (
+                    f"no root could be grown: {', '.join(fitted)} fitted with no finite "
+                    "simulation error"
+                )
+            return "no root could be fitted: every fit failed (each case's notes say why)"
+        depth = 0
+        while True:
+            depth += 1
+            if depth > self.max_depth:
+                return f"reached max_depth={self.max_depth}"
+            winners, children = self.step(
+                self.extensions([(c, c) for c in beam_cases], depth), depth
+            )
+            if not children:
+                return "the grammar has no further extension the data can drive"
+            stuck = _stuck(beam_cases, winners, children)
+            stones = _stepping_stones([cr for cr in children if cr[1] in stuck], self.lookahead)
+            if stones and depth < self.max_depth:
+                depth += 1
+                further, more = self.look_further(stones, depth)
+                winners += further
+                stuck = _stuck(stuck, further, more)
+            if stuck and depth < self.max_depth:
+                # a component taken early (a facade's sun for what an envelope and a mass explain
+                # together) may be worse than none once the others are in: look one back
+                depth += 1
+                winners += self.step(self.removals(stuck, depth), depth)[0]
+            if not winners:
+                further = ", one or two components further" if stones else ""
+                return f"step {depth}: no extension improves significantly{further}, nor a removal"
+            beam_cases = _best_per_lineage(winners, self.rule, self.beam)
+
+    def look_further(self, stones: list[tuple[Case, Case]], depth: int):
+        """Grow the stepping stones (the best fits of a stuck case's children) one component
+        further, their children judged against the stuck case."""
+        for stone, _ in stones:
+            node = self.nodes[stone.name]
+            node["why"] = f"{node['status']}: {node.get('why', '')}".rstrip(": ")
+            node["status"] = "stepping stone"
+        self.say(
+            f"step {depth - 1}: no extension improves; looking one component further from "
+            + ", ".join(s.model.name for s, _ in stones)
+        )
+        return self.step(self.extensions(stones, depth), depth)
+
+    # ---- choose ---------------------------------------------------------------------------------
+
+    def choose(self) -> Case | None:
+        """The accepted model (:func:`_accept`), and every candidate's final status."""
+        cases = [self.gb.cases[n] for n in self.nodes]
+        accepted = _accept([c for c in cases if c.done and c.is_valid], self.rule)
+        for name, node in self.nodes.items():
+            node.setdefault("criterion", math.inf)
+            node.setdefault("status", "not judged")
+            if accepted is not None and name == accepted.name:
+                node["status"] = "accepted"
+        return accepted
+
 
 def structure_search(
     greybox,
@@ -356,16 +617,68 @@ def structure_search(
         ValueError: an option out of range, or data the grammar cannot model (no
             ``T_zon``/``T_amb``, more than two zones).
     """
+    say = progress or quiet
+    gb, grammar, judge, counts, kw = _checked(
+        greybox,
+        criterion,
+        beam,
+        starts,
+        seed,
+        margin,
+        alpha,
+        max_depth,
+        lookahead,
+        grammar,
+        progress,
+        settings,
+    )
+    t0 = time.perf_counter()
+    search = _Search(gb, grammar, judge, kw=kw, say=say, **counts)
+    stopped = search.run()
+    accepted = search.choose()
+    elapsed = time.perf_counter() - t0
+    nodes = search.nodes
+    verdict = verdict_text(gb.cases, nodes, accepted)
+    say(f"accepted: {verdict}; {stopped} ({elapsed:.0f} s, {len(nodes)} candidates)")
+    return Search(
+        greybox=gb,
+        accepted=None if accepted is None else accepted.name,
+        order=tuple(nodes),
+        stopped=stopped,
+        skipped=(),
+        elapsed_s=elapsed,
+        criterion=criterion,
+        tree=tuple(SearchNode(**nodes[n]) for n in nodes),
+    )
+
+
+def _checked(
+    greybox,
+    criterion,
+    beam,
+    starts,
+    seed,
+    margin,
+    alpha,
+    max_depth,
+    lookahead,
+    grammar,
+    progress,
+    settings,
+):
+    """The options of :func:`structure_search`, checked by name before any case is declared:
+    ``(greybox, grammar, judge, counts, fit keywords)``."""
     from ..models import ModelError
 
-    say = progress or quiet
     if criterion not in CRITERIA:
         raise ValueError(f"criterion must be one of {', '.join(CRITERIA)}; got {criterion!r}")
     # any integral number (numpy's int64 from an array or a table too); a bool, a float or
     # text is refused by name (TypeError), a number out of range too (ValueError)
-    beam = check_whole(beam, "beam", 1)
-    max_depth = check_whole(max_depth, "max_depth", 0)
-    lookahead = check_whole(lookahead, "lookahead", 0)
+    counts = dict(
+        beam=check_whole(beam, "beam", 1),
+        max_depth=check_whole(max_depth, "max_depth", 0),
+        lookahead=check_whole(lookahead, "lookahead", 0),
+    )
     margin = _fraction(margin, "margin")
     if (
         isinstance(alpha, bool | np.bool_)
@@ -373,7 +686,6 @@ def structure_search(
         or not 0.0 < alpha < 1.0
     ):
         raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
-    alpha = float(alpha)
     if grammar is not None and not isinstance(grammar, Grammar):
         raise TypeError(
             f"grammar must be a jaxbox.models.Grammar (or None: from the data's columns), got "
@@ -386,235 +698,7 @@ def structure_search(
     except ModelError as err:
         raise ValueError(str(err)) from None
     judge = _Judge(criterion, float(margin), float(alpha))
-    kw = {"starts": starts, "seed": seed, **settings}
-    t0 = time.perf_counter()
-    nodes: dict[str, dict] = {}  # case name -> node fields
-    seen: set[str] = set()
-
-    def declare(structure: Structure, parent: Case | None, added: str, depth: int) -> Case:
-        model = structure.build(grammar)
-        if parent is None:
-            case = gb.add_case(model, **kw)
-        else:
-            case = gb.add_case(model, guess="parent", parent=parent.name, **kw)
-        case.settings.setdefault("postsim", "exact")
-        seen.add(structure.name)
-        nodes[case.name] = dict(
-            case=case.name,
-            structure=structure.name,
-            parent=None if parent is None else parent.name,
-            added=added,
-            depth=depth,
-        )
-        return case
-
-    widest = 0  # the most input columns of a step so far: later steps pad to it
-
-    def run(cases: list[Case], step: int) -> None:
-        nonlocal widest
-        say(f"step {step}: {len(cases)} candidate(s) in one batched call")
-        widest = max(widest, len({u for c in cases for u in c.model.inputs}))
-        run_cases(cases, say, catch=True, judge=False, inputs=widest)
-
-    def settle(children: list[tuple[Case, Case | None]]) -> list[Case]:
-        """Judge a step's children; the improving valid ones, best first."""
-        order = sorted(children, key=lambda cp: _rank(cp[0], judge))
-        winners: list[Case] = []
-        for child, parent in order:
-            node = nodes[child.name]
-            node["criterion"] = judge.value(child)
-            better, why = judge.improves(child, parent)
-            if not child.done:
-                node.update(status="failed", why="; ".join(child.notes)[-200:])
-                continue
-            if not better:
-                node.update(status="no improvement", why=why)
-                continue
-            if sum(_lineage(w) == _lineage(child) for w in winners) >= beam:  # (its lineage's)
-                node.update(status="improves", why=why)
-                continue
-            fresh = child.verdict is None  # judged lazily: only now that it could improve
-            if fresh:
-                child.assess()
-            if not child.is_valid:
-                first = child.reasons[0] if child.reasons else "not valid"
-                node.update(status="not valid", why=first)
-                if fresh:
-                    say(f"  {child.name}: pruned, not valid ({first})")
-                continue
-            node.update(status="grown", why=why)
-            winners.append(child)
-        return winners
-
-    first = [declare(s, None, "root", 0) for s in roots(grammar)]
-    # the roots are fitted with as many input columns as their children will have, so that the
-    # first two steps share one compiled program
-    widest = len(
-        {
-            u
-            for s in roots(grammar)
-            for _, c in extensions(s, grammar)
-            for u in c.build(grammar).inputs
-        }
-    )
-    say(
-        f"structure search ({criterion}, beam {beam}) from "
-        + ", ".join(s.name for s in roots(grammar))
-    )
-    run(first, 0)
-    beam_cases = settle([(c, None) for c in first])
-    # every lineage is grown from its root, valid or not: the simplest structure of a set of
-    # zones is often too simple to be valid (a solar aperture at zero where the envelope is
-    # missing), and a component more may make it so
-    for c in first:
-        if c.done and c not in beam_cases and np.isfinite(judge.value(c)):
-            beam_cases.append(c)
-            nodes[c.name]["status"] = "grown"
-            nodes[c.name]["why"] = (
-                f"{nodes[c.name].get('why') or 'not valid'}; a root: grown all the same"
-            )
-    stopped = ""
-    if not beam_cases:
-        fitted = [c.name for c in first if c.done]
-        stopped = (
-            f"no root could be grown: {', '.join(fitted)} fitted with no finite simulation error"
-            if fitted
-            else "no root could be fitted: every fit failed (each case's notes say why)"
-        )
-
-    def grow(pairs: list[tuple[Case, Case]], depth: int) -> tuple[list[Case], list]:
-        """Identify every new extension of each ``(case, reference)`` pair in one batched call
-        (the repairs in a second); each child starts from ``case`` and is judged against
-        ``reference``. Returns the winners and the (child, reference) pairs."""
-        children: list[tuple[Case, Case]] = []
-        for grown, ref in pairs:
-            structure = parse_structure(nodes[grown.name]["structure"])
-            for added, child in extensions(structure, grammar):
-                if child.name not in seen:
-                    children.append((declare(child, grown, added, depth), ref))
-        if not children:
-            return [], []
-        run([c for c, _ in children], depth)
-        winners = settle(children)
-        repairs = []
-        for child, ref in children:
-            node = nodes[child.name]
-            fix = _without_dead_facades(parse_structure(node["structure"]), child)
-            if fix is not None and fix[1].name not in seen:
-                what = f"{node['added']}, {fix[0]}"
-                repairs.append((declare(fix[1], gb.cases[node["parent"]], what, depth), ref))
-                continue
-            if child.is_valid or child.verdict is None:
-                continue
-            try:  # a retry that cannot be posed is a note, never the end of the search
-                if cut := _resistances_at_their_top(child):
-                    retry = _cut_retry(gb, child, cut, say)
-                    how = f"{', '.join(cut)} cut (fixed at the upper bound)"
-                elif fast := _fast_capacities(child):
-                    retry = _settled_retry(gb, child, fast, say)
-                    how = f"{', '.join(fast)} fixed at the estimate (only its lag shows)"
-                elif pinned := _pinned_unmeasured_states(child):
-                    retry = _narrowed_retry(gb, child, pinned, say)
-                    how = f"{', '.join(pinned)} narrowed"
-                else:
-                    continue
-            except ValueError as err:  # (FitError, ModelError too)
-                say(f"  {child.name}: retry failed ({err})")
-                child.notes.append(f"retry failed: {err}")
-                continue
-            nodes[retry.name] = dict(
-                node, case=retry.name, added=f"{node['added']}; retried with {how}"
-            )
-            for key in ("criterion", "status", "why"):
-                nodes[retry.name].pop(key, None)
-            repairs.append((retry, ref))
-        if repairs:  # the repaired cases: once more
-            run([c for c, _ in repairs], depth)
-            winners = settle(children + repairs)
-        return winners, children + repairs
-
-    def shrink(cases: list[Case], depth: int) -> list[Case]:
-        """Identify every new structure one component smaller than each of ``cases`` in one
-        batched call, each starting from (and judged against) the case it comes from. Returns
-        the winners."""
-        children: list[tuple[Case, Case]] = []
-        for case in cases:
-            structure = parse_structure(nodes[case.name]["structure"])
-            for removed, smaller in reductions(structure, grammar):
-                if smaller.name not in seen:
-                    children.append((declare(smaller, case, removed, depth), case))
-        if not children:
-            return []
-        say(f"step {depth}: {len(children)} structure(s) one component smaller")
-        run([c for c, _ in children], depth)
-        return settle(children)
-
-    depth = 0
-    while beam_cases and not stopped:
-        depth += 1
-        if depth > max_depth:
-            stopped = f"reached max_depth={max_depth}"
-            break
-        winners, children = grow([(c, c) for c in beam_cases], depth)
-        if not children:
-            stopped = "the grammar has no further extension the data can drive"
-            break
-        # a beam case whose every extension fails to improve looks one component further, from
-        # the extensions that fit its identification data best (components that help only
-        # together, such as an envelope and an internal mass); stuck is a property of the case,
-        # not of its lineage: another beam case that still improves must not hide it
-        stuck = _stuck(beam_cases, winners, children)
-        stones = _stepping_stones([cr for cr in children if cr[1] in stuck], lookahead)
-        if stones and depth < max_depth:
-            for stone, _ in stones:
-                node = nodes[stone.name]
-                node["why"] = f"{node['status']}: {node.get('why', '')}".rstrip(": ")
-                node["status"] = "stepping stone"
-            say(
-                f"step {depth}: no extension improves; looking one component further from "
-                + ", ".join(s.model.name for s, _ in stones)
-            )
-            depth += 1
-            further, more = grow(stones, depth)
-            winners += further
-            stuck = _stuck(stuck, further, more)
-        if stuck and depth < max_depth:
-            # before a stuck case is given up, the search looks one component back from it: a
-            # component taken early (a facade's sun for what an envelope and a mass explain
-            # together) may be worse than none once the others are in
-            depth += 1
-            winners += shrink(stuck, depth)
-        if not winners:
-            stopped = (
-                f"step {depth}: no extension improves significantly"
-                + (", one or two components further" if stones else "")
-                + ", nor a removal"
-            )
-            break
-        beam_cases = _best_per_lineage(winners, judge, beam)
-    elapsed = time.perf_counter() - t0
-
-    valid = [gb.cases[n] for n in nodes if gb.cases[n].done and gb.cases[n].verdict is not None]
-    valid = [c for c in valid if c.is_valid]
-    accepted = _accept(valid, judge)
-    for name, node in nodes.items():
-        node.setdefault("criterion", math.inf)
-        node.setdefault("status", "not judged")
-        if accepted is not None and name == accepted.name:
-            node["status"] = "accepted"
-    tree = tuple(SearchNode(**nodes[n]) for n in nodes)
-    verdict = verdict_text(gb.cases, nodes, accepted)
-    say(f"accepted: {verdict}; {stopped} ({elapsed:.0f} s, {len(nodes)} candidates)")
-    return Search(
-        greybox=gb,
-        accepted=None if accepted is None else accepted.name,
-        order=tuple(nodes),
-        stopped=stopped,
-        skipped=(),
-        elapsed_s=elapsed,
-        criterion=criterion,
-        tree=tree,
-    )
+    return gb, grammar, judge, counts, {"starts": starts, "seed": seed, **settings}
 
 
 def _stuck(cases: list[Case], winners: list[Case], children: list[tuple[Case, Case]]) -> list[Case]:
@@ -652,167 +736,3 @@ def _stepping_stones(children: list[tuple[Case, Case]], n: int) -> list[tuple[Ca
         if sum(r is ref for _, r in out) < n:
             out.append((c, ref))
     return out
-
-
-def _resistances_at_their_top(case: Case) -> list[str]:
-    """The resistances at their upper bound when nothing else makes ``case`` invalid (but
-    intervals, which such a flat direction widens): heat paths the data do not use (their
-    conductance wants to vanish)."""
-    if case.verdict is None or case.is_valid or not case.done:
-        return []
-    at_bound = set(case.verdict.flagged("at_bound"))
-    pos = case.result.bound_position()
-    top = {n for n in at_bound if n.startswith("R_") and pos.get(n, 0.0) > 0.5}
-    # the other reasons may only be intervals, which an unused path blurs
-    blurred = {n for kind in _BLURRED for n in case.verdict.flagged(kind)}
-    if not top or top != at_bound or set(case.verdict.flagged()) - blurred - top:
-        return []
-    return sorted(top)
-
-
-#: verdict flags that a parameter on its bound can cause in the others (a flat direction)
-_BLURRED = ("wide_interval", "poorly_identifiable", "not_identifiable")
-
-
-def _fast_capacities(case: Case) -> list[str]:
-    """Capacities that only their intervals (or, for a fast node, its lower bound) make
-    ``case`` invalid for, of nodes whose lag the data see but not the capacity: a fast node
-    (own time constant ``τ = C/ΣG`` below two sampling steps), or a node whose ``τ`` is
-    determined (its 95 % interval within :data:`~jaxbox.validate.MAX_REL_CI`) while ``C`` is
-    not — a heater seen only through the zone it warms shows ``R·C``, not how it splits."""
-    if case.verdict is None or case.is_valid or not case.done:
-        return []
-    blurred = {n for kind in _BLURRED for n in case.verdict.flagged(kind)}
-    pos = case.result.bound_position()
-    floored = {  # capacities on their lower bound: a node the data see as instantaneous
-        n for n in case.verdict.flagged("at_bound") if n.startswith("C_") and pos.get(n, 1.0) < 0.5
-    }
-    if set(case.verdict.flagged()) - blurred - floored:
-        return []
-    params = {k: float(v) for k, v in case.result.params.items()}
-    tau = _own_time_constants(case.model, params)
-    dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
-    nodes = case.model.network.nodes
-    fast = [
-        n.C
-        for n, t in zip(nodes, tau, strict=True)
-        if (n.C in blurred or n.C in floored) and t < 2.0 * dt
-    ]
-    if floored - set(fast):  # a slow capacity on its lower bound: not a matter of lag
-        return []
-    rest = [i for i, n in enumerate(nodes) if n.C in blurred and n.C not in fast]
-    if rest:
-        rel = _time_constant_intervals(case, params, rest)
-        fast += [nodes[i].C for i in rest if rel.get(i, np.inf) <= MAX_REL_CI]
-    return sorted(fast)
-
-
-def _own_time_constants(model, params: dict) -> np.ndarray:
-    """``C_i / Σ_j G_ij`` [s] per node (``inf`` for a node with no conductance)."""
-    d = -np.diagonal(model.rc_numpy(params)[0])
-    with np.errstate(divide="ignore"):
-        return np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), np.inf)
-
-
-def _time_constant_intervals(case: Case, params: dict, nodes: list[int]) -> dict[int, float]:
-    """Half-width of the 95 % interval of each node's own time constant, relative to it (delta
-    method through the covariance of the free parameters, derivatives by central differences
-    in the logarithm of the positive ones)."""
-    from ..validate import uncertainty
-
-    try:
-        unc = uncertainty(case.result)
-    except ValueError:
-        return {}
-    free = list(unc.free)
-    cov = np.asarray(unc.cov_free, dtype=float)
-    tau0 = _own_time_constants(case.model, params)
-    grad = np.zeros((len(nodes), len(free)))
-    for k, name in enumerate(free):
-        v = params[name]
-        if not v > 0 or name.startswith("T_"):
-            continue
-        h = 1e-5
-        up = _own_time_constants(case.model, {**params, name: v * math.exp(h)})
-        dn = _own_time_constants(case.model, {**params, name: v * math.exp(-h)})
-        grad[:, k] = (up[nodes] - dn[nodes]) / (2 * h * v)  # ∂τ/∂θ_k
-    out = {}
-    for j, i in enumerate(nodes):
-        g = grad[j]
-        used = g != 0
-        if not np.isfinite(tau0[i]) or not used.any():
-            continue
-        sub = cov[np.ix_(used, used)]
-        if not np.all(np.isfinite(sub)):
-            continue
-        std = math.sqrt(max(float(g[used] @ sub @ g[used]), 0.0))
-        out[i] = unc.t_quantile * std / tau0[i]
-    return out
-
-
-def _fixed_retry(gb, case: Case, fixed: dict, suffix: str, why: str, say: Progress) -> Case:
-    """Declare (not run) a retry of ``case`` from its optimum with the parameters ``fixed``
-    (name -> value) fixed; the others are estimated and judged again."""
-    fixed = {**case.fixed, **fixed}
-    free = tuple(n for n in case.result.free if n not in fixed)
-    told = ", ".join(f"{n} = {v:.4g}" for n, v in fixed.items() if n not in case.fixed)
-    say(f"  {case.name}: retry with {told} fixed ({why})")
-    retry = _retry_of(
-        gb,
-        case,
-        suffix,
-        guess={k: float(case.result.params[k]) for k in free},
-        free=free,
-        fixed=fixed,
-        bounds={k: v for k, v in case.bounds.items() if k in free},
-    )
-    retry.notes.append(f"retry of {case.name}: {told} fixed ({why})")
-    case.notes.append(f"retried as {retry.name} ({why})")
-    return retry
-
-
-def _cut_retry(gb, case: Case, names: list[str], say: Progress) -> Case:
-    """A retry of ``case`` with the resistances ``names`` fixed at their upper bound: the heat
-    paths the data do not use are cut (as a facade that lets no sun in is dropped), and the
-    other parameters are judged without them."""
-    fixed = {n: float(case.result.bounds[n][1]) for n in names}
-    return _fixed_retry(gb, case, fixed, "cut", "unused heat path cut", say)
-
-
-def _settled_retry(gb, case: Case, names: list[str], say: Progress) -> Case:
-    """A retry of ``case`` with the capacities ``names`` of fast nodes fixed at their estimates:
-    the lag ``R·C`` the data see is then carried by the resistance alone."""
-    fixed = {n: float(case.result.params[n]) for n in names}
-    return _fixed_retry(gb, case, fixed, "settled", "capacity of a fast node", say)
-
-
-def _without_dead_facades(structure: Structure, case: Case) -> tuple[str, Structure] | None:
-    """The structure without the facade windows whose apertures alone made ``case`` invalid
-    (at or near zero, or undetermined: that facade lets no sun in, or too little to tell), as
-    ``(what was dropped, structure)``;
-    ``None`` when that is not why it is invalid, or no window would be left."""
-    verdict = case.verdict
-    if verdict is None or verdict.valid:
-        return None
-    severe = [f for f in verdict.flags if f.severe]
-    if not severe or any(not f.parameters for f in severe):
-        return None
-    flagged = set(verdict.flagged())
-    tokens, dropped, covered = set(structure.tokens), [], set()
-    for z in structure.states:
-        win = structure.window(z)
-        if win is None:
-            continue
-        suffix = "" if z == 0 else str(z)
-        dead = [x for x in win[3:] if f"gA_{x.lower()}{suffix}" in flagged]
-        covered |= {f"gA_{x.lower()}{suffix}" for x in dead}
-        keep = "".join(x for x in win[3:] if x not in dead)
-        if dead:
-            if not keep:
-                return None
-            tokens = (tokens - {(z, win)}) | {(z, "Win" + keep)}
-            dropped += dead
-    if not dropped or flagged - covered:
-        return None
-    what = f"without the window(s) {', '.join(dropped)} (aperture at zero or undetermined)"
-    return what, dataclasses.replace(structure, tokens=frozenset(tokens))

@@ -1,0 +1,170 @@
+"""The default search on the twin houses prepared in several reasonable ways.
+
+The measured 10-minute tables of IEA EBC Annex 58 experiment 1 (``../shared/data/
+twinhouse_exp1``) can be prepared as :data:`_buildings.VARIANTS`: the zone as the mean of the
+six heated rooms or the living room alone, with or without the supply-air and cellar columns,
+at 10 minutes or hourly. For each variant of each house the default ``select`` (the structure
+search, the data in halves) is run, and the benchmark records the accepted structure, its
+validation RMSE, whether it is valid, its heat-loss coefficient (HLC: the steady-state heat
+flow per kelvin seen by the heating) and the search time. Targets: N2 ≤ 0.30 K and O5 ≤ 0.45 K
+validation RMSE, valid; for one zone definition, the HLC of a house's variants within ±10 % of
+each other.
+
+Usage::
+
+    python benchmarks/variants.py [--houses N2,O5] [--only "N2 mean all 1h",...]
+        [--out benchmarks/VARIANTS.md] [--json benchmarks/variants.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from _buildings import VARIANTS, twinhouse_variant  # noqa: E402
+
+#: validation RMSE targets [K] per house
+TARGETS = {"N2": 0.30, "O5": 0.45}
+
+
+def run(house: str, zone: str, columns: str, step: str, starts: int) -> dict:
+    import jaxbox
+    from jaxbox.data import DataWarning
+    from jaxbox.validate import heat_loss_coefficients
+
+    row = {"house": house, "zone": zone, "columns": columns, "step": step}
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            s = jaxbox.structure_search(
+                twinhouse_variant(house, zone, columns, step), starts=starts
+            )
+    except Exception as err:  # noqa: BLE001 - a benchmark row records any failure
+        row["error"] = f"{type(err).__name__}: {err}"[:300]
+        return row
+    row["seconds"] = time.perf_counter() - t0
+    row["candidates"] = len(s.tree)
+    if s.case is None:
+        row["accepted"] = None
+        return row
+    case = s.case
+    ua = heat_loss_coefficients(case.model, case.result.params)
+    rmse = case.validation.rmse_cross or case.validation.rmse_auto
+    row.update(
+        accepted=case.model.name,
+        case=case.name,
+        rmse_valid=float(np.mean(list(rmse.values()))),
+        valid=bool(case.is_valid),
+        hlc=float(next(iter(ua.values()))[0]) if ua else None,
+    )
+    return row
+
+
+def markdown(doc: dict) -> str:
+    lines = [
+        "## The default search on twin-house variants",
+        "",
+        f"Written by `python benchmarks/variants.py` on {doc['date']}; {doc['machine']}; raw "
+        "numbers in `benchmarks/variants.json`. The default `select` (structure search, data in "
+        "halves) on each preparation of the measured 10-minute tables. Targets: validation RMSE "
+        "N2 ≤ 0.30 K, O5 ≤ 0.45 K, valid; for one zone definition the HLC of a house's variants "
+        "within ±10 % of each other.",
+        "",
+        "| house | zone | columns | step | accepted | valid | RMSE valid [K] | target | HLC "
+        "[W/K] | search [s] |",
+        "|---|---|---|---|---|---|---:|---|---:|---:|",
+    ]
+    for r in doc["rows"]:
+        if "error" in r:
+            lines.append(
+                f"| {r['house']} | {r['zone']} | {r['columns']} | {r['step']} | {r['error']} "
+                "| | | | | |"
+            )
+            continue
+        ok = r.get("rmse_valid") is not None and r["rmse_valid"] <= TARGETS[r["house"]]
+        rmse = "–" if r.get("rmse_valid") is None else f"{r['rmse_valid']:.3f}"
+        hlc = "–" if r.get("hlc") is None else f"{r['hlc']:.1f}"
+        lines.append(
+            f"| {r['house']} | {r['zone']} | {r['columns']} | {r['step']} | "
+            f"{r.get('accepted') or 'no valid model'} | {'yes' if r.get('valid') else 'no'} | "
+            f"{rmse} | {'met' if ok and r.get('valid') else 'missed'} | {hlc} | "
+            f"{r['seconds']:.0f} |"
+        )
+    lines += [
+        "",
+        "HLC spread per house and zone definition (half the range over its middle; target ±10 %):",
+        "",
+    ]
+    groups: dict[tuple, list[float]] = {}
+    for r in doc["rows"]:
+        if r.get("hlc"):
+            groups.setdefault((r["house"], r["zone"]), []).append(r["hlc"])
+    for (house, zone), v in sorted(groups.items()):
+        mid = 0.5 * (max(v) + min(v))
+        lines.append(
+            f"- {house}, {zone}: {len(v)} variants, HLC {min(v):.1f}–{max(v):.1f} W/K, "
+            f"±{100 * (max(v) - min(v)) / (2 * mid):.1f} % of the mid-range"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _write(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def main(argv=None) -> int:
+    import jax
+
+    import jaxbox
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--houses", default="N2,O5")
+    p.add_argument("--steps", default="1h,10min")
+    p.add_argument("--starts", type=int, default=8)
+    p.add_argument("--out", type=Path, default=HERE / "VARIANTS.md")
+    p.add_argument("--json", type=Path, default=HERE / "variants.json")
+    args = p.parse_args(argv)
+    jaxbox.enable_x64()
+    steps = args.steps.split(",")
+    doc = {
+        "date": datetime.date.today().isoformat(),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python "
+        f"{platform.python_version()}, jax {jax.__version__}",
+        "rows": [],
+    }
+    key = ("house", "zone", "columns", "step")
+    if args.json.exists():  # a rerun of some variants keeps the others' rows
+        doc["rows"] = json.loads(args.json.read_text())["rows"]
+    for house in args.houses.split(","):
+        for zone, columns, step in VARIANTS:
+            if step not in steps:
+                continue
+            row = run(house, zone, columns, step, args.starts)
+            print(json.dumps(row), flush=True)
+            doc["rows"] = [
+                r for r in doc["rows"] if tuple(r[k] for k in key) != tuple(row[k] for k in key)
+            ]
+            doc["rows"].append(row)
+            doc["rows"].sort(key=lambda r: (r["house"], r["zone"], r["columns"], r["step"]))
+            _write(args.json, json.dumps(doc, indent=1))
+            _write(args.out, markdown(doc))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -4,6 +4,7 @@ Monte Carlo of the stochastic model, an output-error fit's noise, coverage, bad 
 import numpy as np
 import pandas as pd
 import pytest
+import scipy.integrate
 import scipy.signal
 
 import jaxbox
@@ -261,3 +262,183 @@ def test_cli_fit_file_of_another_model(files, data, capsys):
     code, _, err = _cli([*args, "--params", other, "--model", "ZonWal"], capsys)
     assert code == 2 and err.count("\n") == 1
     assert "was it fitted with another model?" in err
+
+
+# ---- heat demand for a setpoint -----------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def zoo_building():
+    from jaxbox.datasets import make_zoo
+
+    (b,) = make_zoo(
+        1,
+        seed=11,
+        structure="Zon+Wal",
+        step="60min",
+        days=10,
+        gaps=0.0,
+        offset=0.0,
+        heating="prbs",
+        noise=0.05,
+    )
+    return b
+
+
+def _true_response(b, x0, origin: int, q, steps: int):
+    """The true building (its continuous model, scipy's integrator) from state ``x0`` at sample
+    ``origin``: the weather linear between samples, the heater's power constant over each
+    interval (``q[k]`` over the k-th); the zone temperature at the samples after ``origin``."""
+    model = jaxbox.get_model(b.structure)
+    A, B, C, _ = model.state_space_numpy(b.params)
+    u = b.data.array(list(model.inputs))[origin : origin + steps + 1].copy()
+    j = model.inputs.index("Q_hea")
+    dt = b.data.step
+    out = []
+    x = np.asarray(x0, float)
+    for k in range(steps):
+
+        def f(s, xx, k=k):
+            uk = u[k] + (u[k + 1] - u[k]) * s / dt
+            uk[j] = q[k]
+            return A @ xx + B @ uk
+
+        sol = scipy.integrate.solve_ivp(f, (0, dt), x, method="LSODA", rtol=1e-11, atol=1e-9)
+        x = sol.y[:, -1]
+        out.append(C @ x)
+    return np.asarray(out)[:, 0]
+
+
+def _true_state(b, origin: int):
+    """The true state at sample ``origin``: the noise-free simulation of the truth."""
+    model = jaxbox.get_model(b.structure)
+    A, B, C, D = model.state_space_numpy(b.params)
+    u = b.data.array(list(model.inputs))[: origin + 1]
+    t = np.arange(origin + 1) * b.data.step
+    x0 = [b.params[n.T0] for n in model.network.nodes]
+    _, _, x = scipy.signal.lsim((A, B, C, D), u, t, X0=x0, interp=True)
+    return x[-1]
+
+
+def test_heat_demand_of_the_true_model_holds_the_true_building(zoo_building):
+    """With the true model told the state, the planned power drives the true building (scipy)
+    exactly to the setpoint where the heater can, and to the forecast float where it cannot
+    (a warning says when)."""
+    from jaxbox.forecast import SetpointWarning, heat_demand
+    from jaxbox.stochastic import noise_names
+
+    b = zoo_building
+    model = jaxbox.get_model(b.structure)
+    params = dict(b.params)
+    params.update({n: 0.0 if not n.startswith("sigma_y") else 0.05 for n in noise_names(model)})
+    form = StochasticForm(model, params, "foh", (0.0,) * model.n_states, "ml", "true", STEP)
+    origin = 150
+    history = b.data.slice(None, b.data.index[origin])
+    with pytest.warns(SetpointWarning, match="cannot hold T_zon at the setpoint from"):
+        hd = heat_demand(
+            form,
+            history,
+            b.data,
+            setpoint=21.0,
+            setback="17@22:00-06:00",
+            q_max=2000.0,
+            horizon="36h",
+            samples=50,
+        )
+    q = hd["Q_hea"].to_numpy()
+    assert q.min() >= 0 and q.max() <= 2000.0
+    np.testing.assert_allclose(form.filter(history).m[-1], _true_state(b, origin), atol=1e-8)
+    true = _true_response(b, _true_state(b, origin), origin, q, len(hd))
+    np.testing.assert_allclose(hd["T_zon"], true, atol=1e-6)  # held or floating alike
+    held = (q > 0) & (q < 2000.0)
+    assert held.sum() > 10 and hd["saturated"].any() and (q == 0).any()
+    np.testing.assert_allclose(true[held], hd["setpoint"][held], atol=1e-6)
+    assert hd.attrs["energy_kwh"] == pytest.approx(q.sum() * STEP / 3.6e6)
+    sat = hd["saturated"].to_numpy()
+    assert np.all(true[sat] < hd["setpoint"].to_numpy()[sat] - 0.05)
+
+
+def test_heat_demand_of_an_identified_model_on_the_true_building(zoo_building):
+    """A model identified from the building's noisy data: its plan holds the true building
+    within 0.2 K of the setpoint, for an energy within 3 % of the true model's plan, and the
+    true model's energy lies in its 95 % band widened by that error."""
+    from jaxbox.forecast import heat_demand
+
+    b = zoo_building
+    ident = b.data.slice(None, b.data.index[120])
+    fit = jaxbox.fit_model(b.structure, ident, starts=2)
+    origin = 150
+    history = b.data.slice(None, b.data.index[origin])
+    opts = dict(setpoint=20.0, q_max=5000.0, horizon="24h", samples=200)
+    hd = fit.heat_demand(history, b.data, **opts)
+    model = fit.model
+    params = dict(b.params)
+    params.update({"sigma_zon": 0.0, "sigma_wal": 0.0, "sigma_y_zon": 0.05})
+    truth = heat_demand(
+        StochasticForm(model, params, "foh", (0.0, 0.0), "ml", "true", STEP),
+        history,
+        b.data,
+        **opts,
+    )
+    assert not hd["saturated"].any() and hd["Q_hea"].min() > 0
+    true = _true_response(b, _true_state(b, origin), origin, hd["Q_hea"].to_numpy(), len(hd))
+    assert np.max(np.abs(true - 20.0)) < 0.2
+    assert hd.attrs["energy_kwh"] == pytest.approx(truth.attrs["energy_kwh"], rel=0.03)
+    lo, hi = hd.attrs["energy_kwh_lo95"], hd.attrs["energy_kwh_hi95"]
+    assert lo < hd.attrs["energy_kwh"] < hi
+
+
+def test_setback_schedule_and_bad_setpoints():
+    from jaxbox.forecast import parse_setback, setpoint_schedule
+
+    index = pd.date_range("2024-01-01 20:00", periods=12, freq="h")
+    sp = setpoint_schedule(index, 21.0, "17@22:00-06:00")
+    assert list(sp) == [21, 21, 17, 17, 17, 17, 17, 17, 17, 17, 21, 21]
+    assert parse_setback("16.5@23:30-05:00") == (16.5, "23:30", "05:00")
+    with pytest.raises(FitError, match="TEMPERATURE@HH:MM-HH:MM"):
+        parse_setback("17 from 22")
+    with pytest.raises(FitError, match="not a clock time"):
+        parse_setback("17@25:00-06:00")
+
+
+def test_cli_heat_demand(files, data, capsys):
+    from jaxbox.forecast import SetpointWarning, heat_demand
+
+    folder, csv, ml, _ = files
+    out = folder / "demand.csv"
+    at = data.index[100]
+    args = ["forecast", csv, "--params", ml, "--at", at, "--horizon", "24h", "--out", out]
+    code, stdout, err = _cli(
+        [
+            *args,
+            "--setpoint",
+            21,
+            "--setback",
+            "17@22:00-06:00",
+            "--q-max",
+            400,
+            "--plot",
+            folder / "d.png",
+        ],
+        capsys,
+    )
+    assert code == 0, err
+    with pytest.warns(SetpointWarning):
+        ref = heat_demand(
+            _form(TRUE, 1.0),
+            data.slice(None, at),
+            data,
+            setpoint=21.0,
+            setback="17@22:00-06:00",
+            q_max=400.0,
+            horizon="24h",
+        )
+    frame = pd.read_csv(out, index_col="time", parse_dates=True)
+    np.testing.assert_allclose(frame["Q_hea"], ref["Q_hea"], rtol=1e-9)
+    assert f"{ref.attrs['energy_kwh']:.2f} kWh" in stdout
+    # 400 W cannot hold this house: one warning line, and the forecast goes on
+    assert err.count("\n") == 1 and "cannot hold T_zon at the setpoint" in err
+    code, _, err = _cli([*args, "--setpoint", 21], capsys)
+    assert code == 2 and "--setpoint needs the heater's maximum power --q-max" in err
+    code, _, err = _cli([*args, "--setpoint", 21, "--q-max", 900, "--setback", "17"], capsys)
+    assert code == 2 and "TEMPERATURE@HH:MM-HH:MM" in err

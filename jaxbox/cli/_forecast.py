@@ -51,6 +51,22 @@ def add_forecast_arguments(p) -> None:
         help="future inputs (time and the model's input columns) after --at; default: the "
         "measured inputs of DATA (a backtest, scored against the measurements)",
     )
+    p.add_argument(
+        "--setpoint",
+        type=float,
+        metavar="°C",
+        help="instead of the free forecast: the heating power that holds the zone at this "
+        "setpoint (the model inverted, clipped to the heater's range), with the energy",
+    )
+    p.add_argument(
+        "--setback",
+        metavar="°C@HH:MM-HH:MM",
+        help="a lower setpoint over part of each day, e.g. 17@22:00-06:00 (with --setpoint)",
+    )
+    p.add_argument("--q-max", type=float, metavar="W", help="the heater's maximum power [W]")
+    p.add_argument(
+        "--q-min", type=float, default=0.0, metavar="W", help="its minimum power (default 0)"
+    )
     p.add_argument("--out", required=True, metavar="FORECAST.csv", help="CSV file to write")
     p.add_argument("--plot", metavar="FORECAST.png", help="also draw the forecast")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
@@ -202,6 +218,14 @@ def forecast_command(args) -> int:
     plot = Path(args.plot) if args.plot else None
     if plot is not None and not plot.parent.exists():
         raise UsageError(f"--plot {plot}: folder {plot.parent} does not exist")
+    if args.setpoint is None and (args.setback or args.q_max is not None):
+        raise UsageError("--setback and --q-max go with --setpoint")
+    if args.setpoint is not None and args.q_max is None:
+        raise UsageError("--setpoint needs the heater's maximum power --q-max W")
+    if args.setback:
+        from ..forecast import parse_setback
+
+        parse_setback(args.setback)
     fit = read_fit(args.params)
     model = fit_model_of(fit, args.model, args.params)
     data = load_data(opts.specs[0], opts)
@@ -209,6 +233,8 @@ def forecast_command(args) -> int:
     history.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     form = fit_form(fit, model, args.params, history)
     future = data if args.inputs is None else load_data(args.inputs)
+    if args.setpoint is not None:
+        return _demand_command(args, form, history, future, out)
     frame = forecast(form, history, future, horizon=args.horizon)
     tmp = out.with_name(out.name + ".part")
     frame.to_csv(tmp, index_label="time")
@@ -254,6 +280,70 @@ def forecast_command(args) -> int:
                 f"{row['cover50']:.0%}"
             )
     return 0
+
+
+def _demand_command(args, form, history, future, out: Path) -> int:
+    """``jaxbox forecast … --setpoint 21 [--setback 17@22:00-06:00] --q-max 3000``."""
+    from ..forecast import heat_demand
+
+    frame = heat_demand(
+        form,
+        history,
+        future,
+        setpoint=args.setpoint,
+        setback=args.setback,
+        q_max=args.q_max,
+        q_min=args.q_min,
+        horizon=args.horizon,
+    )
+    tmp = out.with_name(out.name + ".part")
+    frame.to_csv(tmp, index_label="time")
+    tmp.replace(out)
+    if args.plot:
+        _plot_demand(frame).savefig(args.plot, dpi=110)
+    a = frame.attrs
+    summary = {
+        "model": a["model"],
+        "origin": a["origin"],
+        "heater": a["heater"],
+        "energy_kwh": a["energy_kwh"],
+        "energy_kwh_95": [a["energy_kwh_lo95"], a["energy_kwh_hi95"]],
+        "unreached": [list(s) for s in a["unreached"]],
+        "noise": a["noise"],
+        "out": str(out),
+    }
+    if args.json:
+        print_json(summary)
+        return 0
+    print(f"wrote {len(frame)} rows to {out} ({a['noise']})")
+    print(
+        f"heat demand {a['heater']} over {len(frame)} samples from {a['origin']}: "
+        f"{a['energy_kwh']:.2f} kWh (95 %: {a['energy_kwh_lo95']:.2f}–{a['energy_kwh_hi95']:.2f}), "
+        f"peak {frame[a['heater']].max():.0f} W"
+    )
+    return 0
+
+
+def _plot_demand(frame):
+    from matplotlib.figure import Figure
+
+    a = frame.attrs
+    fig = Figure(figsize=(10.0, 5.5), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    t = frame.index.to_numpy()
+    ax1.fill_between(t, frame[f"{a['zone']}_lo95"], frame[f"{a['zone']}_hi95"], alpha=0.25, lw=0)
+    ax1.plot(t, frame[a["zone"]], label=a["zone"])
+    ax1.step(t, frame["setpoint"], where="pre", color="0.3", ls="--", label="setpoint")
+    ax1.set_ylabel("°C")
+    ax1.legend(loc="best", fontsize="small")
+    ax2.fill_between(
+        t, frame[f"{a['heater']}_lo95"], frame[f"{a['heater']}_hi95"], step="pre", alpha=0.25
+    )
+    ax2.step(t, frame[a["heater"]], where="pre", label=f"{a['heater']} [W]")
+    ax2.axhline(a["q_max"], color="tab:red", lw=0.8, ls=":")
+    ax2.set_ylabel("W")
+    ax1.set_title(f"heat demand of {a['model']} from {a['origin']}: {a['energy_kwh']:.1f} kWh")
+    return fig
 
 
 def _inside(frame, output: str, band: str, ok) -> float | None:

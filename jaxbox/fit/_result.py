@@ -198,6 +198,14 @@ class FitResult:
 
         return forecast(self, history, future, horizon=horizon, x0=x0)
 
+    def heat_demand(self, history, future, *, setpoint, q_max, **options):
+        """The heating power [W] that holds the zone at ``setpoint`` [°C] over the horizon,
+        clipped to the heater's range, with the energy and its band:
+        :func:`jaxbox.forecast.heat_demand` (``q_min``, ``setback``, ``horizon``, …)."""
+        from ..forecast import heat_demand
+
+        return heat_demand(self, history, future, setpoint=setpoint, q_max=q_max, **options)
+
     def to_state_space(self, step=None, *, data=None):
         """The exact discrete-time state space at ``step`` (seconds or ``"15min"``; default the
         fit's), with names, units, noise covariances and the last Kalman state estimate over

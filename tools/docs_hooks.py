@@ -67,6 +67,7 @@ def _jaxbox_docs_setup():
     from IPython.display import display
 
     shell = get_ipython()
+    shell.run_line_magic("matplotlib", "inline")  # figures display as PNG
     shown = {id(v) for v in shell.user_ns.values() if isinstance(v, matplotlib.figure.Figure)}
 
     def show_new_figures(result):

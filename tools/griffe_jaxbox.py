@@ -20,6 +20,7 @@ import re
 import griffe
 
 _ADJACENT = re.compile(r"\](\s+)\[")
+_CODE = re.compile(r"(``.*?``|`[^`]*`)", flags=re.S)
 
 
 def comment_docstring(lines: list[str], lineno: int) -> str | None:
@@ -39,10 +40,10 @@ def comment_docstring(lines: list[str], lineno: int) -> str | None:
 
 def escape_adjacent_brackets(text: str) -> str:
     """``] [`` outside code spans becomes ``] \\[``."""
-    parts = text.split("`")
-    for i in range(0, len(parts), 2):  # even parts lie outside code spans
+    parts = _CODE.split(text)
+    for i in range(0, len(parts), 2):  # the code spans are the odd parts
         parts[i] = _ADJACENT.sub(r"]\1\\[", parts[i])
-    return "`".join(parts)
+    return "".join(parts)
 
 
 class JaxboxDocstrings(griffe.Extension):

@@ -104,7 +104,7 @@ def test_docstring_extension():
     pytest.importorskip("griffe")
     sys.path.insert(0, str(TOOLS))
     try:
-        from griffe_jaxbox import comment_docstring, escape_adjacent_brackets
+        from griffe_jaxbox import comment_docstring, escape_adjacent_brackets, plain_roles
     finally:
         sys.path.remove(str(TOOLS))
     lines = ["x = 1", "#: the first line", "#: the second", "LIMIT = 5.0", "Y = 2  #: trailing"]
@@ -114,3 +114,9 @@ def test_docstring_extension():
     assert escape_adjacent_brackets("x0 [S, n] [°C]") == "x0 [S, n] \\[°C]"
     assert escape_adjacent_brackets("``a[0] [1]`` [N] [K]") == "``a[0] [1]`` [N] \\[K]"
     assert escape_adjacent_brackets("[W/K]") == "[W/K]"
+    assert plain_roles("see :func:`fit_model` and :class:`~jaxbox.data.Dataset`") == (
+        "see `fit_model` and `Dataset`"
+    )
+    assert plain_roles(":meth:`jaxbox.models.RCModel.segmented`") == (
+        "`jaxbox.models.RCModel.segmented`"
+    )

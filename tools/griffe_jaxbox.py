@@ -11,6 +11,8 @@ documentation build's docstring check (``tools/docs_hooks.py``).
 - **Shapes and units in brackets.** ``x0`` [S, n] [°C] reads in Markdown as a reference link
   ``[S, n][°C]``, which the site would report as a broken cross-reference. A ``[`` that follows
   ``]`` and blanks outside code spans is escaped, so both brackets show as written.
+- **Sphinx roles** (``:func:`fit_model```, ``:class:`~jaxbox.data.Dataset```) read as code
+  (``fit_model``, ``Dataset``) instead of showing the role's markup.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import re
 
 import griffe
 
+_ROLE = re.compile(r":(?:py:)?(?:func|class|meth|data|mod|attr|obj|exc|const):`(~?)([^`]+)`")
 _ADJACENT = re.compile(r"\](\s+)\[")
 _CODE = re.compile(r"(``.*?``|`[^`]*`)", flags=re.S)
 
@@ -38,6 +41,16 @@ def comment_docstring(lines: list[str], lineno: int) -> str | None:
     return "\n".join(reversed(found)) or None
 
 
+def plain_roles(text: str) -> str:
+    """Sphinx roles as code: ``:func:`fit``` → ```fit```, ``:class:`~a.b.C``` → ```C```."""
+
+    def code(match: re.Match) -> str:
+        target = match.group(2).strip()
+        return f"`{target.rsplit('.', 1)[-1] if match.group(1) else target}`"
+
+    return _ROLE.sub(code, text)
+
+
 def escape_adjacent_brackets(text: str) -> str:
     """``] [`` outside code spans becomes ``] \\[``."""
     parts = _CODE.split(text)
@@ -47,7 +60,7 @@ def escape_adjacent_brackets(text: str) -> str:
 
 
 class JaxboxDocstrings(griffe.Extension):
-    """``#:`` comments as docstrings of constants; ``] [`` escaped."""
+    """``#:`` comments as docstrings of constants; Sphinx roles as code; ``] [`` escaped."""
 
     def on_instance(self, *, node, obj, agent, **kwargs) -> None:
         if obj.is_attribute and obj.docstring is None and obj.lineno is not None:
@@ -59,4 +72,4 @@ class JaxboxDocstrings(griffe.Extension):
             if text:
                 obj.docstring = griffe.Docstring(text, lineno=obj.lineno, parent=obj)
         if obj.docstring is not None:
-            obj.docstring.value = escape_adjacent_brackets(obj.docstring.value)
+            obj.docstring.value = escape_adjacent_brackets(plain_roles(obj.docstring.value))

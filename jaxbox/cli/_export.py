@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 
 from ._common import UsageError, print_json
-from ._forecast import check_fit_params, fit_form, fit_model_of, read_fit
+from ._forecast import check_fit_params, fit_form, fit_model_of, output_file, read_fit
 
 __all__ = ["add_export_arguments", "export_command"]
 
@@ -79,9 +79,7 @@ def export_command(args) -> int:
     from ..forecast import StochasticForm
     from ..stochastic import noise_names
 
-    out = Path(args.out)
-    if not out.parent.exists():
-        raise UsageError(f"--out {out}: folder {out.parent} does not exist")
+    out = output_file(args.out, "--out")
     fmt = args.format or _SUFFIX.get(out.suffix)
     if fmt is None:
         raise UsageError(

@@ -23,6 +23,7 @@ __all__ = [
     "read_fit",
     "fit_form",
     "check_fit_params",
+    "output_file",
 ]
 
 
@@ -70,6 +71,18 @@ def add_forecast_arguments(p) -> None:
     p.add_argument("--out", required=True, metavar="FORECAST.csv", help="CSV file to write")
     p.add_argument("--plot", metavar="FORECAST.png", help="also draw the forecast")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+
+
+def output_file(text: str, option: str) -> Path:
+    """The file an option names for writing: a name in a folder that exists."""
+    path = Path(text)
+    if not text.strip() or path.name in ("", ".", ".."):
+        raise UsageError(f"{option} is empty or not a file name; give a file to write")
+    if path.is_dir():
+        raise UsageError(f"{option} {text}: it is a folder; give a file to write")
+    if not path.parent.exists():
+        raise UsageError(f"{option} {text}: folder {path.parent} does not exist")
+    return path
 
 
 def read_fit(path: str, option: str = "--params") -> dict:
@@ -212,12 +225,8 @@ def forecast_command(args) -> int:
         raise UsageError("jaxbox forecast takes one DATA")
     if getattr(opts, "train", None) or getattr(opts, "valid", None):
         raise UsageError("--train and --validate do not apply to forecast: give --at")
-    out = Path(args.out)
-    if not out.parent.exists():
-        raise UsageError(f"--out {out}: folder {out.parent} does not exist")
-    plot = Path(args.plot) if args.plot else None
-    if plot is not None and not plot.parent.exists():
-        raise UsageError(f"--plot {plot}: folder {plot.parent} does not exist")
+    out = output_file(args.out, "--out")
+    plot = None if args.plot is None else output_file(args.plot, "--plot")
     if args.setpoint is None and (args.setback or args.q_max is not None):
         raise UsageError("--setback and --q-max go with --setpoint")
     if args.setpoint is not None and args.q_max is None:

@@ -42,9 +42,12 @@ def horizon_steps(horizon, dt: float) -> int:
         try:
             seconds = pd.Timedelta(horizon).total_seconds()
         except (TypeError, ValueError):
+            seconds = float("nan")
+        if not np.isfinite(seconds) or seconds <= 0:
             raise FitError(
-                f"horizon must be a number of samples or a duration such as '24h', got {horizon!r}"
-            ) from None
+                f"horizon must be a number of samples or a positive duration such as '24h', "
+                f"got {horizon!r}"
+            )
         steps = int(round(seconds / dt))
         if steps < 1 or abs(steps * dt - seconds) > 1e-6 * dt:
             raise FitError(

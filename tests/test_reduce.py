@@ -395,3 +395,45 @@ def test_a_reduction_that_cannot_be_posed_does_not_end_the_search(monkeypatch):
     assert any(n.startswith("reduction failed: guess of") for n in case.notes)
     assert any("reduction failed" in line for line in lines)
     assert s.accepted is not None and lines[-1].startswith("accepted:")
+
+
+# ---- the search's steps one by one --------------------------------------------------------------
+
+
+def test_the_search_steps_one_by_one(dark):
+    """propose (roots, extensions, removals), identify and judge (lazily), reduce, choose: each
+    a method of the search object, run here in turn on the dark building."""
+    from jaxbox.select._search import _Judge, _Search
+
+    gb = GreyBox(dark.data, name="steps")
+    grammar = Grammar.from_columns(gb.data.columns)
+    lines = []
+    s = _Search(
+        gb, grammar, _Judge("cv", 0.02, 0.05), beam=1, lookahead=2, max_depth=2,
+        kw={"starts": 3, "seed": 0}, say=lines.append,
+    )  # fmt: skip
+    # start: the root identified and judged; invalid (gA on 0), reduced, and the reduction grown
+    (root,) = s.start()
+    assert s.nodes[root.name]["structure"] == "Zon" and root.fixed == {"gA": 0.0}
+    assert s.nodes["Zon"]["status"] == "reduced" and "gA → 0" in s.nodes["Zon"]["why"]
+    # propose: the root's extensions, each declared once, starting from the root's optimum
+    children = s.extensions([(root, root)], 1)
+    names = {s.nodes[c.name]["structure"] for c, _ in children}
+    assert "Zon+Wal" in names and all(ref is root for _, ref in children)
+    assert all(c.parent == root.name and not c.done for c, _ in children)
+    assert s.extensions([(root, root)], 1) == []  # nothing proposed twice
+    # identify, judge, reduce: the step's winners are valid and better than the root
+    winners, judged = s.step(children, 1)
+    assert winners and all(w.is_valid for w in winners)
+    assert all(w.score < root.score for w in winners)
+    unjudged = [c for c, _ in judged if s.nodes[c.name]["status"] == "no improvement"]
+    assert all(c.verdict is None for c in unjudged)  # lazily: never judged
+    reduced = [c for c, _ in judged if c.name.endswith("+reduced")]
+    assert all(c.fixed.get("gA") == 0.0 for c in reduced)
+    # removals: one component smaller than the winner, judged against it
+    back = s.removals(winners[:1], 2)
+    assert all(ref is winners[0] for _, ref in back)
+    # choose: the best valid candidate, marked accepted
+    accepted = s.choose()
+    assert accepted is winners[0] and s.nodes[accepted.name]["status"] == "accepted"
+    assert any("in one batched call" in line for line in lines)

@@ -158,7 +158,7 @@ class Search(Selection):
                 value = "n/a" if not math.isfinite(n.criterion) else f"{n.criterion:.4g}"
                 mark = "*" if n.case == self.accepted else " "
                 why = f" ({n.why})" if n.why else ""
-                retry = " (retried)" if n.case != n.structure else ""
+                retry = " (reduced)" if n.case != n.structure else ""
                 lines.append(
                     f"{mark} {'  ' * indent}{n.structure}{retry}  [{self.criterion} {value}] "
                     f"{n.status}{why}"

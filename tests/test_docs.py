@@ -14,6 +14,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 TOOLS = ROOT / "tools"
+DOCS = {"docs_dir": str(ROOT / "docs")}
 
 
 def _readme() -> str:
@@ -73,7 +74,7 @@ def hooks(monkeypatch):
 
 
 def test_every_notebook_is_an_example_page(hooks):
-    config = {"nav": [{"Home": "index.md"}, {"Examples": ["examples/index.md"]}]}
+    config = {"nav": [{"Home": "index.md"}, {"Examples": ["examples/index.md"]}], **DOCS}
     hooks.on_config(config)
     pages = [next(iter(e.values())) for e in config["nav"][1]["Examples"] if isinstance(e, dict)]
     notebooks = sorted(p.name for p in (ROOT / "notebooks").glob("*.ipynb"))
@@ -84,7 +85,7 @@ def test_every_notebook_is_an_example_page(hooks):
 def test_every_subpackage_has_an_api_page(hooks):
     import jaxbox
 
-    config = {"nav": [{"API reference": ["api/jaxbox.md"]}]}
+    config = {"nav": [{"API reference": ["api/jaxbox.md"]}], **DOCS}
     hooks.on_config(config)
     pages = config["nav"][0]["API reference"]
     assert pages[0] == "api/jaxbox.md"
@@ -93,6 +94,14 @@ def test_every_subpackage_has_an_api_page(hooks):
     ]
     page = hooks.api_page("fit")
     assert "::: jaxbox.fit" in page and "        - fit_model" in page
+
+
+def test_a_page_missing_from_the_nav_joins_the_how_to_guides(hooks, tmp_path):
+    (tmp_path / "index.md").write_text("# Home\n")
+    (tmp_path / "extra.md").write_text("# Extra notes\n")
+    config = {"nav": [{"Home": "index.md"}, {"How-to guides": ["a.md"]}], "docs_dir": tmp_path}
+    hooks.on_config(config)
+    assert config["nav"][1]["How-to guides"] == ["a.md", {"Extra notes": "extra.md"}]
 
 
 def test_every_public_name_has_a_docstring(hooks):

@@ -5,10 +5,14 @@
   name), titled by its first heading. Each is executed when the site is built, in a kernel of its
   own (a fresh temporary working folder; several notebooks side by side), and the build stops
   with the notebook's error when a cell fails. The outputs are not stored in git: an executed copy
-  is kept in ``build/docs/notebooks/`` under a key of the notebook, the jaxbox sources and this
-  file, so that a rebuild with nothing changed (``mkdocs serve``) executes nothing again. The
-  kernels share a persistent JAX compilation cache in ``build/docs/jax`` and compile with XLA's
-  backend optimisations off, as the tests do (the notebooks run briefly; compiling dominates).
+  is kept in ``build/docs/notebooks/`` under a key of the notebook, the jaxbox sources and the
+  kernel's preamble, so that a rebuild with nothing changed (``mkdocs serve``) executes nothing
+  again. The kernels share a persistent JAX compilation cache in ``build/docs/jax`` and compile
+  with XLA's backend optimisations off, as the tests do (the notebooks run briefly; compiling
+  dominates).
+- **Benchmarks**: every ``benchmarks/*.md`` becomes a page as committed (in the order of
+  ``BENCHMARK_PAGES``, others by name), and the benchmarks' index gets a table of when and on
+  which machine each was measured. The examples' index gets a table of the notebooks.
 - **Figures**: jaxbox's plots return a ``matplotlib.figure.Figure`` without pyplot, which a
   notebook shows only as the last expression of a cell. So that every plot appears on the site,
   the kernel displays, after each cell, the figures that the cell bound to a name
@@ -53,6 +57,7 @@ EXAMPLES = (
     "search",
     "gaps",
     "stochastic",
+    "control",
     "fleet",
     "design",
     "sweeps",
@@ -130,13 +135,13 @@ def notebooks() -> list[Path]:
 
 
 def _key(path: Path) -> str:
-    """A hash of the notebook, the jaxbox sources and this file: what its outputs depend on."""
+    """A hash of the notebook, the jaxbox sources and the preamble: what its outputs depend on."""
     digest = hashlib.sha256(path.read_bytes())
     for source in sorted((ROOT / "jaxbox").rglob("*")):
         if source.is_file() and source.suffix in (".py", ".csv", ".json", ".gz", ".npz", ".txt"):
             digest.update(str(source.relative_to(ROOT)).encode())
             digest.update(source.read_bytes())
-    digest.update(Path(__file__).read_bytes())
+    digest.update(_PREAMBLE.encode())
     return digest.hexdigest()[:16]
 
 
@@ -201,10 +206,18 @@ def execute_all(paths: list[Path]) -> dict[str, Path]:
 # -- MkDocs events ----------------------------------------------------------------------------
 
 
+#: what ``on_config`` put in the nav, so that ``on_files`` adds the same pages (a file appearing
+#: during a build waits for the next one)
+_BUILD: dict = {}
+
+
 def on_config(config):
-    """Fill the *Examples* section of the nav with every notebook, and the *API reference* with
-    every subpackage."""
-    entries = [{_title(p): f"examples/{p.name}"} for p in notebooks()]
+    """Fill the *Examples* section of the nav with every notebook, the *API reference* with every
+    subpackage and *Benchmarks* with every benchmark file; a page of ``docs/`` that the nav does
+    not name joins the *How-to guides*."""
+    _BUILD["notebooks"] = notebooks()
+    _BUILD["benchmarks"] = benchmarks()
+    entries = [{_title(p): f"examples/{p.name}"} for p in _BUILD["notebooks"]]
 
     def is_notebook(entry) -> bool:
         value = next(iter(entry.values())) if isinstance(entry, dict) else entry
@@ -213,16 +226,38 @@ def on_config(config):
     import jaxbox
 
     api = [{f"jaxbox.{name}": f"api/jaxbox.{name}.md"} for name in jaxbox._SUBPACKAGES]
+    listed = set(_nav_pages(config["nav"] or []))
+    docs = Path(config["docs_dir"])
+    unlisted = sorted(
+        p.relative_to(docs).as_posix()
+        for p in docs.rglob("*.md")
+        if p.relative_to(docs).as_posix() not in listed
+    )
     for item in config["nav"] or []:
+        if isinstance(item, dict) and "How-to guides" in item and unlisted:
+            # a page added to docs/ without a nav entry still gets one
+            item["How-to guides"] += [{_heading(docs / page): page} for page in unlisted]
         if isinstance(item, dict) and "Examples" in item:
             intro = [e for e in item["Examples"] if not is_notebook(e)]
             item["Examples"] = [*intro, *entries]
         if isinstance(item, dict) and "API reference" in item:
             item["API reference"] = ["api/jaxbox.md", *api]
         if isinstance(item, dict) and "Benchmarks" in item:
-            pages = [{title: f"benchmarks/{path.stem.lower()}.md"} for path, title in benchmarks()]
+            pages = [{t: f"benchmarks/{p.stem.lower()}.md"} for p, t in _BUILD["benchmarks"]]
             item["Benchmarks"] = ["benchmarks/index.md", *pages]
     return config
+
+
+def _nav_pages(nav) -> list[str]:
+    """Every page named in (a part of) the nav."""
+    pages = []
+    for entry in nav:
+        value = next(iter(entry.values())) if isinstance(entry, dict) else entry
+        if isinstance(value, list):
+            pages += _nav_pages(value)
+        elif isinstance(value, str):
+            pages.append(value)
+    return pages
 
 
 @event_priority(100)  # before mkdocs-jupyter's, which wraps the notebook files
@@ -230,7 +265,7 @@ def on_files(files, config):
     """Add the notebooks (executed) as pages and the generated API index."""
     from mkdocs.structure.files import File
 
-    paths = notebooks()
+    paths = _BUILD.get("notebooks") or notebooks()
     if os.environ.get("JAXBOX_DOCS_NOTEBOOKS", "").strip().lower() == "skip":
         log.info("JAXBOX_DOCS_NOTEBOOKS=skip: the examples are not executed")
         sources = {p.stem: p for p in paths}
@@ -246,7 +281,7 @@ def on_files(files, config):
         files.append(
             File(uri, str(CACHE / "pages"), config["site_dir"], config["use_directory_urls"])
         )
-    for path, _ in benchmarks():
+    for path, _ in _BUILD.get("benchmarks") or benchmarks():
         uri = f"benchmarks/{path.stem.lower()}.md"
         files.append(File.generated(config, uri, content=benchmark_page(path)))
     files.append(File.generated(config, "api/jaxbox.md", content=api_index()))
@@ -264,7 +299,38 @@ def on_page_markdown(markdown, page, config, files):
     """The benchmarks' index gets the table of every benchmark file, with when and where."""
     if page.file.src_uri == "benchmarks/index.md":
         return markdown.replace("<!-- benchmark table -->", benchmark_table())
+    if page.file.src_uri == "examples/index.md":
+        return markdown.replace("<!-- example table -->", example_table())
     return markdown
+
+
+def _summary(path: Path) -> str:
+    """The first sentences of the notebook's first paragraph of prose (after its heading)."""
+    nb = json.loads(path.read_text(encoding="utf-8"))
+    for cell in nb.get("cells", []):
+        if cell.get("cell_type") != "markdown":
+            continue
+        text = "".join(cell.get("source", ""))
+        paragraphs = [p for p in re.split(r"\n\s*\n", text) if p.strip() and p[0] != "#"]
+        if paragraphs:
+            prose = re.sub(r"\s+", " ", paragraphs[0]).strip()
+            sentence = ""
+            for part in re.split(r"(?<=\.)\s", prose):  # sentences, up to a line's worth
+                sentence = f"{sentence} {part}".strip()
+                if len(sentence) >= 80:
+                    break
+            sentence = sentence if len(sentence) <= 240 else sentence[:237] + "…"
+            if sentence.count("`") % 2:  # cut inside a code span
+                sentence = sentence.replace("`", "")
+            return sentence.replace("|", "\\|")
+    return ""
+
+
+def example_table() -> str:
+    rows = ["| example | what it does |", "|---|---|"]
+    for path in _BUILD.get("notebooks") or notebooks():
+        rows.append(f"| [{_title(path)}]({path.name}) | {_summary(path)} |")
+    return "\n".join(rows)
 
 
 # -- benchmarks ---------------------------------------------------------------------------------
@@ -331,7 +397,7 @@ def _measured(path: Path) -> str:
 
 def benchmark_table() -> str:
     rows = ["| page | file | measured |", "|---|---|---|"]
-    for path, title in benchmarks():
+    for path, title in _BUILD.get("benchmarks") or benchmarks():
         page = f"{path.stem.lower()}.md"
         measured = _measured(path).replace("|", "\\|")
         rows.append(f"| [{title}]({page}) | `benchmarks/{path.name}` | {measured} |")

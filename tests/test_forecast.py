@@ -11,6 +11,7 @@ import jaxbox
 from jaxbox.fit import FitError
 from jaxbox.forecast import StochasticForm, backtest, forecast, plot_forecast, stochastic_form
 from jaxbox.stochastic import simulate_sde
+from jaxbox.validate import uncertainty
 
 STEP = 3600.0
 TRUE = {
@@ -156,6 +157,11 @@ def test_output_error_fit_gets_noise_from_its_residuals_and_says_so(oe_fit, data
     assert "T_zon_measured" in out
     z = (out["T_zon_measured"] - out["T_zon_mean"]) / out["T_zon_sd"]
     assert np.mean(np.abs(z) < 1.96) >= 0.8  # 24 correlated values: a loose check
+    with pytest.raises(FitError, match=r"pass parameters=uncertainty\(result\)"):
+        oe_fit.forecast(history, data, horizon="24h", parameters=True)
+    wide = oe_fit.forecast(history, data, horizon="24h", parameters=uncertainty(oe_fit))
+    assert wide.attrs["parameters"] and np.all(wide["T_zon_sd"] >= out["T_zon_sd"])
+    np.testing.assert_allclose(wide["T_zon_mean"], out["T_zon_mean"], rtol=0)
 
 
 def test_bad_input_gets_one_clear_line(data):
@@ -442,3 +448,27 @@ def test_cli_heat_demand(files, data, capsys):
     assert code == 2 and "--setpoint needs the heater's maximum power --q-max" in err
     code, _, err = _cli([*args, "--setpoint", 21, "--q-max", 900, "--setback", "17"], capsys)
     assert code == 2 and "TEMPERATURE@HH:MM-HH:MM" in err
+
+
+def test_parameter_uncertainty_matches_a_monte_carlo_over_the_parameters(data):
+    """The variance the estimate's covariance adds to the bands (first order) against the
+    spread of the forecast means over parameters drawn from that covariance."""
+    names = ("C_zon", "R_wal", "gA")
+    sd = np.asarray([0.02 * TRUE["C_zon"], 0.02 * TRUE["R_wal"], 0.03 * TRUE["gA"]])
+    corr = np.asarray([[1.0, -0.5, 0.2], [-0.5, 1.0, 0.1], [0.2, 0.1, 1.0]])
+    cov = corr * sd[:, None] * sd[None, :]
+    form = _form(TRUE, x0_std=1.0)
+    history = data.slice(None, data.index[60])
+    plain = forecast(form, history, data, horizon=12)
+    wide = forecast(form, history, data, horizon=12, parameters=(names, cov))
+    assert wide.attrs["parameters"] and not plain.attrs["parameters"]
+    added = wide["T_zon_sd"].to_numpy() ** 2 - plain["T_zon_sd"].to_numpy() ** 2
+    rng = np.random.default_rng(7)
+    means = []
+    for theta in rng.multivariate_normal([TRUE[n] for n in names], cov, 400):
+        f = _form({**TRUE, **dict(zip(names, theta, strict=True))}, x0_std=1.0)
+        means.append(forecast(f, history, data, horizon=12)["T_zon_mean"].to_numpy())
+    np.testing.assert_allclose(np.var(means, axis=0, ddof=1), added, rtol=0.2)
+    np.testing.assert_allclose(wide["T_zon_mean"], plain["T_zon_mean"], rtol=0)
+    with pytest.raises(FitError, match="needs a maximum-likelihood fit"):
+        forecast(form, history, data, horizon=12, parameters=True)

@@ -16,6 +16,7 @@ from ._demand import setpoint_schedule as setpoint_schedule
 from ._forecast import BANDS as BANDS
 from ._forecast import backtest as backtest
 from ._forecast import forecast as forecast
+from ._forecast import parameter_covariance as parameter_covariance
 from ._forecast import propagate as propagate
 from ._form import DiscreteSystem as DiscreteSystem
 from ._form import FilterRun as FilterRun

@@ -10,12 +10,17 @@ forecast, planned heating) and no measurement::
 
 so that ``y_k ~ N(ŷ_k, S_k)`` for a measured output (``sd = √diag S``); the 50 % and 95 % bands
 are the Gaussian quantiles ``ŷ ± 0.674 sd`` and ``ŷ ± 1.960 sd``. These bands hold the
-measured temperatures (measurement noise included); they do not include the uncertainty of the
-parameters.
+measured temperatures (measurement noise included). With ``parameters=True`` they also hold the
+uncertainty of the estimated parameters, to first order: the forecast mean's sensitivities
+``J = ∂ŷ/∂θ`` (central differences through the filter and the propagation) add
+``diag(J Σ_θ Jᵀ)`` to the variance, ``Σ_θ`` the covariance of the estimate (the inverse Hessian
+of a maximum-likelihood fit; for an output-error fit pass ``parameters=uncertainty(fit)``, its
+``σ²(JᵀJ)⁻¹`` from :func:`jaxbox.validate.uncertainty`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -26,7 +31,15 @@ from ..fit._problem import FitError
 from ..stochastic._checks import as_data, regular_step
 from ._form import DiscreteSystem, StochasticForm, stochastic_form
 
-__all__ = ["forecast", "backtest", "propagate", "horizon_steps", "future_inputs", "BANDS"]
+__all__ = [
+    "forecast",
+    "backtest",
+    "propagate",
+    "parameter_covariance",
+    "horizon_steps",
+    "future_inputs",
+    "BANDS",
+]
 
 #: the central bands reported, as fractions
 BANDS = (0.5, 0.95)
@@ -142,6 +155,64 @@ def _frame(outputs: Sequence[str], index, y, var, measured=None) -> pd.DataFrame
     return frame
 
 
+def parameter_covariance(result) -> tuple[tuple[str, ...], np.ndarray]:
+    """``(names, Σ_θ)``: the covariance [SI²] of the estimated physical parameters of a
+    maximum-likelihood fit (the inverse of the exact Hessian; noise parameters left out), or
+    of an output-error fit's :func:`jaxbox.validate.uncertainty` (``Uncertainty.free`` and
+    ``cov_free``, initial states included), or a pair ``(names, covariance)`` as it is."""
+    if isinstance(result, tuple | list) and len(result) == 2:
+        names, cov = tuple(result[0]), np.asarray(result[1], float)
+    elif hasattr(result, "cov_free") and hasattr(result, "free"):  # an Uncertainty
+        names, cov = tuple(result.free), np.asarray(result.cov_free, float)
+    elif hasattr(getattr(result, "problem", None), "hold") and hasattr(result, "cov"):
+        names = tuple(n for n in result.free if n in result.model.param_names)
+        idx = [result.free.index(n) for n in names]
+        cov = np.asarray(result.cov, float)[np.ix_(idx, idx)]
+    elif hasattr(result, "cost") and hasattr(result, "problem"):
+        raise FitError(
+            "the covariance of an output-error fit's parameters comes from "
+            "jaxbox.validate.uncertainty(result): pass parameters=uncertainty(result)"
+        )
+    else:
+        raise FitError(
+            "parameters=True needs a maximum-likelihood fit for the covariance of its "
+            "parameters; else pass parameters=jaxbox.validate.uncertainty(fit) or "
+            "(names, covariance)"
+        )
+    if cov.shape != (len(names), len(names)):
+        raise FitError(f"parameters: a covariance of {len(names)} names must be square")
+    if not np.all(np.isfinite(cov)):
+        raise FitError(
+            "the covariance of the fit's parameters is not finite (a parameter is not "
+            "identifiable); forecast without the parameters' uncertainty"
+        )
+    return names, cov
+
+
+def _parameter_variance(form: StochasticForm, parameters, mean_of) -> np.ndarray:
+    """``diag(J Σ Jᵀ)`` of the outputs ``mean_of(form)`` [..., p] for the parameter covariance
+    ``parameters = (names, Σ)``, ``J`` by central differences (steps of 1e-4 of each value)."""
+    names, cov = parameters
+    bad = [n for n in names if n not in form.model.param_names]
+    if bad:
+        raise FitError(f"parameters: {', '.join(bad)} not parameters of {form.model.name}")
+    cols = []
+    for n in names:
+        v = form.params[n]
+        h = 1e-4 * max(abs(v), 1e-8)
+        plus = dataclasses.replace(form, params={**form.params, n: v + h})
+        minus = dataclasses.replace(form, params={**form.params, n: v - h})
+        cols.append((mean_of(plus) - mean_of(minus)) / (2 * h))
+    J = np.stack(cols, axis=-1)  # [..., p, k]
+    return np.einsum("...i,ij,...j->...", J, cov, J)
+
+
+def _covariance_of(result, parameters):
+    if parameters is False or parameters is None:
+        return None
+    return parameter_covariance(result if parameters is True else parameters)
+
+
 def forecast(
     result,
     history,
@@ -149,6 +220,7 @@ def forecast(
     *,
     horizon: int | str | pd.Timedelta = "24h",
     x0: Mapping[str, float] | None = None,
+    parameters: bool | tuple = False,
 ) -> pd.DataFrame:
     """Forecast the outputs of a fitted model with their uncertainty.
 
@@ -164,6 +236,10 @@ def forecast(
             least up to ``t + horizon``; outputs in it, if any, are reported as ``*_measured``.
         horizon: samples, or a duration (``"24h"``).
         x0: initial state [°C] per state name, instead of the fit's ``T_*0``.
+        parameters: also the uncertainty of the estimated parameters in the bands (see the
+            module docstring): ``True`` (a maximum-likelihood fit's covariance), an
+            :class:`~jaxbox.validate.Uncertainty` (``jaxbox.validate.uncertainty(fit)``), or
+            ``(names, covariance)`` [SI²].
 
     Returns:
         A DataFrame indexed by time (``t + step`` … ``t + horizon``): ``step`` (samples after
@@ -181,6 +257,14 @@ def forecast(
     steps = horizon_steps(horizon, dt)
     u = future_inputs(model, history, future, steps)
     out = propagate(run.system, run.m[-1], run.P[-1], u)
+    cov = _covariance_of(result, parameters)
+    if cov is not None:
+
+        def mean_of(f):
+            r = f.filter(history, x0=x0)
+            return propagate(r.system, r.m[-1], r.P[-1], u)["y"]
+
+        out["var"] = out["var"] + _parameter_variance(form, cov, mean_of)
     index = history.index[-1] + pd.to_timedelta(np.arange(1, steps + 1) * dt, unit="s")
     measured = None
     if all(o in future.columns for o in model.outputs):
@@ -188,6 +272,7 @@ def forecast(
         measured = meas.to_numpy(dtype=float)
     frame = _frame(model.outputs, index, out["y"], out["var"], measured)
     frame.attrs.update(_attrs(form, history.index[-1], run.m[-1], run.P[-1]))
+    frame.attrs["parameters"] = cov is not None
     return frame
 
 
@@ -211,12 +296,14 @@ def backtest(
     start=None,
     horizon: int | str | pd.Timedelta = "24h",
     every: int = 1,
+    parameters: bool | tuple = False,
 ) -> pd.DataFrame:
     """Forecasts from many origins over measured data, scored against the measurements.
 
     The filter runs once over ``data``; from every ``every``-th sample at or after ``start``
     (default: the first) whose horizon lies within the data, the measured inputs drive a
-    forecast (:func:`forecast`), which is compared with the measured outputs.
+    forecast (:func:`forecast`), which is compared with the measured outputs. ``parameters``:
+    as in :func:`forecast`.
 
     Returns:
         One row per horizon step and output: ``step``, ``hours``, ``output``, ``n`` (scored
@@ -241,6 +328,14 @@ def backtest(
         )
     u = np.stack([run.u[o : o + steps + 1] for o in origins])
     out = propagate(run.system, run.m[origins], run.P[origins], u)
+    cov = _covariance_of(result, parameters)
+    if cov is not None:
+
+        def mean_of(f):
+            r = f.filter(data)
+            return propagate(r.system, r.m[origins], r.P[origins], u)["y"]
+
+        out["var"] = out["var"] + _parameter_variance(form, cov, mean_of)
     meas = np.stack([run.y[o + 1 : o + steps + 1] for o in origins])  # [O, H, p]
     sd = np.sqrt(out["var"])
     rows = []
@@ -265,5 +360,12 @@ def backtest(
                 }
             )
     table = pd.DataFrame(rows)
-    table.attrs.update({"model": model.name, "noise": form.note, "origins": int(origins.size)})
+    table.attrs.update(
+        {
+            "model": model.name,
+            "noise": form.note,
+            "origins": int(origins.size),
+            "parameters": cov is not None,
+        }
+    )
     return table

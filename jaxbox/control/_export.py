@@ -369,7 +369,7 @@ def modelica_model(model: RCModel, params: Mapping[str, float], name: str | None
         for s in net.sources:
             if s.node != node.name:
                 continue
-            gain = [_factor(k, v) for k, v in s.gain]
+            gain = [_factor(k, v) for k, v in s.gain if not (k == "const" and float(v) == 1.0)]
             inp = "1.0" if s.input == "one" else s.input
             terms.append(" * ".join([*gain, inp]))
         lines.append(f"  {node.C}*der(T_{node.name}) = {' + '.join(terms) or '0'};")

@@ -90,19 +90,22 @@ def _jaxbox_docs_setup():
     from IPython import get_ipython
     from IPython.display import display
 
+    from matplotlib._pylab_helpers import Gcf
+
     shell = get_ipython()
-    shell.run_line_magic("matplotlib", "inline")  # figures display as PNG
     shown = {id(v) for v in shell.user_ns.values() if isinstance(v, matplotlib.figure.Figure)}
+
+    def note_pyplot_figures():  # before the inline backend shows and closes them
+        shown.update(id(m.canvas.figure) for m in Gcf.get_all_fig_managers())
+
+    shell.events.register("post_execute", note_pyplot_figures)
+    shell.run_line_magic("matplotlib", "inline")  # figures display as PNG
 
     def show_new_figures(result):
         if not result.success:
             return
         for value in list(shell.user_ns.values()):
-            if (
-                isinstance(value, matplotlib.figure.Figure)
-                and id(value) not in shown
-                and getattr(value.canvas, "manager", None) is None  # pyplot shows its own
-            ):
+            if isinstance(value, matplotlib.figure.Figure) and id(value) not in shown:
                 shown.add(id(value))
                 if result.result is not value:  # the last expression is shown already
                     display(value)
@@ -407,6 +410,15 @@ def benchmark_table() -> str:
 # -- API ----------------------------------------------------------------------------------------
 
 
+def _first_paragraph(doc: str | None) -> str:
+    """The first paragraph of a docstring on one line, Sphinx roles as code, ``|`` escaped."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from griffe_jaxbox import plain_roles
+
+    text = " ".join((doc or "").strip().split("\n\n")[0].split())
+    return plain_roles(text).replace("|", "\\|")
+
+
 def api_index() -> str:
     """The page of the top-level names: each linked to where it is defined and documented."""
     import jaxbox
@@ -431,8 +443,7 @@ def api_index() -> str:
         module = names[name]
         target = f"jaxbox.{module}.{name}"
         obj = getattr(jaxbox, name)
-        summary = ((obj.__doc__ or "").strip().split("\n\n")[0]).replace("\n", " ")
-        summary = summary.replace("|", "\\|")
+        summary = _first_paragraph(obj.__doc__)
         where = "jaxbox" if module.startswith("_") else f"jaxbox.{module}"
         lines.append(f"| [`{name}`][{target}] | `{where}` | {summary} |")
     lines += [
@@ -444,7 +455,7 @@ def api_index() -> str:
     ]
     for package in jaxbox._SUBPACKAGES:
         module = getattr(jaxbox, package)
-        summary = (module.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ")
+        summary = _first_paragraph(module.__doc__)
         lines.append(f"| [`jaxbox.{package}`](jaxbox.{package}.md) | {summary} |")
     lines += ["", "## Precision and the compilation cache", ""]
     for target in ("_x64.enable_x64", "_x64.PrecisionError", "_cache.enable_compilation_cache"):

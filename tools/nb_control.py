@@ -64,7 +64,6 @@ measured = fc["T_zon_measured"]
 inside = (measured >= fc["T_zon_lo95"]) & (measured <= fc["T_zon_hi95"])
 print(f"95 % band holds {inside.mean():.0%} of the measurements")
 fig = jaxbox.plot_forecast(fc, history)
-fig
 """
         ),
         md(

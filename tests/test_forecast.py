@@ -481,3 +481,39 @@ def test_parameter_uncertainty_matches_a_monte_carlo_over_the_parameters(data):
     np.testing.assert_allclose(wide["T_zon_mean"], plain["T_zon_mean"], rtol=0)
     with pytest.raises(FitError, match="needs a maximum-likelihood fit"):
         forecast(form, history, data, horizon=12, parameters=True)
+
+
+def test_cli_parameters_from_the_fit_files_covariance(files, data, capsys):
+    import json
+
+    folder, csv, _, _ = files
+    names = ["C_zon", "R_wal", "gA"]
+    sd = {"C_zon": 8e4, "R_wal": 2e-4, "gA": 0.05}
+    corr = [[1.0, -0.4, 0.1], [-0.4, 1.0, 0.0], [0.1, 0.0, 1.0]]
+    doc = {
+        "model": "ZonWal",
+        "params": TRUE,
+        "x0_std": [1.0, 1.0],
+        "table": {n: {"sd": sd[n]} for n in names},
+        "correlation": {"names": names, "matrix": corr},
+    }
+    path = folder / "ml_cov.json"
+    path.write_text(json.dumps(doc))
+    out = folder / "p.csv"
+    at = data.index[100]
+    args = ["forecast", csv, "--params", path, "--at", at, "--horizon", "12h", "--out", out]
+    code, stdout, err = _cli([*args, "--parameters"], capsys)
+    assert code == 0, err
+    assert "the bands hold the parameters' uncertainty" in stdout
+    s = np.asarray([sd[n] for n in names])
+    cov = np.asarray(corr) * s[:, None] * s[None, :]
+    ref = forecast(
+        _form(TRUE, 1.0), data.slice(None, at), data, horizon="12h", parameters=(names, cov)
+    )
+    frame = pd.read_csv(out, index_col="time", parse_dates=True)
+    np.testing.assert_allclose(frame["T_zon_sd"], ref["T_zon_sd"], rtol=1e-9)
+    _, _, ml, _ = files
+    code, _, err = _cli(
+        ["forecast", csv, "--params", ml, "--at", at, "--out", out, "--parameters"], capsys
+    )
+    assert code == 2 and "holds no covariance of its parameters" in err

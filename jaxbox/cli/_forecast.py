@@ -68,6 +68,12 @@ def add_forecast_arguments(p) -> None:
     p.add_argument(
         "--q-min", type=float, default=0.0, metavar="W", help="its minimum power (default 0)"
     )
+    p.add_argument(
+        "--parameters",
+        action="store_true",
+        help="the bands also hold the uncertainty of the estimated parameters (from the fit "
+        "file's standard deviations and correlations)",
+    )
     p.add_argument("--out", required=True, metavar="FORECAST.csv", help="CSV file to write")
     p.add_argument("--plot", metavar="FORECAST.png", help="also draw the forecast")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
@@ -124,6 +130,7 @@ def read_fit(path: str, option: str = "--params") -> dict:
     info = doc.get("data") if isinstance(doc.get("data"), dict) else {}
     step = info.get("step_s")
     return {
+        "covariance": _covariance(doc),
         "step": float(step) if isinstance(step, int | float) and step > 0 else None,
         "model": model,
         "params": params,
@@ -132,6 +139,33 @@ def read_fit(path: str, option: str = "--params") -> dict:
         "state": doc.get("state"),
         "state_cov": doc.get("state_cov"),
     }
+
+
+def _covariance(doc: dict):
+    """``(names, covariance)`` [SI²] of the estimated parameters from a fit document's
+    standard deviations and correlations (``--method ml``: ``table`` and ``correlation``
+    ``{names, matrix}``; output error: ``params[…].std`` and ``correlation`` as nested
+    dicts), or None where it has none."""
+    import numpy as np
+
+    corr = doc.get("correlation")
+    try:
+        if isinstance(corr, dict) and "names" in corr and "matrix" in corr:
+            names = list(corr["names"])
+            sd = [doc["table"][n]["sd"] for n in names]
+            R = np.asarray(corr["matrix"], float)
+        elif isinstance(corr, dict) and corr:
+            names = list(corr)
+            sd = [doc["params"][n]["std"] for n in names]
+            R = np.asarray([[corr[a][b] for b in names] for a in names], float)
+        else:
+            return None
+        sd = np.asarray(sd, float)
+    except (KeyError, TypeError, ValueError):
+        return None
+    if R.shape != (len(names), len(names)) or not (np.all(np.isfinite(R)) and np.all(sd >= 0)):
+        return None
+    return tuple(names), R * sd[:, None] * sd[None, :]
 
 
 def fit_model_of(fit: dict, name: str | None, path: str, option: str = "--params"):
@@ -227,6 +261,8 @@ def forecast_command(args) -> int:
         raise UsageError("--train and --validate do not apply to forecast: give --at")
     out = output_file(args.out, "--out")
     plot = None if args.plot is None else output_file(args.plot, "--plot")
+    if args.setpoint is not None and args.parameters:
+        raise UsageError("--parameters applies to the forecast, not to the heat demand")
     if args.setpoint is None and (args.setback or args.q_max is not None):
         raise UsageError("--setback and --q-max go with --setpoint")
     if args.setpoint is not None and args.q_max is None:
@@ -244,7 +280,19 @@ def forecast_command(args) -> int:
     future = data if args.inputs is None else load_data(args.inputs)
     if args.setpoint is not None:
         return _demand_command(args, form, history, future, out)
-    frame = forecast(form, history, future, horizon=args.horizon)
+    cov = None
+    if args.parameters:
+        from ..stochastic import noise_names
+
+        cov = fit["covariance"]
+        if cov is None:
+            raise UsageError(
+                f"--parameters: {args.params} holds no covariance of its parameters (the "
+                "standard deviations and correlations of `jaxbox fit --json`)"
+            )
+        keep = [i for i, n in enumerate(cov[0]) if n not in noise_names(model)]
+        cov = (tuple(cov[0][i] for i in keep), cov[1][keep][:, keep])
+    frame = forecast(form, history, future, horizon=args.horizon, parameters=cov or False)
     tmp = out.with_name(out.name + ".part")
     frame.to_csv(tmp, index_label="time")
     fig = plot_forecast(frame, history) if plot is not None else None
@@ -256,6 +304,7 @@ def forecast_command(args) -> int:
         "origin": frame.attrs["origin"],
         "horizon_samples": len(frame),
         "noise": form.note,
+        "parameters": bool(cov),
         "out": str(out),
         "outputs": {},
     }
@@ -278,7 +327,8 @@ def forecast_command(args) -> int:
     if args.json:
         print_json(summary)
         return 0
-    print(f"wrote {len(frame)} rows to {out} ({form.note})")
+    with_theta = "; the bands hold the parameters' uncertainty" if cov else ""
+    print(f"wrote {len(frame)} rows to {out} ({form.note}{with_theta})")
     for o, row in summary["outputs"].items():
         end = frame.index[-1]
         print(f"{o} at {end}: {row['mean_end']:.2f} ± {row['sd_end']:.2f} °C (mean ± sd)")

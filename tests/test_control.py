@@ -154,3 +154,21 @@ def test_closed_loop_mpc_holds_the_band_and_beats_a_thermostat(data):
     assert len(frame) == 49 and np.isnan(frame["Q_hea"].iloc[-1])
     assert a.energy_kwh == pytest.approx(a.q.sum() * DT / 3.6e6)
     assert isinstance(a.index, pd.DatetimeIndex)
+
+
+def test_upper_edge_is_priced_and_never_heated_past():
+    """A zone above the band's upper edge and cooling on its own: no heating, and the
+    predicted excess is the free response above the edge (the heater cannot cool)."""
+    mpc = LinearMPC.from_form(_form(), horizon=3, q_max=5000.0, comfort=2.0)
+    tau = ZON["C_zon"] * ZON["R_wal"]
+    a = math.exp(-DT / tau)
+    T0, Ta = 26.0, 10.0
+    inputs = np.zeros((4, 3))
+    inputs[:, 0] = Ta
+    plan = mpc.plan([T0], inputs, 0.2, lower=15.0, upper=24.0)
+    free = Ta + (T0 - Ta) * a ** np.arange(1, 4)
+    np.testing.assert_allclose(plan.q, 0.0, atol=1e-9)
+    np.testing.assert_allclose(plan.T, free, rtol=1e-12)
+    np.testing.assert_allclose(plan.above, np.clip(free - 24.0, 0, None), atol=1e-9)
+    kh = DT / 3600.0
+    assert plan.cost == pytest.approx(2.0 * kh * np.clip(free - 24.0, 0, None).sum(), rel=1e-7)

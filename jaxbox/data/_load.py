@@ -452,6 +452,12 @@ def load(
     Raises:
         DataError: for any problem with the input; the message names the column, row or
             time stamp at fault and the fix.
+
+    Example:
+        ```python
+        data = jaxbox.load("building.csv", columns={"T_zon": "living_temp", "T_amb": "outdoor"},
+                           resample="1h")
+        ```
     """
     from_frame = isinstance(source, pd.DataFrame)
     if from_frame:

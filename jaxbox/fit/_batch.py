@@ -153,6 +153,14 @@ def fit_model(
 
     Raises:
         FitError: an ill-posed problem, or every start failed.
+
+    Example:
+        ```python
+        data = jaxbox.datasets.twinhouse_exp1("N2")
+        ident, valid = data.split()
+        result = jaxbox.fit_model("ZonWal", ident, starts=16)
+        print(result.summary())
+        ```
     """
     if method == "ml":
         from ..stochastic._fit import fit_ml_method

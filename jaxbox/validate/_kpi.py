@@ -266,6 +266,12 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
         TypeError: ``result`` is not a FitResult or ``uncertainty`` not an Uncertainty.
         ValueError: the fit has no finite optimum, no degrees of freedom are left for the
             covariance, ``level`` is not in (0, 1), or ``uncertainty`` is of another fit.
+
+    Example:
+        ```python
+        k = kpis(result)
+        print(k.hlc)                         # heat-loss coefficient [W/K] with its 95 % interval
+        ```
     """
     from scipy import stats
 

@@ -288,6 +288,13 @@ def validate(
         ValidationError: the validation data do not follow the identification data (step, time
             zone, start), lack a column of the model, or leave no usable segment.
         ValueError: an unknown ``method`` or a tolerance that is not a positive number.
+
+    Example:
+        ```python
+        v = validate(result, valid)          # result from jaxbox.fit_model on the first half
+        print(v.rmse_auto, v.rmse_cross)     # RMSE per output [K]
+        fig = plot_fit(v)
+        ```
     """
     from ..fit import state_guess
     from ._args import check_fit, check_positive

@@ -461,6 +461,12 @@ def uncertainty(
         ValueError: fewer output samples than free parameters (no degrees of freedom left), an
             optimum that is not finite, or an option out of range (``level`` in (0, 1),
             ``rcond`` and ``loading`` in [0, 1), ``max_collinearity`` > 0).
+
+    Example:
+        ```python
+        unc = uncertainty(result)
+        print(unc.summary())                 # std, 95 % intervals, non-identifiable combinations
+        ```
     """
     from ..fit import problem_arrays
     from ._args import check_flag, check_fraction, check_level, check_positive

@@ -854,6 +854,12 @@ def check_validity(
         ValueError: an option out of range (limits > 0, ``inf`` switching one off; ranges
             ``(low, high)`` with low < high; ``bound_tol`` in [0, 0.5)), or an ``uncertainty``
             or ``validation`` of another fit.
+
+    Example:
+        ```python
+        verdict = check_validity(result, validation=validate(result, valid))
+        print(verdict.valid, verdict.reasons)
+        ```
     """
     result = check_fit(result, needs=_VERDICT_NEEDS)
     uncertainty, validation = check_own(result, uncertainty, validation)

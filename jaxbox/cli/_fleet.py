@@ -49,9 +49,35 @@ def add_fleet_arguments(p) -> None:
     p.add_argument("--no-fits", action="store_true", help="no fit JSON per building")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON")
     # jaxbox fleet make DIR
-    p.add_argument("--n", type=int_option, default=20, help="(make) number of buildings")
-    p.add_argument("--days", type=float, default=31.0, help="(make) days of hourly data")
-    p.add_argument("--noise", type=float, default=0.1, help="(make) noise on T_zon [K]")
+    p.add_argument(
+        "--n", type=int_option, help=f"(make) number of buildings (default {_MAKE['n']})"
+    )
+    p.add_argument(
+        "--days", type=float, help=f"(make) days of hourly data (default {_MAKE['days']:g})"
+    )
+    p.add_argument(
+        "--noise", type=float, help=f"(make) noise on T_zon [K] (default {_MAKE['noise']:g})"
+    )
+
+
+#: the defaults of the options of ``jaxbox fleet make``
+_MAKE = {"n": 20, "days": 31.0, "noise": 0.1}
+#: the options of ``jaxbox fleet SOURCE`` that ``make`` does not take (attribute, option)
+_RUN_ONLY = (
+    ("out", "--out"),
+    ("config", "--config"),
+    ("starts", "--starts"),
+    ("partition_size", "--partition-size"),
+    ("scheduler", "--scheduler"),
+    ("workers", "--workers"),
+    ("resume", "--resume"),
+    ("no_fits", "--no-fits"),
+)
+
+
+def _given(args, pairs) -> list[str]:
+    """The options of ``pairs`` (attribute, option) given on the command line."""
+    return [option for attr, option in pairs if getattr(args, attr, None) not in (None, False)]
 
 
 def _models(text: str | None):
@@ -68,16 +94,25 @@ def _make(args) -> int:
 
     if args.dir is None:
         raise UsageError("jaxbox fleet make DIR --n N: give the folder to write")
+    extra = _given(args, _RUN_ONLY)
+    if extra:
+        raise UsageError(
+            f"{extra[0]} does not apply to 'jaxbox fleet make DIR' (it takes --n, --days, "
+            "--noise, --model, --seed, --json)"
+        )
+    n, days, noise = (
+        _MAKE[k] if getattr(args, k) is None else getattr(args, k) for k in ("n", "days", "noise")
+    )
     model = args.models or "ZonWal"
     if model not in FLEET_MODELS:
         raise UsageError(f"--model {model!r}: the generator draws {', '.join(FLEET_MODELS)}")
     try:
         _, truth = make_fleet(
-            args.n,
+            n,
             args.dir,
             model=model,
-            days=args.days,
-            noise=args.noise,
+            days=days,
+            noise=noise,
             seed=0 if args.seed is None else args.seed,
         )
     except ValueError as err:
@@ -97,6 +132,11 @@ def fleet_command(args) -> int:
         return _make(args)
     if args.dir is not None:
         raise UsageError(f"unexpected argument {args.dir!r} (one SOURCE, and --out OUT)")
+    make_only = _given(args, (("n", "--n"), ("days", "--days"), ("noise", "--noise")))
+    if make_only:
+        raise UsageError(
+            f"{make_only[0]} applies to 'jaxbox fleet make DIR' only, not to a fleet to identify"
+        )
     if not args.out:
         raise UsageError("give the output folder: jaxbox fleet SOURCE --out OUT")
     if args.workers is not None and args.workers < 0:

@@ -164,7 +164,9 @@ WINDOW_CASES = [
         "jump of a sensor",
         lambda f: _half(f, "T_bou", lambda x: x + 25.0),
         {},
-        ["'T_bou'", "jumps by +2", "2013-08-25 20:00:00"],
+        # the boundary where the change was made: sample N // 2 (one-sided medians located
+        # it five samples early before)
+        ["'T_bou'", "jumps by +2", "and 2013-08-26 01:00:00"],
     ),
     (
         "narrow override",

@@ -121,6 +121,15 @@ def add_data_arguments(p) -> None:
         "(repeatable)",
     )
     p.add_argument(
+        "--allow",
+        action="append",
+        default=[],
+        metavar="[COLUMN=]CHECK",
+        help="keep data a plausibility check refuses, with a warning, where they are right: "
+        "CHECK is one of kelvin, fahrenheit, range, jump, spike, stuck, counter, kilowatt, for "
+        "COLUMN or every column, e.g. T_zon=jump (repeatable)",
+    )
+    p.add_argument(
         "--stuck-hours",
         metavar="H",
         help="a temperature that does not change for H hours is refused as a stuck sensor "
@@ -128,6 +137,13 @@ def add_data_arguments(p) -> None:
     )
     p.add_argument(
         "--resample", metavar="RULE", help="resample first, e.g. 1h (mean, right-closed)"
+    )
+    p.add_argument(
+        "--trim",
+        metavar="auto|none|first|last|both",
+        help="drop a partial first or last sample: auto (the default) drops one whose "
+        "temperature strays off the trend of its neighbours, with a warning; none keeps every "
+        "sample; first, last, both drop those anyway",
     )
     p.add_argument(
         "--train", metavar="START..END", help="identification period (default: first half)"
@@ -162,6 +178,32 @@ def _stuck_hours(text) -> float | None:
     if value <= 0:
         raise UsageError(f"--stuck-hours {text}: give a positive number of hours, or none")
     return value
+
+
+def _trim(text) -> str:
+    """``--trim``: one of :data:`jaxbox.data._plausible.TRIM` (default ``auto``)."""
+    from ..data._plausible import TRIM
+
+    if text is None:
+        return "auto"
+    value = str(text).strip().lower()
+    if value not in TRIM:
+        raise UsageError(f"--trim {text!r}: give one of {', '.join(TRIM)}")
+    return value
+
+
+def _allow(items) -> frozenset:
+    """``--allow [COLUMN=]CHECK``, repeatable: the refusals kept as warnings."""
+    from ..data import DataError
+    from ..data._plausible import parse_allow
+
+    for item in items:
+        if not str(item).strip() or str(item).strip().endswith("="):
+            raise UsageError(f"--allow {item!r}: give CHECK or COLUMN=CHECK, e.g. T_zon=jump")
+    try:
+        return parse_allow(list(items))
+    except DataError as err:
+        raise UsageError(str(err).replace("allow: ", f"--allow {items[-1]}: ", 1)) from None
 
 
 def _max_gap(text) -> float:
@@ -235,7 +277,9 @@ class DataOptions:
         self.counters = pairs(args.counter, "--counter", "Q_hea=kWh")
         self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
         self.stuck_hours = _stuck_hours(getattr(args, "stuck_hours", None))
+        self.allow = _allow(getattr(args, "allow", []))
         self.resample = resample_rule(args.resample)
+        self.trim = _trim(getattr(args, "trim", None))
         self.train_text, self.valid_text = args.train, args.validate
         self.train = period(args.train, "--train")
         none = args.validate is not None and args.validate.strip().lower() == "none"
@@ -369,10 +413,12 @@ def _option_given(opts: DataOptions, option: str) -> bool:
     return (opts.train if option == "--train" else opts.valid) is not None
 
 
-def check_windows(ident, valid, columns, ranges, stuck_hours: float | None) -> None:
+def check_windows(
+    ident, valid, columns, ranges, stuck_hours: float | None, allow: frozenset = frozenset()
+) -> None:
     """The physical plausibility of the signals (``columns``, default every canonical one) in
     the windows actually used (``ranges``: the ``--range`` overrides; ``stuck_hours``:
-    ``--stuck-hours``); warnings (uncertain findings) go to stderr."""
+    ``--stuck-hours``; ``allow``: ``--allow``); warnings (uncertain findings) go to stderr."""
     from ..data import check_plausibility
 
     for data, what in ((ident, "identification data"), (valid, "validation data")):
@@ -385,9 +431,21 @@ def check_windows(ident, valid, columns, ranges, stuck_hours: float | None) -> N
             what=what,
             warn=False,
             stuck_hours=stuck_hours,
+            allow=allow,
         )
         for note in notes:
             print(warning_line(note), file=sys.stderr, flush=True)
+
+
+def _trimmed(data, opts: DataOptions, columns):
+    """``data`` without a partial first or last sample (``--trim``), with a warning for each
+    one dropped."""
+    from ..data import trim_edges
+
+    data, notes = trim_edges(data, getattr(opts, "trim", "auto"), columns)
+    for note in notes:
+        print(warning_line(note), file=sys.stderr, flush=True)
+    return data
 
 
 def load_all(args, opts: DataOptions | None = None, *, model=None):
@@ -401,12 +459,14 @@ def load_all(args, opts: DataOptions | None = None, *, model=None):
         try:
             with about(spec if len(opts.specs) > 1 else None):
                 data = load_data(spec, opts)
-                ident, valid = split_periods(data, opts)
                 columns = None
                 if model is not None:
                     columns = list(model.inputs) + list(model.outputs)
+                data = _trimmed(data, opts, columns)
+                ident, valid = split_periods(data, opts)
+                if model is not None:
                     require_model_columns(ident, model)
-                check_windows(ident, valid, columns, opts.ranges, opts.stuck_hours)
+                check_windows(ident, valid, columns, opts.ranges, opts.stuck_hours, opts.allow)
         except (DataError, UsageError) as err:
             if len(opts.specs) == 1:
                 raise

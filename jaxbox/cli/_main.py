@@ -14,9 +14,12 @@ Exit codes:
   temporary folder, or stderr itself with ``JAXBOX_DEBUG=1`` — and no partial output file;
 * 130 Ctrl-C: one line, no partial output file.
 
-Data that are plausible but suspicious (a unit that looks wrong, a long gap) give
-``warning: …`` lines and the command goes on; each names the option that removes the doubt
-(``--scale``, ``--counter``, ``--range``).
+Data that are plausible but suspicious give ``warning: …`` lines and the command goes on; each
+names the option that removes the doubt: a unit that looks wrong (``--scale``, ``--counter``),
+a steep change of the outdoor temperature (kept as weather), a partial first or last sample
+(dropped by ``fit`` and ``select``; ``--trim none`` keeps it), a long gap (``--max-gap``). Every
+refusal of the plausibility checks can be overridden where the data are right:
+``--allow [COLUMN=]CHECK`` (or ``--range``, ``--stuck-hours`` for their checks).
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ from ._common import (
     about,
     check_interrupted,
     check_run_options,
+    cli_message,
     data_info,
     fit_default,
     fit_json,
@@ -160,13 +161,15 @@ def _candidates(text: str, data=None):
     return models
 
 
-def _run_selection(sets, args, candidates, ranges, max_gap, stuck_hours: float | None):
+def _run_selection(
+    sets, args, candidates, ranges, max_gap, stuck_hours: float | None, allow=frozenset()
+):
     """Forward selection on every ``(spec, data, ident, valid)``: one GreyBox each, in
-    lock-step, each step's fits batched over the buildings."""
-    from ..data import DataWarning
+    lock-step, each step's fits batched over the buildings (``allow``: ``--allow``)."""
+    from ..data import DataWarning, allowing
     from ..select import GreyBox, forward_selection_many, structure_search
 
-    with warnings.catch_warnings():  # the windows' warnings were given once already
+    with warnings.catch_warnings(), allowing(allow):  # the windows' warnings were given
         warnings.simplefilter("ignore", DataWarning)
         boxes = [
             GreyBox(
@@ -292,7 +295,7 @@ def select_command(args) -> int:
     with Outputs() as outputs:
         t0 = time.perf_counter()
         outcomes = _run_selection(
-            sets, args, candidates, opts.ranges, opts.max_gap, opts.stuck_hours
+            sets, args, candidates, opts.ranges, opts.max_gap, opts.stuck_hours, opts.allow
         )
         elapsed = time.perf_counter() - t0
         docs = []
@@ -392,8 +395,18 @@ def _no_valid_model(outcomes) -> int:
         if short
         else ""
     )
+    # an input's unit in doubt where its gain sits on a bound is named first: it is the likelier
+    # cause, and the one line read last
+    from ..select._cases import unit_doubts
+
+    doubts: list[str] = []
+    for gb in none:
+        doubts += [d for d in unit_doubts(list(gb.cases.values())) if d not in doubts]
+    first = f"{doubts[0]}; " if doubts else ""
     print(
-        f"no valid model{which}: none of the candidates passed the validity checks{hint}",
+        cli_message(
+            f"no valid model{which}: {first}none of the candidates passed the validity checks{hint}"
+        ),
         file=sys.stderr,
         flush=True,
     )

@@ -25,11 +25,15 @@ from ._gaps import concat_periods as concat_periods
 from ._gaps import prepare_window as prepare_window
 from ._load import as_dataset as as_dataset
 from ._load import load as load
+from ._plausible import ALLOWABLE as ALLOWABLE
 from ._plausible import PLAUSIBLE_RANGES as PLAUSIBLE_RANGES
 from ._plausible import Finding as Finding
+from ._plausible import allowing as allowing
 from ._plausible import check_plausibility as check_plausibility
+from ._plausible import edge_samples as edge_samples
 from ._plausible import find_implausible as find_implausible
 from ._plausible import plausible_range as plausible_range
+from ._plausible import trim_edges as trim_edges
 from ._signals import CONSTANT as CONSTANT
 from ._signals import SIGNALS as SIGNALS
 from ._signals import signal_unit as signal_unit

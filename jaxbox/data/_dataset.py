@@ -495,6 +495,7 @@ class Dataset:
         stuck_hours: float | None = STUCK_HOURS,
         spike_k: float = 10.0,
         warn: bool = True,
+        allow: object = None,
     ) -> tuple[str, ...]:
         """Refuse physically implausible signals; return the warnings.
 
@@ -513,6 +514,7 @@ class Dataset:
             stuck_hours=stuck_hours,
             spike_k=spike_k,
             warn=warn,
+            allow=allow,
         )
 
     def plot(self, columns: str | Iterable[str] | None = None, ax: Axes | None = None) -> Figure:

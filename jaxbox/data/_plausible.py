@@ -14,7 +14,9 @@ and refuses values that no building produces or that betray a unit or sensor pro
 * ``range`` — values outside the plausible range of their kind (:data:`PLAUSIBLE_RANGES`,
   overridable per column with ``overrides={column: (lo, hi)}``);
 * ``jump`` — a temperature whose median over 11 samples changes by more than 20 K from one
-  sample to the next (a change of unit or of sensor);
+  sample to the next, one-sided at the first and last samples: a change of unit (an offset
+  near 273.15 K: ``kelvin``; a factor near 1.8: ``fahrenheit``) or of sensor is an error; an
+  outdoor temperature that stays within its plausible range is weather (a front), a warning;
 * ``spike`` — isolated samples far from their neighbours: for a temperature, farther than
   ``max(5 K, spike_k · σ)`` from the median of the 5 samples around it (a Hampel filter; σ is
   the robust standard deviation ``1.4826 · MAD`` of the sample-to-sample differences); for a
@@ -37,11 +39,16 @@ heuristic off. Irradiance that peaks below 1.5 W/m² over at least a day gives a
 (kW/m²?).
 
 Every refusal raises :class:`~jaxbox.data.DataError` naming the column, the first time stamps
-and their count, and what to do (with the Python keyword and the command-line option).
+and their count, and what to do (with the Python keyword and the command-line option). Every
+judgement of plausibility (:data:`ALLOWABLE`) can be overridden where the data are right:
+``allow={"T_zon": "jump"}`` (command line ``--allow T_zon=jump``) turns that refusal into a
+warning.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses
 import math
 import warnings
@@ -55,13 +62,17 @@ from ._args import check_mapping
 from ._checks import ABSURD, ABSURD_OTHER, rows_text
 from ._counters import rising_share
 from ._errors import DataError, DataWarning, list_names
-from ._signals import CONSTANT, signal_base, signal_unit
+from ._signals import CONSTANT, is_temperature, signal_base, signal_unit
 
 __all__ = [
+    "ALLOWABLE",
     "PLAUSIBLE_RANGES",
     "STUCK_HOURS",
     "Finding",
+    "allowing",
     "check_plausibility",
+    "edge_samples",
+    "trim_edges",
     "find_implausible",
     "plausible_range",
 ]
@@ -90,6 +101,8 @@ _KELVIN = 273.15
 _ZONE_MEDIAN_MAX = 40.0
 #: A temperature changing level by more than this [K] from one sample to the next has jumped.
 _JUMP_K = 20.0
+#: A jump within this [K] of 273.15 K, or of the °C/°F conversion, is a change of unit.
+_UNIT_TOLERANCE_K = 3.0
 #: ... as the medians of this many samples before and after.
 _JUMP_SAMPLES = 11
 #: Smallest deviation [K] of a temperature from its neighbours that counts as a spike.
@@ -102,6 +115,17 @@ _KW_PEAK = 50.0
 STUCK_HOURS = 24.0
 #: Below this heat-loss coefficient [W/K] (mean heating / mean T_zon - T_amb) it is in kW.
 _KW_UA = 1.0
+#: Heating above this peak [W], or above this mean per K of zone-ambient difference [W/K], is
+#: more than a building zone takes (mW?).
+_MW_PEAK = 1e6
+_MW_UA = 2e4
+#: An irradiance whose peak changes by a factor within this range at a sample, with at least
+#: this many samples and hours on each side, may have changed unit (W/m² and kW/m²).
+_SCALE_FACTOR = (300.0, 3000.0)
+_SCALE_MIN_SAMPLES = 12
+_SCALE_MIN_HOURS = 24.0
+#: An outdoor temperature this much [K] warmer than the heated zone on average may be in °F.
+_WARM_OUTSIDE_K = 5.0
 #: Smallest mean zone-ambient difference [K] for the kW test.
 _KW_DELTA_T = 3.0
 #: An irradiance peaking below this [W/m²] over a day or more may be in kW/m².
@@ -110,6 +134,12 @@ _KW_IRRADIANCE = 1.5
 #: spans this many hours and samples.
 _COUNTER_HOURS = 12.0
 _COUNTER_MIN_SAMPLES = 12
+#: A first or last temperature sample off the straight line through its two neighbours by more
+#: than max(_EDGE_FLOOR_K, _EDGE_K · σ) [K] (σ: the robust scatter of the same deviation over
+#: the other samples) is a partial interval.
+_EDGE_FLOOR_K = 0.2
+_EDGE_K = 8.0
+_EDGE_MIN_SAMPLES = 8
 #: A heating column negative at this share of at least this many non-zero samples is flagged.
 _SIGN_SHARE = 0.95
 _SIGN_MIN_SAMPLES = 10
@@ -172,6 +202,84 @@ def plausible_range(
     if base is None:
         return None
     return tuple(overrides.get(base, PLAUSIBLE_RANGES[base]))  # type: ignore[return-value]
+
+
+#: The refusals that ``allow`` (``--allow``) turns into warnings: every judgement of
+#: plausibility. Infinite and absurd values (logger error codes) are not data: set them to NaN.
+ALLOWABLE = ("kelvin", "fahrenheit", "range", "jump", "spike", "stuck", "counter", "kilowatt")
+
+#: the allowances of the checks run in this context (:func:`allowing`)
+_ALLOWED: contextvars.ContextVar[frozenset] = contextvars.ContextVar(
+    "jaxbox_allowed", default=frozenset()
+)
+
+
+def _allow_hint(column: str, kind: str) -> str:
+    return f"if the data are right, pass allow={{{column!r}: {kind!r}}} (--allow {column}={kind})"
+
+
+def parse_allow(allow: object) -> frozenset[tuple[str | None, str]]:
+    """``allow`` as a set of ``(column or None for every column, kind)``. It takes a kind
+    (``"jump"``), ``"COLUMN=KIND"`` (``"T_zon=jump"``), a sequence of those, or a mapping
+    ``{column: kind or kinds}``; kinds are those of :data:`ALLOWABLE`."""
+    if allow is None:
+        return frozenset()
+    if isinstance(allow, str):
+        items: list[tuple[str | None, str]] = [_allow_item(allow)]
+    elif isinstance(allow, Mapping):
+        items = []
+        for column, kinds in allow.items():
+            for kind in [kinds] if isinstance(kinds, str) else list(kinds):
+                items.append(_allow_item(f"{column}={kind}"))
+    elif isinstance(allow, Iterable):
+        items = [_allow_item(a) for a in allow]
+    else:
+        raise TypeError(
+            f"allow takes a kind, 'COLUMN=KIND', a list of those or {{column: kind}}, got "
+            f"{type(allow).__name__}"
+        )
+    return frozenset(items)
+
+
+def _allow_item(text: object) -> tuple[str | None, str]:
+    if isinstance(text, tuple) and len(text) == 2:  # (column or None, kind): parsed already
+        column, kind = text
+        if column is not None and not isinstance(column, str):
+            raise TypeError(f"allow: expected a kind or 'COLUMN=KIND', got {text!r}")
+        text = f"{column or ''}={kind}"
+    if not isinstance(text, str):
+        raise TypeError(f"allow: expected a kind or 'COLUMN=KIND', got {text!r}")
+    column, _, kind = text.rpartition("=")
+    kind = kind.strip()
+    if kind not in ALLOWABLE:
+        raise DataError(
+            f"allow: {kind!r} is not a check that can be allowed; give one of "
+            f"{', '.join(ALLOWABLE)} (command line: --allow KIND or --allow COLUMN=KIND)."
+        )
+    return (column.strip() or None, kind)
+
+
+@contextlib.contextmanager
+def allowing(allow: object):
+    """Within the block, :func:`check_plausibility` also allows ``allow`` (as its argument
+    ``allow``), e.g. for the checks a :class:`~jaxbox.select.GreyBox` runs."""
+    token = _ALLOWED.set(_ALLOWED.get() | parse_allow(allow))
+    try:
+        yield
+    finally:
+        _ALLOWED.reset(token)
+
+
+def _allowed(finding: Finding, allowed: frozenset) -> bool:
+    return (
+        (None, finding.kind) in allowed
+        or (finding.column, finding.kind) in allowed
+        or (
+            signal_base(finding.column),
+            finding.kind,
+        )
+        in allowed
+    )
 
 
 # -- one small function per check; each returns the findings of one column -----------------------
@@ -261,7 +369,8 @@ def _kelvin(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
             c.name,
             "kelvin",
             f"{part}values of {c.name!r} look like kelvin (about 273 above °C) {c.rows(bad)}; "
-            f"convert them to °C (subtract 273.15) before loading, or {_WINDOWS}.",
+            f"convert them to °C (subtract 273.15) before loading, or {_WINDOWS}; "
+            f"{_allow_hint(c.name, 'kelvin')}.",
         )
     ]
 
@@ -295,13 +404,40 @@ def _fahrenheit(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding
     ]
 
 
+def _factor_into_range(c: _Column) -> float | None:
+    """The power of 1000 (1e-3, 1e-6, 1e3, 1e6) that brings every finite sample of a power or
+    irradiance into its plausible range with a peak above a tenth of the range's top (W/m²
+    logged ×1000, heating in mW…), or ``None``."""
+    if c.unit not in ("W", "W/m²"):
+        return None
+    finite = c.x[np.isfinite(c.x)]
+    if finite.size == 0:
+        return None
+    for factor in (1e-3, 1e-6, 1e3, 1e6):
+        scaled = finite * factor
+        if np.all(_in(scaled, c.lo, c.hi)) and np.max(np.abs(scaled)) > 0.1 * _typical_peak(c):
+            return factor
+    return None
+
+
+def _typical_peak(c: _Column) -> float:
+    """A peak a column of its kind reaches in a building's data (W/m² of sun, W of heating)."""
+    return 1000.0 if c.unit == "W/m²" else 2000.0
+
+
 def _range(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     with np.errstate(invalid="ignore"):
         bad = (c.x < c.lo) | (c.x > c.hi)
     if not bad.any():
         return []
     hits = c.x[bad]
-    if c.unit != "°C":
+    factor = _factor_into_range(c)
+    if factor is not None:
+        hint = (
+            f" (a unit off by {1 / factor:g}? then pass scale={{{c.name!r}: {factor:g}}} "
+            f"(--scale {c.name}={factor:g}))"
+        )
+    elif c.unit != "°C":
         hint = " (a unit off by a factor? scale=, --scale)"
     elif np.all(_fahrenheit_like(c)[bad]):
         hint = " (°F in part of it? convert those to °C)"
@@ -319,29 +455,95 @@ def _range(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     ]
 
 
+def _unit_change(before: float, after: float) -> str | None:
+    """What turns the level ``before`` into ``after`` [°C or whatever was logged], if it is a
+    change of unit: ``"kelvin"`` (an offset near ±273.15 K), ``"fahrenheit"`` (``after`` near
+    ``1.8 · before + 32`` or the reverse), else ``None``."""
+    if abs(abs(after - before) - _KELVIN) < _UNIT_TOLERANCE_K:
+        return "kelvin"
+    for a, b in ((before, after), (after, before)):
+        if abs(b - (1.8 * a + 32.0)) < max(_UNIT_TOLERANCE_K, 0.05 * abs(b)):
+            return "fahrenheit"
+    return None
+
+
+def _local_step(x: np.ndarray, i: int) -> float:
+    """The mean of the (up to) 3 samples from ``i`` less that of the 3 before: where exactly
+    a level changes (the medians over 11 samples see it at several boundaries around)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all NaN on one side
+        step = float(np.nanmean(x[i : i + 3]) - np.nanmean(x[max(0, i - 3) : i]))
+    return step if math.isfinite(step) else 0.0
+
+
 def _jump(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    """Level changes of a temperature: the median of the (up to) 11 samples after a sample
+    boundary against that of the 11 before, one-sided at the ends (a first or last sample off
+    its neighbours is a jump of one sample). A change of unit (an offset near 273.15 K, a
+    factor near 1.8) is an error; an outdoor temperature that changes steeply but stays within
+    its plausible range (the range check ran first) is weather: a warning; a jump of any other
+    temperature is an error (a change of sensor?) that ``allow`` can keep."""
     if not c.temperature or len(c.x) < 6:
         return []
     s = pd.Series(c.x)
     w = _JUMP_SAMPLES
-    before = s.rolling(w, min_periods=3).median().to_numpy()  # median of x[i-w+1..i]
-    after = s[::-1].rolling(w, min_periods=3).median().to_numpy()[::-1]  # of x[i..i+w-1]
+    before = s.rolling(w, min_periods=1).median().to_numpy()  # median of x[i-w+1..i]
+    after = s[::-1].rolling(w, min_periods=1).median().to_numpy()[::-1]  # of x[i..i+w-1]
     step = np.full(len(c.x), np.nan)
     step[1:] = after[1:] - before[:-1]
     with np.errstate(invalid="ignore"):
         bad = np.abs(step) > _JUMP_K
     if not bad.any():
         return []
-    i = int(np.flatnonzero(bad)[0])
-    return [
-        Finding(
-            c.name,
-            "jump",
-            f"{c.name!r} jumps by {step[i]:+.3g} K between {c.index[i - 1]} and {c.index[i]} and "
-            "stays there: a change of unit (K, °F) or of sensor? fix the data before loading, "
-            "or use the periods on one side of it (--train/--validate; Dataset.slice).",
+    # one boundary per run of neighbouring boundaries: where the step is largest
+    runs = np.split(np.flatnonzero(bad), np.flatnonzero(np.diff(np.flatnonzero(bad)) > 1) + 1)
+    weather = []
+    n = len(c.x)
+    for run in runs:
+        i = int(run[np.argmax([abs(_local_step(c.x, k)) for k in run])])
+        if i < 3:
+            where = f"between {c.index[i - 1]} and {c.index[i]} (its first {i} sample(s))"
+        elif n - i < 3:
+            where = f"between {c.index[i - 1]} and {c.index[i]} (its last {n - i} sample(s))"
+        else:
+            where = f"between {c.index[i - 1]} and {c.index[i]} and stays there"
+        # the unit is judged on the two samples either side (the level of the weather moves
+        # less between them than over 11)
+        unit = _unit_change(float(c.x[i - 1]), float(c.x[i])) or _unit_change(
+            float(before[i - 1]), float(after[i])
         )
-    ]
+        if unit is not None:
+            what = "°C to K or back" if unit == "kelvin" else "°C to °F or back"
+            return [
+                Finding(
+                    c.name,
+                    unit,
+                    f"{c.name!r} jumps by {step[i]:+.3g} K {where}: a change of unit ({what}); "
+                    "convert that part before loading, or use the periods on one side of it "
+                    f"(--train/--validate; Dataset.slice); {_allow_hint(c.name, unit)}.",
+                )
+            ]
+        if signal_base(c.name) != "T_amb" or i < 3 or n - i < 3:
+            return [
+                Finding(
+                    c.name,
+                    "jump",
+                    f"{c.name!r} jumps by {step[i]:+.3g} K {where}: a change of sensor? fix the "
+                    "data before loading, or use the periods on one side of it "
+                    f"(--train/--validate; Dataset.slice); {_allow_hint(c.name, 'jump')}.",
+                )
+            ]
+        weather.append(
+            Finding(
+                c.name,
+                "jump",
+                f"{c.name!r} changes by {step[i]:+.3g} K {where} (medians of {w} samples), "
+                "within its plausible range: kept as weather (a front); if it is a change of "
+                "sensor, use the periods on one side of it (--train/--validate).",
+                severe=False,
+            )
+        )
+    return weather[:1]
 
 
 def _robust_sigma(values: np.ndarray) -> float:
@@ -380,7 +582,8 @@ def _spike(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
             c.name,
             "spike",
             f"{c.name!r} has isolated spikes {size} (e.g. {first:.4g}) {c.rows(bad)}; set them "
-            f"to NaN and interpolate before loading, or {_WINDOWS}.",
+            f"to NaN and interpolate before loading, or {_WINDOWS}; "
+            f"{_allow_hint(c.name, 'spike')}.",
         )
     ]
 
@@ -394,8 +597,7 @@ def _stuck(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
     # runs of equal neighbours: start/end positions of each run of True in ``same``
     edges = np.diff(np.concatenate([[0], same.astype(np.int8), [0]]))
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # samples s..e
-    ns = c.index.asi8
-    hours = (ns[ends] - ns[starts]) / 3.6e12
+    hours = np.asarray((c.index[ends] - c.index[starts]) / pd.Timedelta(hours=1), dtype=float)
     long = np.flatnonzero((hours >= opts.stuck_hours) & (ends - starts >= 2))
     if long.size == 0:
         return []
@@ -446,8 +648,11 @@ def _zone_ambient_delta(frame: pd.DataFrame) -> float | None:
     zones = [n for n in frame.columns if signal_base(str(n)) == "T_zon"]
     if not zones or "T_amb" not in frame.columns:
         return None
-    zone = np.nanmean(frame[zones].to_numpy(dtype=float), axis=1)
-    return float(np.nanmean(zone - frame["T_amb"].to_numpy(dtype=float)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a sample with no zone temperature
+        zone = np.nanmean(frame[zones].to_numpy(dtype=float), axis=1)
+        delta = float(np.nanmean(zone - frame["T_amb"].to_numpy(dtype=float)))
+    return delta if math.isfinite(delta) else None
 
 
 def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
@@ -471,9 +676,15 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
                 )
             ]
         return []
-    if base != "Q_hea" or not 0 < peak < _KW_PEAK:
+    if base != "Q_hea":
         return []
-    fix = f"pass scale={{{c.name!r}: 1000}} (--scale {c.name}=1000)"
+    if peak >= _KW_PEAK:
+        return _milliwatt(c, frame, peak)
+    if peak == 0:
+        return []
+    factor = 1000 if peak * 1000 >= _KW_PEAK else 1_000_000
+    unit = "kW" if factor == 1000 else "MW"
+    fix = f"pass scale={{{c.name!r}: {factor}}} (--scale {c.name}={factor})"
     delta = _zone_ambient_delta(frame)
     ua = None
     if delta is not None and delta >= _KW_DELTA_T:
@@ -483,8 +694,8 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
             Finding(
                 c.name,
                 "kilowatt",
-                f"{c.name!r} looks like kW, not W: it peaks at {peak:.3g} and its mean per K of "
-                f"zone-ambient difference is {ua:.3g} W/K, below any building's heat loss; "
+                f"{c.name!r} looks like {unit}, not W: it peaks at {peak:.3g} and its mean per "
+                f"K of zone-ambient difference is {ua:.3g} W/K, below any building's heat loss; "
                 f"{fix}, or declare its range with {c.override_hint()}.",
             )
         ]
@@ -492,7 +703,100 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
         Finding(
             c.name,
             "kilowatt",
-            f"{c.name!r} peaks at only {peak:.3g} W: in kW? then {fix}.",
+            f"{c.name!r} peaks at only {peak:.3g} W: in {unit}? then {fix}.",
+            severe=False,
+        )
+    ]
+
+
+def _scale_change(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    """An irradiance whose peak before a sample and after it differ by a factor near 1000
+    (300–3000), each side a day or more and at least 12 samples: logged in kW/m² in one part
+    and W/m² in the other? A warning. Not for heating: heating that stops for good (the end of
+    a season, a free-floating test) looks the same."""
+    if c.overridden or c.unit != "W/m²" or len(c.x) < 2 * _SCALE_MIN_SAMPLES:
+        return []
+    magnitude = np.where(np.isfinite(c.x), np.abs(c.x), 0.0)
+    before = np.maximum.accumulate(magnitude)[:-1]  # peak of x[:k + 1]
+    after = np.maximum.accumulate(magnitude[::-1])[::-1][1:]  # peak of x[k + 1:]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = after / before  # ratio[k]: x[k + 1:] against x[:k + 1]
+    # each side at least a day (a day and a night of sun) and _SCALE_MIN_SAMPLES samples
+    hours = np.asarray((c.index - c.index[0]) / pd.Timedelta(hours=1), dtype=float)
+    step = float(np.median(np.diff(hours)))  # each sample stands for an interval
+    span_before = hours[:-1] - hours[0] + step
+    span_after = hours[-1] - hours[1:] + step
+    k_all = np.arange(len(ratio))
+    sides = (
+        (span_before >= _SCALE_MIN_HOURS)
+        & (span_after >= _SCALE_MIN_HOURS)
+        & (k_all + 1 >= _SCALE_MIN_SAMPLES)
+        & (len(c.x) - k_all - 1 >= _SCALE_MIN_SAMPLES)
+    )
+    lo, hi = _SCALE_FACTOR
+    scaled = ((ratio > lo) & (ratio < hi)) | ((ratio > 1 / hi) & (ratio < 1 / lo))
+    hits = np.flatnonzero(scaled & sides)
+    if hits.size == 0:
+        return []
+    k = int(hits[0]) + 1  # the first sample of the part after
+    up = ratio[hits[0]] > 1
+    fix = 0.001 if up else 1000
+    return [
+        Finding(
+            c.name,
+            "kilowatt",
+            f"{c.name!r} peaks {'1000 times higher' if up else '1000 times lower'} from "
+            f"{c.index[k]} on than before: a change of unit (W/m² and kW/m²)? scale that part "
+            f"by {fix:g} before loading, or use the periods on one side of it "
+            "(--train/--validate; Dataset.slice).",
+            severe=False,
+        )
+    ]
+
+
+def _milliwatt(c: _Column, frame: pd.DataFrame, peak: float) -> list[Finding]:
+    """Heating that no single zone takes: a peak above 1 MW, or a mean above 20 kW per K of
+    zone-ambient difference (mW, or W logged ×1000?): a warning."""
+    delta = _zone_ambient_delta(frame)
+    per_k = None
+    if delta is not None and delta >= _KW_DELTA_T:
+        per_k = float(np.nanmean(c.x)) / delta
+    if peak <= _MW_PEAK and (per_k is None or per_k <= _MW_UA):
+        return []
+    why = f"peaks at {peak:.3g} W" + (
+        f" and averages {per_k:.3g} W per K of zone-ambient difference" if per_k else ""
+    )
+    return [
+        Finding(
+            c.name,
+            "kilowatt",
+            f"{c.name!r} {why}, more than a building zone takes: in mW (or W logged ×1000)? "
+            f"then pass scale={{{c.name!r}: 0.001}} (--scale {c.name}=0.001); if it is right, "
+            f"declare its range with {c.override_hint()}.",
+            severe=False,
+        )
+    ]
+
+
+def _warm_outside(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
+    """An outdoor temperature warmer than the heated zone on average: °F read as °C? (a
+    warning; winter °F values such as 20–45 lie within the plausible range of °C)."""
+    if c.overridden or signal_base(c.name) != "T_amb":
+        return []
+    delta = _zone_ambient_delta(frame)
+    heating = [n for n in frame.columns if signal_base(str(n)) == "Q_hea"]
+    if delta is None or delta > -_WARM_OUTSIDE_K or not heating:
+        return []
+    q = frame[heating].to_numpy(dtype=float)
+    if not np.nanmean(q) > 0 or np.nanmean(q > 0) < 0.5:
+        return []
+    return [
+        Finding(
+            c.name,
+            "fahrenheit",
+            f"{c.name!r} is on average {-delta:.3g} K warmer than the zone while the heating "
+            f"runs: in °F? convert it to °C ((°F - 32) / 1.8) before loading; if it is right, "
+            f"declare its range with {c.override_hint()}.",
             severe=False,
         )
     ]
@@ -537,6 +841,8 @@ _CHECKS: tuple[Callable[..., list[Finding]], ...] = (
     _spike,
     _stuck,
     _kilowatt,
+    _scale_change,
+    _warm_outside,
     _sign,
 )
 
@@ -560,11 +866,15 @@ def find_implausible(
     columns: Iterable[str] | None = None,
     stuck_hours: float | None = STUCK_HOURS,
     spike_k: float = 10.0,
+    allow: object = None,
 ) -> tuple[Finding, ...]:
     """Every implausible finding (errors and warnings) in ``data``, without raising.
 
-    Arguments as in :func:`check_plausibility`. At most one error per column (its first).
+    Arguments as in :func:`check_plausibility`. At most one error per column (its first); an
+    allowed one is a warning beginning ``allowed:``; the later checks of the column are
+    skipped after either.
     """
+    allowed = parse_allow(allow) | _ALLOWED.get()
     frame = _frame_of(data)
     names = [str(n) for n in frame.columns]
     ranges = _overrides(overrides, names)
@@ -578,7 +888,7 @@ def find_implausible(
             raise DataError(
                 f"no column {list_names(missing)} to check; available: {list_names(names)}."
             )
-    index = pd.DatetimeIndex(frame.index)
+    index = pd.DatetimeIndex(frame.index).as_unit("ns")  # a DataFrame's may be in µs
     opts = _Options(stuck_hours=stuck_hours, spike_k=float(spike_k))
     findings: list[Finding] = []
     for name in chosen:
@@ -594,9 +904,15 @@ def find_implausible(
             overridden=name in ranges or signal_base(name) in ranges,
         )
         for check in _CHECKS:
-            found = check(column, frame, opts)
+            found = [
+                dataclasses.replace(f, severe=False, message=f"allowed: {f.message}")
+                if f.severe and _allowed(f, allowed)
+                else f
+                for f in check(column, frame, opts)
+            ]
             findings += found
-            if any(f.severe for f in found):
+            # after a refusal, or a refusal allowed, the column's later checks are skipped
+            if any(f.severe or f.message.startswith("allowed: ") for f in found):
                 break
     return tuple(findings)
 
@@ -610,6 +926,7 @@ def check_plausibility(
     stuck_hours: float | None = STUCK_HOURS,
     spike_k: float = 10.0,
     warn: bool = True,
+    allow: object = None,
 ) -> tuple[str, ...]:
     """Refuse physically implausible signals in ``data``; return the warnings.
 
@@ -632,6 +949,10 @@ def check_plausibility(
         spike_k: a temperature farther than ``max(5 K, spike_k · σ)`` from the median of its 5
             neighbours is a spike (σ: robust standard deviation of the sample differences).
         warn: also issue the warnings with :func:`warnings.warn` (:class:`DataWarning`).
+        allow: refusals to turn into warnings, where the data are right though they look
+            wrong: a kind of :data:`ALLOWABLE` (``"jump"``) for every column, ``"COLUMN=KIND"``,
+            a list of those, or ``{column: kind}`` (command line: ``--allow``); also those of
+            an enclosing :func:`allowing` block.
 
     Returns:
         The warnings (uncertain findings, such as a heating power that may be in kW), in words.
@@ -643,7 +964,12 @@ def check_plausibility(
         TypeError: ``data`` is not a Dataset, or ``overrides`` is not a mapping.
     """
     findings = find_implausible(
-        data, overrides=overrides, columns=columns, stuck_hours=stuck_hours, spike_k=spike_k
+        data,
+        overrides=overrides,
+        columns=columns,
+        stuck_hours=stuck_hours,
+        spike_k=spike_k,
+        allow=allow,
     )
     prefix = f"{what}: " if what else ""
     errors = [f for f in findings if f.severe]
@@ -656,3 +982,107 @@ def check_plausibility(
         for note in notes:
             warnings.warn(note, DataWarning, stacklevel=2)
     return notes
+
+
+# -- the first and last samples ------------------------------------------------------------------
+
+#: what ``trim`` (``--trim``) takes
+TRIM = ("auto", "none", "first", "last", "both")
+
+
+def _edge_offset(x: np.ndarray, end: str) -> tuple[float, float] | None:
+    """(deviation [K] of the ``end`` sample from the straight line through its two neighbours,
+    the robust scatter σ [K] of that deviation over the other samples), or ``None`` where it
+    cannot be judged (too few samples, a missing one at the edge)."""
+    y = x if end == "last" else x[::-1]
+    if len(y) < _EDGE_MIN_SAMPLES or not np.all(np.isfinite(y[-3:])):
+        return None
+    r = y[2:] - (2 * y[1:-1] - y[:-2])  # r[k]: the deviation of y[k + 2]
+    sigma = _robust_sigma(r[:-1])
+    return float(r[-1]), sigma
+
+
+def edge_samples(
+    data: object, columns: Iterable[str] | None = None
+) -> dict[str, tuple[Finding, ...]]:
+    """The first and last samples that look like partial intervals (a logger that wrote a mean
+    over part of the interval, or a reading taken mid-interval): a temperature (of
+    ``columns``, default every canonical temperature column) whose first or last sample lies
+    off the straight line through its two neighbours by more than ``max(0.2 K, 8 σ)``, σ the
+    robust scatter of the same deviation over the other samples (a one-sided rule: the spike
+    and jump checks compare a sample with neighbours on both sides).
+
+    Returns:
+        ``{"first": findings, "last": findings}`` (kind ``edge``, warnings), each naming the
+        column, the time stamp, the deviation and what to do.
+    """
+    frame = _frame_of(data)
+    names = [str(n) for n in frame.columns]
+    chosen = names if columns is None else [str(n) for n in columns if str(n) in names]
+    out: dict[str, tuple[Finding, ...]] = {}
+    for end in ("first", "last"):
+        found = []
+        for name in chosen:
+            if not is_temperature(name):
+                continue
+            judged = _edge_offset(frame[name].to_numpy(dtype=np.float64), end)
+            if judged is None:
+                continue
+            offset, sigma = judged
+            limit = max(_EDGE_FLOOR_K, _EDGE_K * sigma)
+            if abs(offset) <= limit:
+                continue
+            stamp = frame.index[-1 if end == "last" else 0]
+            side = "before" if end == "last" else "after"
+            found.append(
+                Finding(
+                    name,
+                    "edge",
+                    f"{name!r} at its {end} sample ({stamp}) is {offset:+.3g} K off the trend of "
+                    f"the samples {side} it (more than {limit:.2g} K): a partial {end} interval "
+                    "(a logger writing mid-interval)? drop it with trim='auto' or "
+                    f"trim={end!r} (command line: --trim {end}; fit and select drop it by "
+                    "default, --trim none keeps it), or --train/--validate.",
+                    severe=False,
+                )
+            )
+        out[end] = tuple(found)
+    return out
+
+
+def trim_edges(data, trim: str = "auto", columns: Iterable[str] | None = None):
+    """``data`` without its partial first or last sample: ``trim="auto"`` drops those that
+    :func:`edge_samples` flags, ``"first"``, ``"last"`` or ``"both"`` drop them anyway,
+    ``"none"`` keeps everything.
+
+    Returns:
+        (the dataset, the notes on what was dropped and why).
+
+    Raises:
+        DataError: ``trim`` is not one of :data:`TRIM`.
+    """
+    if trim not in TRIM:
+        raise DataError(
+            f"trim must be one of {', '.join(TRIM)}, got {trim!r} (command line: --trim)."
+        )
+    if trim == "none" or len(data) < _EDGE_MIN_SAMPLES:
+        return data, ()
+    flagged = edge_samples(data, columns) if trim == "auto" else {}
+    index = data.index
+    drop_first = trim in ("first", "both") or bool(flagged.get("first"))
+    drop_last = trim in ("last", "both") or bool(flagged.get("last"))
+    notes = []
+    for end, drop in (("first", drop_first), ("last", drop_last)):
+        if not drop:
+            continue
+        stamp = index[0] if end == "first" else index[-1]
+        why = flagged.get(end)
+        if why:
+            reason = why[0].message.split(": a partial")[0]
+            notes.append(
+                f"dropped the {end} sample ({stamp}): {reason}, a partial {end} interval? "
+                "(--trim none keeps it)"
+            )
+    start = index[1] if drop_first else None
+    end = index[-2] if drop_last else None
+    return (data.slice(start, end) if drop_first or drop_last else data), tuple(notes)

@@ -31,6 +31,7 @@ __all__ = [
     "check_starts",
     "check_whole",
     "run_cases",
+    "unit_doubts",
     "verdict_text",
 ]
 
@@ -388,12 +389,63 @@ def run_cases(
 
 def verdict_text(cases: Mapping[str, Case], names, accepted: Case | None) -> str:
     """What a selection over ``names`` (keys of ``cases``) accepted, in words: the accepted
-    case's name, or why none was: no valid model among those identified, or none identified."""
+    case's name, or why none was: no valid model among those identified (first the doubt on
+    an input's unit that may explain it, :func:`unit_doubts`), or none identified."""
     if accepted is not None:
         return accepted.name
     if any(cases[n].done for n in names):
-        return "none (no valid model)"
+        doubts = unit_doubts([cases[n] for n in names])
+        return f"none (no valid model{''.join(f'; {d}' for d in doubts[:1])})"
     return "none (no model could be identified)"
+
+
+def unit_doubts(cases: Sequence[Case]) -> list[str]:
+    """The warnings on an input's unit (``kilowatt``, ``fahrenheit`` findings of
+    :func:`jaxbox.data.find_implausible` on the identification data) that may explain why
+    ``cases`` are not valid: those about an input whose gain (a parameter that scales the input
+    and nothing else, such as a solar aperture) sits on a bound in one of the cases. Each
+    names the parameter and the option that fixes the unit."""
+    from ..data import find_implausible
+
+    at_bound: dict[str, set[str]] = {}  # input -> parameters on a bound
+    for case in cases:
+        flags = getattr(case.verdict, "flags", ()) if case.done else ()
+        for flag in flags:
+            if flag.kind == "at_bound":
+                for p in flag.parameters:
+                    for name in _gain_inputs(case.model, case.result.params, p):
+                        at_bound.setdefault(name, set()).add(p)
+    out: list[str] = []
+    for case in cases:
+        if not at_bound:
+            break
+        names = [n for n in at_bound if n in case.ident.columns]
+        for f in find_implausible(case.ident, columns=names) if names else ():
+            if f.kind in ("kilowatt", "fahrenheit") and not f.severe:
+                text = (
+                    f"{f.message.rstrip('.')} ({', '.join(sorted(at_bound[f.column]))} on a bound)"
+                )
+                if text not in out:
+                    out.append(text)
+        if out:
+            break
+    return out
+
+
+def _gain_inputs(model: RCModel, params: Mapping[str, float], name: str) -> tuple[str, ...]:
+    """The inputs that parameter ``name`` scales alone: its change moves columns of B (or D)
+    and leaves A unchanged; empty for any other parameter."""
+    theta = dict(params)
+    if name not in theta:
+        return ()
+    a0, b0, _, d0 = model.state_space_numpy(theta)
+    theta[name] = theta[name] * 1.5 if theta[name] != 0 else 1.0
+    a1, b1, _, d1 = model.state_space_numpy(theta)
+    if not np.allclose(a0, a1, rtol=1e-12, atol=0):
+        return ()
+    moved = ~np.all(np.isclose(b0, b1, rtol=1e-12, atol=0), axis=0)
+    moved |= ~np.all(np.isclose(d0, d1, rtol=1e-12, atol=0), axis=0)
+    return tuple(str(model.inputs[k]) for k in np.flatnonzero(moved))
 
 
 def fmt_se(x: float) -> str:

@@ -69,6 +69,7 @@ def screenshot(chromium: str, url: str, png: Path, height: int = 2200) -> None:
             "--headless",
             "--no-sandbox",
             "--disable-gpu",
+            "--disable-dev-shm-usage",
             "--disable-background-networking",
             "--disable-component-update",
             "--disable-sync",

@@ -276,6 +276,7 @@ def test_no_valid_model_names_a_doubtful_unit_first(kilo, tmp_path, capsys):
     speaks of the data's length."""
     from test_hostile import frame as tiny
 
+    import jaxbox
     from jaxbox.cli._main import main
 
     data = tiny(72)
@@ -286,6 +287,12 @@ def test_no_valid_model_names_a_doubtful_unit_first(kilo, tmp_path, capsys):
     argv = ["select", str(path), "--models", "Zon", "--starts", "1", "--max-steps", "30"]
     code = main([*argv, "--out", str(tmp_path / "out")])
     last = capsys.readouterr().err.strip().splitlines()[-1]
+    said: list[str] = []  # the selection's own verdict (verdict_text) in Python
+    gb = jaxbox.GreyBox(path)
+    jaxbox.forward_selection(gb, ["Zon"], starts=1, max_steps=30, progress=said.append)
+    (verdict,) = [m for m in said if m.startswith("accepted: ")]
+    assert verdict.startswith("accepted: none (no valid model")
+    assert ("; 'I_glo_hor' peaks at" in verdict) == kilo, verdict
     assert code == 1 and last.startswith("no valid model: "), last
     assert "span only" in last
     if kilo:

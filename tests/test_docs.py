@@ -22,7 +22,14 @@ def _readme() -> str:
 
 
 def test_readme_is_a_landing_page():
-    assert len(_readme().splitlines()) <= 150
+    text = _readme()
+    assert len(text.splitlines()) <= 150
+    python = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(python) == 1 and len(python[0].splitlines()) <= 15
+    cli = re.search(r"## Command line\n\n```bash\n(.*?)```", text, flags=re.S)
+    assert cli and len(cli.group(1).splitlines()) <= 5
+    assert "](docs/assets/fit-n2.png)" in text and (ROOT / "docs/assets/fit-n2.png").exists()
+    assert "mkdocs serve" in text
 
 
 def test_readme_set_up_commands_are_those_ci_runs():

@@ -4,7 +4,9 @@ plausibility checks can be allowed by name."""
 
 from __future__ import annotations
 
+import os
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -312,3 +314,35 @@ def test_allow_takes_its_own_parsed_form():
     parsed = parse_allow(["T_zon=jump", "spike"])
     assert parsed == {("T_zon", "jump"), (None, "spike")}
     assert parse_allow(parsed) == parsed
+
+
+#: the measured buildings beside the repository (not shipped), as the benchmarks read them
+SHARED = Path(os.environ.get("JAXBOX_SHARED", Path(__file__).resolve().parents[2] / "shared"))
+SHARED = SHARED / "data"
+
+
+@pytest.mark.skipif(
+    not (SHARED / "purdue_dc_house").is_dir(), reason="the Purdue house data are not beside"
+)
+def test_the_purdue_cold_front_is_kept_as_weather():
+    """+1 °C to −21 °C in ten hours on 2022-12-22: refused once as a change of unit."""
+    import jaxbox
+    from jaxbox.data import load
+
+    data = load(
+        SHARED / "purdue_dc_house" / "DC_House_Nov_April.csv",
+        time="Time",
+        columns={
+            "T_zon": "Indoor Temp [C]",
+            "T_amb": "OutdoorTemp_C_",
+            "I_glo_hor": "SolarIrradiation_W_m_2_",
+            "Q_hea": "HeatSupply_kW_",
+        },
+        scale={"Q_hea": 1000.0},
+    )
+    notes = check_plausibility(data, columns=["T_zon", "T_amb", "I_glo_hor", "Q_hea"], warn=False)
+    front = [n for n in notes if "'T_amb' changes by" in n]
+    assert len(front) == 1 and "2022-12-22" in front[0] and "weather" in front[0], notes
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        jaxbox.GreyBox(data, name="purdue house")  # the search's entry takes it

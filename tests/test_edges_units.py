@@ -346,3 +346,30 @@ def test_the_purdue_cold_front_is_kept_as_weather():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         jaxbox.GreyBox(data, name="purdue house")  # the search's entry takes it
+
+
+@pytest.mark.parametrize(
+    "extra, code, words",
+    [
+        ([], 2, ["'T_zon' jumps by", "--allow T_zon=jump"]),
+        (["--allow", "wobble"], 2, ["--allow wobble", "kelvin, fahrenheit"]),
+        (["--allow", "T_zon="], 2, ["--allow 'T_zon='"]),
+        (["--allow", "T_zon=jump", "--validate", "none"], 0, ["allowed: 'T_zon' jumps by"]),
+    ],
+    ids=["refused", "unknown-check", "empty-check", "allowed"],
+)
+def test_the_command_line_allows_a_refusal_by_name(extra, code, words, tmp_path, capsys):
+    from test_hostile import frame as tiny
+
+    from jaxbox.cli._main import main
+
+    data = tiny(48)
+    data.loc[30:, "T_zon"] -= 25.0
+    path = tmp_path / "moved.csv"
+    data.to_csv(path, index=False)
+    argv = ["fit", str(path), "--model", "Zon", "--starts", "1", "--max-steps", "2", *extra]
+    assert main(argv) == code
+    err = capsys.readouterr().err
+    for word in words:
+        assert word in err, err
+    assert "allow={" not in err  # in command-line terms

@@ -145,8 +145,15 @@ FIXED: dict[str, tuple[list[str], list[str]]] = {
 #: commands whose valid rows are too costly for the suite
 INVALID_ONLY = {"demo"}
 #: valid values that compile or draw much (the adaptive solver, plots, another set of free
-#: parameters): each is run once, in a row of its own, not paired with every other option
-COSTLY = {("--simulator", "diffrax"), ("--plots", None), ("--plot", None), ("--fix", None)}
+#: parameters, a fit without continuation): each is run once, in a row of its own, not paired
+#: with every other option
+COSTLY = {
+    ("--simulator", "diffrax"),
+    ("--plots", None),
+    ("--plot", None),
+    ("--fix", None),
+    ("--homotopy", "none"),
+}
 
 
 @dataclass(frozen=True)

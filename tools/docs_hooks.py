@@ -17,6 +17,10 @@
   notebook shows only as the last expression of a cell. So that every plot appears on the site,
   the kernel displays, after each cell, the figures that the cell bound to a name
   (``fig = plot_fit(v)``) and had not shown.
+- **Math**: the equations are typeset by MathJax 3 from the site itself, not from a CDN, so that
+  the site reads offline: ``on_files`` adds the ``tex-mml-chtml.js`` bundle and what it loads (its
+  fonts, the TeX extensions it autoloads, the menu's accessibility components) from the
+  ``django-static-mathjax`` package of the ``docs`` extra, as ``javascripts/mathjax/``.
 - **API**: ``api/jaxbox.md`` is written from ``jaxbox.__all__`` (each top-level name linked to
   its definition in a subpackage), and every public name of every subpackage must have a
   docstring: one without is a warning, which ``mkdocs build --strict`` turns into a failure.
@@ -82,6 +86,18 @@ BENCHMARK_PAGES = {
 }
 
 log = logging.getLogger("mkdocs.plugins.jaxbox")
+
+#: where the MathJax files go in the site (``extra_javascript`` in mkdocs.yml names the bundle)
+MATHJAX_URI = "javascripts/mathjax"
+#: what of MathJax's ``es5/`` the site serves: the combined bundle and what it loads from beside it
+MATHJAX_PARTS = (
+    "tex-mml-chtml.js",
+    "output/chtml/fonts/woff-v2",  # the CommonHTML output's fonts
+    "input/tex/extensions",  # TeX packages loaded on first use (\color, \cancel, ...)
+    "ui",  # the context menu
+    "a11y",  # the menu's accessibility options
+    "sre",  # the speech rule engine those load, and its locale files
+)
 
 #: run in the kernel before the notebook's first cell (and removed from the page)
 _PREAMBLE = """\
@@ -288,6 +304,8 @@ def on_files(files, config):
         uri = f"benchmarks/{path.stem.lower()}.md"
         files.append(File.generated(config, uri, content=benchmark_page(path)))
     files.append(File.generated(config, "api/jaxbox.md", content=api_index()))
+    for uri, path in mathjax_files():
+        files.append(File.generated(config, uri, abs_src_path=str(path)))
     import jaxbox
 
     for package in jaxbox._SUBPACKAGES:
@@ -296,6 +314,29 @@ def on_files(files, config):
     for warning in missing_docstrings():
         log.warning(warning)
     return files
+
+
+def mathjax_files() -> list[tuple[str, Path]]:
+    """``(uri in the site, file)`` of the MathJax files the site serves, from the installed
+    ``django-static-mathjax`` (MathJax 3's ``es5/`` build)."""
+    import importlib.util
+
+    from mkdocs.exceptions import PluginError
+
+    spec = importlib.util.find_spec("mathjax")
+    es5 = Path(spec.origin).parent / "static" / "mathjax" / "es5" if spec and spec.origin else None
+    if es5 is None or not (es5 / MATHJAX_PARTS[0]).is_file():
+        raise PluginError(
+            "MathJax not found: install the docs extra (pip install -e '.[docs]'), which brings "
+            "django-static-mathjax"
+        )
+    found = []
+    for part in MATHJAX_PARTS:
+        path = es5 / part
+        for file in sorted(path.rglob("*")) if path.is_dir() else [path]:
+            if file.is_file():
+                found.append((f"{MATHJAX_URI}/{file.relative_to(es5).as_posix()}", file))
+    return found
 
 
 def on_page_markdown(markdown, page, config, files):

@@ -100,10 +100,7 @@ def _cases():
 #: invalid values not refused today, outside this test's reach (their modules are fitted and
 #: selected elsewhere): each row whose only invalid values are these is a strict xfail, so it
 #: fails the day the value is refused and the entry can go
-KNOWN = {
-    ("fit_model", "release"): "fit_model takes any value for release (jaxbox/fit/_batch.py)",
-    ("GreyBox", "name"): "GreyBox takes a name that is not text (jaxbox/select/_greybox.py)",
-}
+KNOWN: dict[tuple[str, str], str] = {}
 
 
 class FitReached(Exception):

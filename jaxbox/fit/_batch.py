@@ -209,6 +209,13 @@ _DEFAULTS = {
 #: the problem arguments, the solver settings (requests solved together share them) and the
 #: start arguments of a request
 _PROBLEM = ("free", "fixed", "bounds", "guess", "weights", "simulator", "sim_options")
+def _release(value) -> bool:
+    """``release=``: True or False (numpy's bool too); anything else is refused by name."""
+    if not isinstance(value, bool | np.bool_):
+        raise FitError(f"release must be True or False, got {value!r}")
+    return bool(value)
+
+
 _SOLVER = ("max_steps", "rtol", "atol", "solver", "homotopy", "release")
 _STARTS = ("starts", "seed", "concentration")
 
@@ -361,7 +368,7 @@ def fit_batch(
                 _tolerance(arg["atol"], "atol"),
                 arg["solver"],
                 check_homotopy(arg["homotopy"]),
-                bool(arg["release"]),
+                _release(arg["release"]),
             )
             prepared.append((i, problem, data, x0, problem_arrays(problem, data), solver))
         except FitError as err:

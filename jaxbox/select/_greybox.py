@@ -142,7 +142,9 @@ class GreyBox:
     ) -> None:
         data = as_dataset(data, what="the data of a GreyBox")
         self.data = data
-        self.name = str(name)
+        if not isinstance(name, str):
+            raise TypeError(f"name must be the building's name (text), got {name!r}")
+        self.name = name
         self.ranges = {
             str(k): tuple(map(float, _pair(v, f"ranges[{k!r}]")))
             for k, v in check_mapping(ranges, "ranges").items()

@@ -8,6 +8,7 @@ from collections import Counter
 import numpy as np
 
 from ._problem import Problem
+from ._uses import ModelUses
 
 __all__ = ["FitResult", "StartReport", "BOUND_TOLERANCE"]
 
@@ -71,7 +72,7 @@ class StartReport:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class FitResult:
+class FitResult(ModelUses):
     """The estimate of a fit and everything needed to report, validate or refit it.
 
     Attributes:
@@ -181,39 +182,6 @@ class FitResult:
         for output, kelvin in self.model.sensor_offsets(self.params).items():
             lines.append(f"sensor offset of {output}: {kelvin:+.3f} K (the constant heat input)")
         return "\n".join(lines)
-
-    # ---- use of the model ------------------------------------------------------------------
-    def stochastic_form(self):
-        """The fit as a stochastic state-space model (:func:`jaxbox.forecast.stochastic_form`):
-        its noise estimated from its residuals, once per result."""
-        from ..forecast import stochastic_form
-
-        return stochastic_form(self)
-
-    def forecast(self, history, future, *, horizon="24h", x0=None, parameters=False):
-        """Forecast of the outputs with 50 % and 95 % bands from the state the Kalman filter
-        estimates at the end of ``history``, driven by the inputs of ``future`` over ``horizon``
-        (samples or a duration such as ``"24h"``; ``parameters``: the bands also hold the
-        uncertainty of the estimate): :func:`jaxbox.forecast.forecast`."""
-        from ..forecast import forecast
-
-        return forecast(self, history, future, horizon=horizon, x0=x0, parameters=parameters)
-
-    def heat_demand(self, history, future, *, setpoint, q_max, **options):
-        """The heating power [W] that holds the zone at ``setpoint`` [°C] over the horizon,
-        clipped to the heater's range, with the energy and its band:
-        :func:`jaxbox.forecast.heat_demand` (``q_min``, ``setback``, ``horizon``, …)."""
-        from ..forecast import heat_demand
-
-        return heat_demand(self, history, future, setpoint=setpoint, q_max=q_max, **options)
-
-    def to_state_space(self, step=None, *, data=None):
-        """The exact discrete-time state space at ``step`` (seconds or ``"15min"``; default the
-        fit's), with names, units, noise covariances and the last Kalman state estimate over
-        ``data`` (default the fit's): :func:`jaxbox.control.to_state_space`."""
-        from ..control import to_state_space
-
-        return to_state_space(self, step, data=data)
 
     def __repr__(self) -> str:
         return (

@@ -8,6 +8,7 @@ import numpy as np
 from scipy import stats
 
 from ..fit._result import StartReport
+from ..fit._uses import ModelUses
 from ._checks import as_data
 from ._problem import StochasticProblem
 
@@ -29,7 +30,7 @@ def _covariance(H: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class MLResult:
+class MLResult(ModelUses):
     """A maximum-likelihood (or MAP) estimate of a stochastic grey-box model.
 
     Attributes:
@@ -278,38 +279,6 @@ class MLResult:
             },
             "timing": dict(self.timing),
         }
-
-    # ---- use of the model ------------------------------------------------------------------
-    def stochastic_form(self):
-        """The fit as a stochastic state-space model (:func:`jaxbox.forecast.stochastic_form`)."""
-        from ..forecast import stochastic_form
-
-        return stochastic_form(self)
-
-    def forecast(self, history, future, *, horizon="24h", x0=None, parameters=False):
-        """Forecast of the outputs with 50 % and 95 % bands from the state the Kalman filter
-        estimates at the end of ``history``, driven by the inputs of ``future`` over ``horizon``
-        (samples or a duration such as ``"24h"``; ``parameters``: the bands also hold the
-        uncertainty of the estimate): :func:`jaxbox.forecast.forecast`."""
-        from ..forecast import forecast
-
-        return forecast(self, history, future, horizon=horizon, x0=x0, parameters=parameters)
-
-    def heat_demand(self, history, future, *, setpoint, q_max, **options):
-        """The heating power [W] that holds the zone at ``setpoint`` [°C] over the horizon,
-        clipped to the heater's range, with the energy and its band:
-        :func:`jaxbox.forecast.heat_demand` (``q_min``, ``setback``, ``horizon``, …)."""
-        from ..forecast import heat_demand
-
-        return heat_demand(self, history, future, setpoint=setpoint, q_max=q_max, **options)
-
-    def to_state_space(self, step=None, *, data=None):
-        """The exact discrete-time state space at ``step`` (seconds or ``"15min"``; default the
-        fit's), with names, units, noise covariances and the last Kalman state estimate over
-        ``data`` (default the fit's): :func:`jaxbox.control.to_state_space`."""
-        from ..control import to_state_space
-
-        return to_state_space(self, step, data=data)
 
     def __repr__(self) -> str:
         return (

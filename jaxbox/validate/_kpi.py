@@ -48,6 +48,7 @@ import numpy as np
 from .._compiled import cached, jit
 from .._x64 import require_x64
 from ..data import signal_unit
+from ._hlc import HAC, MAX_RHO, WHITE
 
 __all__ = ["KPI", "Kpis", "kpis", "kpi_values", "kpi_inputs"]
 
@@ -62,6 +63,8 @@ class KPI:
         value: estimate.
         std: standard error (``nan`` when a parameter it depends on has none).
         ci95: (lower, upper) of the interval at the :class:`Kpis`' level.
+        method: how the interval was made (:data:`~jaxbox.validate._hlc.WHITE` or
+            :data:`~jaxbox.validate._hlc.HAC`).
     """
 
     name: str
@@ -69,6 +72,7 @@ class KPI:
     value: float
     std: float
     ci95: tuple[float, float]
+    method: str = WHITE
 
     def to_dict(self) -> dict:
         fin = [float(v) for v in self.ci95]
@@ -78,6 +82,7 @@ class KPI:
             "unit": self.unit,
             "std": _num(self.std),
             "ci95": fin if ok else None,
+            "method": self.method,
         }
 
 
@@ -100,6 +105,12 @@ class Kpis:
         level: confidence level of the intervals.
         gradient: ∂g/∂θ [KPIs, free] (rows in :meth:`all` order, columns ``free``).
         free: the free parameters (columns of ``gradient``).
+        method: how the intervals were made (the covariance they rest on).
+        residuals: ``{"lag1", "ljung_box_p", "white", "bandwidth", "inflation"}`` of the
+            identification residuals (``bandwidth`` [samples] and ``inflation`` (HAC over
+            white standard errors, median over the parameters) of the HAC covariance).
+        warnings: what the intervals cannot vouch for (white residuals assumed where they are
+            not).
     """
 
     hlc: KPI | None
@@ -111,6 +122,9 @@ class Kpis:
     level: float
     gradient: np.ndarray
     free: tuple[str, ...]
+    method: str = WHITE
+    residuals: dict = dataclasses.field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
 
     def all(self) -> list[KPI]:
         """Every indicator: HLC, apertures per input, total aperture, time constants."""
@@ -131,6 +145,9 @@ class Kpis:
             "heat_inputs": list(self.heat_inputs),
             "outputs": list(self.outputs),
             "level": self.level,
+            "method": self.method,
+            "residuals": {k: _num(v) if k != "white" else v for k, v in self.residuals.items()},
+            "warnings": list(self.warnings),
         }
 
     def summary(self) -> str:
@@ -139,6 +156,8 @@ class Kpis:
         for k in self.all():
             ci = f"[{k.ci95[0]:.4g}, {k.ci95[1]:.4g}]" if all(map(math.isfinite, k.ci95)) else "-"
             lines.append(f"{k.name:<16} {k.value:>11.5g} {k.std:>10.3g} {ci:>24}  {k.unit}")
+        lines.append(f"intervals: {self.method}")
+        lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
 
@@ -251,13 +270,18 @@ def _unpack(model, v: np.ndarray) -> dict:
     return out
 
 
-def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
+def kpis(result, uncertainty=None, *, level: float | None = None, interval: str = "white") -> Kpis:
     """HLC, effective solar apertures and time constants of a fit, with delta-method intervals.
 
     Args:
         result: a :class:`~jaxbox.fit.FitResult`.
         uncertainty: its :class:`~jaxbox.validate.Uncertainty` (computed when ``None``).
         level: confidence level (default: that of ``uncertainty``, 0.95).
+        interval: the parameter covariance the intervals rest on: ``"white"`` (default,
+            ``σ̂² (JᵀJ)⁻¹``: white output errors; a warning when the residuals are not white)
+            or ``"hac"`` (the prewhitened Newey–West sandwich of
+            :func:`~jaxbox.validate.robust_covariance`, for autocorrelated errors: what the
+            fit report shows).
 
     Returns:
         :class:`Kpis` (definitions in :mod:`jaxbox.validate._kpi`).
@@ -265,7 +289,8 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
     Raises:
         TypeError: ``result`` is not a FitResult or ``uncertainty`` not an Uncertainty.
         ValueError: the fit has no finite optimum, no degrees of freedom are left for the
-            covariance, ``level`` is not in (0, 1), or ``uncertainty`` is of another fit.
+            covariance, ``level`` is not in (0, 1), ``interval`` is neither ``"white"`` nor
+            ``"hac"``, or ``uncertainty`` is of another fit.
 
     Example:
         ```python
@@ -276,10 +301,13 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
     from scipy import stats
 
     from ._args import check_fit, check_level
+    from ._hlc import robust_covariance
     from ._own import check_own
     from ._uncertainty import uncertainty as _uncertainty
 
     require_x64()
+    if interval not in ("white", "hac"):
+        raise ValueError(f"interval must be 'white' or 'hac', got {interval!r}")
     problem = check_fit(result).problem
     uncertainty = check_own(result, uncertainty, None)[0]
     level = None if level is None else check_level(level)
@@ -295,7 +323,12 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
     symmetric = _symmetric(model, result.params)
     values, grad = _compiled(model, free, fixed, symmetric)(jnp.asarray(p), jnp.asarray(fv))
     values, grad = np.asarray(values), np.asarray(grad)
-    cov = np.asarray(uncertainty.cov_free, dtype=float)
+    robust = robust_covariance(result, uncertainty)
+    if interval == "hac":
+        cov, method = np.asarray(robust.cov_free, dtype=float), HAC
+    else:
+        cov, method = np.asarray(uncertainty.cov_free, dtype=float), WHITE
+    warnings = _warnings(robust, interval)
     if level is None:
         level = float(uncertainty.level)
         tq = float(uncertainty.t_quantile)
@@ -314,7 +347,7 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
 
     def make(i: int, name: str, unit: str) -> KPI:
         v, s = float(values[i]), float(std[i])
-        return KPI(name, unit, v, s, (v - tq * s, v + tq * s))
+        return KPI(name, unit, v, s, (v - tq * s, v + tq * s), method)
 
     heat, solar = kpi_inputs(model)
     hlc = sol = None
@@ -340,4 +373,31 @@ def kpis(result, uncertainty=None, *, level: float | None = None) -> Kpis:
         level=float(level),
         gradient=grad,
         free=free,
+        method=method,
+        residuals={
+            "lag1": robust.lag1,
+            "ljung_box_p": robust.ljung_box_p,
+            "white": robust.white,
+            "bandwidth": robust.bandwidth,
+            "inflation": robust.inflation,
+        },
+        warnings=warnings,
     )
+
+
+def _warnings(robust, interval: str) -> tuple[str, ...]:
+    """What the intervals cannot vouch for, in words."""
+    said = f"Ljung–Box p = {robust.ljung_box_p:.2g}, lag-1 autocorrelation {robust.lag1:.2f}"
+    if interval == "white":
+        if robust.white:
+            return ()
+        return (
+            f"the intervals assume white residuals but these are not ({said}): they are too "
+            f"narrow, about {robust.inflation:.2g}× by the HAC covariance (interval='hac')",
+        )
+    if np.any(np.abs(robust.rho) >= 0.999 * MAX_RHO) and robust.lag1 > MAX_RHO:
+        return (
+            f"the residuals are so persistent ({said}) that even the HAC interval may be too "
+            "narrow; a longer record or a better structure would settle it",
+        )
+    return ()

@@ -120,8 +120,9 @@ def fit_report(
         ``identifiability``, ``sigma``, ``dof``, ``residuals`` (``auto`` and ``cross``
         summaries per output), ``valid``, ``reasons``, ``warnings``, ``time_constants_h``,
         ``rmse_auto``, ``rmse_cross``, ``se_auto``, ``se_cross``, ``multistart``,
-        ``prediction`` and ``kpis`` (HLC, solar aperture and time constants with intervals,
-        see :func:`~jaxbox.validate.kpis`; ``None`` without a covariance).
+        ``prediction`` and ``kpis`` (HLC, solar aperture and time constants with intervals
+        for autocorrelated residuals, the HAC covariance: see :func:`~jaxbox.validate.kpis`
+        with ``interval="hac"``; ``None`` without a covariance).
     """
     from ..data._args import check_mapping
     from ._args import check_dataset, check_fit
@@ -165,7 +166,9 @@ def fit_report(
         prediction = {"error": str(err)}
 
     try:
-        indicators = None if uncertainty is None else kpis(result, uncertainty).to_dict()
+        indicators = (
+            None if uncertainty is None else kpis(result, uncertainty, interval="hac").to_dict()
+        )
     except (ValueError, np.linalg.LinAlgError):  # no finite optimum, a singular model
         indicators = None
     table = result.params_table()

@@ -225,8 +225,9 @@ def _document(gb, sel, spec, ident, valid) -> dict:
                 if not k.startswith("rmse_auto_") and not k.startswith("rmse_cross_")
             }
         )
-    doc = {"dataset": spec, "table": table, **sel.to_dict(), "fit": None}
+    doc = {"dataset": spec, "table": table, **sel.to_dict(), "fit": None, "hlc": None}
     if sel.case is not None:
+        doc["hlc"] = _hlc(sel)
         c = sel.case
         doc["fit"] = fit_json(
             c.result,
@@ -236,6 +237,20 @@ def _document(gb, sel, spec, ident, valid) -> dict:
             valid=c.valid,
         )
     return doc
+
+
+def _hlc(sel) -> dict | None:
+    """The accepted model's HLC with its interval and how it was made (coloured residuals,
+    near-best structures: :func:`jaxbox.validate.hlc_interval`)."""
+    import numpy as np
+
+    from ..validate import hlc_interval
+
+    try:
+        out = hlc_interval(sel)
+    except (ValueError, np.linalg.LinAlgError):  # no finite optimum, a singular model
+        return None
+    return None if out is None else out.to_dict()
 
 
 def _stage_outputs(outputs: Outputs, gb, sel, doc, folder: Path) -> None:
@@ -254,7 +269,7 @@ def _stage_outputs(outputs: Outputs, gb, sel, doc, folder: Path) -> None:
     outputs.after(lambda: gb.save(folder / "greybox"))
 
 
-def _print_table(gb, sel) -> None:
+def _print_table(gb, sel, hlc: dict | None = None) -> None:
     print()
     print(gb.table_text())
     print()
@@ -274,6 +289,19 @@ def _print_table(gb, sel) -> None:
     else:
         print(f"accepted: {sel.accepted}")
         print(sel.case.result.summary())
+        if hlc is not None:
+            print(_hlc_text(hlc))
+
+
+def _hlc_text(hlc: dict) -> str:
+    """The HLC line of the text output (and its warnings)."""
+    ci = hlc["ci95"]
+    shown = "[-]" if ci is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
+    lines = [
+        f"heat-loss coefficient {hlc['value']:.4g} W/K, {round(100 * hlc['level'])} % interval "
+        f"{shown} ({hlc['method']})"
+    ]
+    return "\n".join(lines + [f"  warning: {w}" for w in hlc["warnings"]])
 
 
 def select_command(args) -> int:
@@ -314,7 +342,7 @@ def select_command(args) -> int:
         for (gb, sel), doc in zip(outcomes, docs, strict=True):
             if len(docs) > 1:
                 print(f"\n== {gb.name}")
-            _print_table(gb, sel)
+            _print_table(gb, sel, doc.get("hlc"))
             if out is not None:
                 print(f"\nreport: {doc['files']['report']}")
     return _no_valid_model(outcomes)
@@ -444,7 +472,7 @@ def demo_command(args) -> int:
     if args.json:
         print_json({**doc, "out": str(out)})
         return 0
-    _print_table(gb, sel)
+    _print_table(gb, sel, doc.get("hlc"))
     print()
     print(f"report: {doc['files']['report']} ({doc['elapsed_s']:.0f} s)")
     print(f"data: {CITATION}")

@@ -187,6 +187,7 @@ def _accepted_section(case, selection) -> list[str]:
     tc = ", ".join(f"{t:.3g} h" for t in doc["time_constants_h"])
     out.append(f"<p>Time constants: {tc}.</p>")
     out += _kpi_table(doc.get("kpis"))
+    out += _hlc_section(selection)
     out.append("<h3>Fit on identification and validation data</h3>")
     figures = [
         lambda: plot_fit(v),
@@ -234,7 +235,41 @@ def _kpi_table(kpis) -> list[str]:
             f"<td class=l>{_e(k['unit'])}</td><td>{_num(k['std'], '.3g')}</td>"
             f"<td>{'–' if ci is None else f'{ci[0]:.4g} … {ci[1]:.4g}'}</td></tr>"
         )
-    return out + ["</table>"]
+    out.append("</table>")
+    if kpis.get("method"):
+        out.append(f"<p class=small>Intervals: {_e(kpis['method'])}.</p>")
+    out += [f"<p class=bad>Warning: {_e(w)}</p>" for w in kpis.get("warnings", ())]
+    return out
+
+
+def _hlc_section(selection) -> list[str]:
+    """The heat-loss coefficient with an interval over the near-best structures too (see
+    :func:`jaxbox.validate.hlc_interval`)."""
+    import numpy as np
+
+    from ..validate import hlc_interval
+
+    if selection is None:
+        return []
+    try:
+        hlc = hlc_interval(selection)
+    except (ValueError, np.linalg.LinAlgError):
+        return []
+    if hlc is None:
+        return []
+    lo, hi = hlc.ci95
+    ci = f"{lo:.4g} … {hi:.4g} W/K" if math.isfinite(lo) and math.isfinite(hi) else "–"
+    out = [
+        f"<p><b>Heat-loss coefficient: {hlc.value:.4g} W/K</b>, {round(100 * hlc.level)} % "
+        f"interval {ci} ({_e(hlc.method)}).</p>"
+    ]
+    if len(hlc.models) > 1:
+        each = ", ".join(
+            f"{_e(m['model'])} {m['value']:.4g} W/K [{m['ci95'][0]:.4g} … {m['ci95'][1]:.4g}]"
+            for m in hlc.models
+        )
+        out.append(f"<p class=small>Near-best models: {each}.</p>")
+    return out + [f"<p class=bad>Warning: {_e(w)}</p>" for w in hlc.warnings]
 
 
 def greybox_report(gb, selection=None, *, title: str | None = None) -> str:

@@ -1,0 +1,182 @@
+"""HLC intervals that carry the model's error: the HAC covariance for coloured residuals and
+the spread over near-best structures.
+
+References: simulated data of known truth with AR(1) output noise (the white delta interval
+misses the true HLC often, the HAC one seldom); white noise (HAC ≈ white); a stand-in selection
+of two candidates that disagree.
+"""
+
+import dataclasses
+import types
+
+import numpy as np
+import pytest
+
+from jaxbox.data import Dataset
+from jaxbox.fit import fit_many, fit_model
+from jaxbox.simulate import simulate_model
+from jaxbox.validate import (
+    fit_report,
+    hlc_interval,
+    kpis,
+    near_best,
+    robust_covariance,
+    uncertainty,
+)
+from jaxbox.validate._hlc import HAC, WHITE
+
+STEP = 3600.0
+N = 168
+ZONWAL = {"C_zon": 2e6, "C_wal": 3e7, "R_wal": 0.008, "gA": 3.0, "T_zon0": 20.0, "T_wal0": 15.0}
+TRUE_HLC = 1 / ZONWAL["R_wal"]
+
+
+def _data(seed, rho, sd, n=N):
+    """ZonWal's response to random heating, weather and sun, plus AR(1) noise of standard
+    deviation ``sd`` [K] and lag-1 correlation ``rho``."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * STEP
+    day = 2 * np.pi * t / 86400.0
+    u = {
+        "T_amb": 8.0 + 5.0 * np.sin(day - 2.0) + rng.normal(0, 0.5, n),
+        "Q_hea": 1500.0 * (rng.random(n) > 0.5),
+        "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)),
+    }
+    clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
+    y = simulate_model("ZonWal", ZONWAL, clean).y[:, 0]
+    w = rng.normal(0.0, sd * np.sqrt(1 - rho**2), n)
+    e = np.empty(n)
+    e[0] = rng.normal(0.0, sd)
+    for i in range(1, n):
+        e[i] = rho * e[i - 1] + w[i]
+    return clean.with_columns(T_zon=y + e)
+
+
+def _start():
+    return np.asarray([[ZONWAL[n] * 1.1 for n in ZONWAL]])
+
+
+@pytest.fixture(scope="module")
+def coloured_fits():
+    """20 replicates with AR(1) noise (ρ = 0.9, 0.3 K), fitted in one batched call."""
+    datasets = [_data(seed, 0.9, 0.3) for seed in range(20)]
+    return fit_many("ZonWal", datasets, starts=_start())
+
+
+@pytest.fixture(scope="module")
+def white_fit():
+    return fit_model("ZonWal", _data(7, 0.0, 0.1), starts=_start())
+
+
+def _covers(k) -> bool:
+    lo, hi = k.hlc.ci95
+    return lo <= TRUE_HLC <= hi
+
+
+def test_hac_covers_the_true_hlc_where_the_white_interval_does_not(coloured_fits):
+    white = [_covers(kpis(r, interval="white")) for r in coloured_fits]
+    hac = [_covers(kpis(r, interval="hac")) for r in coloured_fits]
+    assert np.mean(hac) >= 0.8, np.mean(hac)
+    assert np.mean(white) <= 0.65, np.mean(white)
+    assert np.mean(hac) - np.mean(white) >= 0.25
+
+
+def test_hac_is_the_white_covariance_on_white_residuals(white_fit):
+    unc = uncertainty(white_fit)
+    rc = robust_covariance(white_fit, unc)
+    assert rc.white
+    assert 0.75 < rc.inflation < 1.3, rc.inflation
+    w, h = kpis(white_fit, unc, interval="white"), kpis(white_fit, unc, interval="hac")
+    assert h.hlc.value == w.hlc.value
+    assert 0.7 < h.hlc.std / w.hlc.std < 1.35, (h.hlc.std, w.hlc.std)
+    assert w.warnings == ()
+    # deterministic: the same numbers again
+    again = robust_covariance(white_fit, unc)
+    np.testing.assert_array_equal(again.cov_free, rc.cov_free)
+    assert again.bandwidth == rc.bandwidth
+
+
+def test_the_method_and_a_warning_are_reported(coloured_fits):
+    r = coloured_fits[0]
+    w = kpis(r)
+    assert w.hlc.method == WHITE and w.method == WHITE
+    assert not w.residuals["white"]
+    assert len(w.warnings) == 1 and "white residuals" in w.warnings[0]
+    assert "interval" in w.summary() and "warning" in w.summary()
+    doc = fit_report(r)["kpis"]
+    assert doc["method"] == HAC and doc["hlc"]["method"] == HAC
+    assert doc["residuals"]["lag1"] > 0.5
+    h = kpis(r, interval="hac")
+    assert doc["hlc"]["ci95"] == pytest.approx(list(h.hlc.ci95))
+    assert h.hlc.ci95[1] - h.hlc.ci95[0] > 2 * (w.hlc.ci95[1] - w.hlc.ci95[0])
+    with pytest.raises(ValueError, match="interval must be"):
+        kpis(r, interval="bootstrap")
+
+
+# ---- structure spread: a stand-in selection ----------------------------------------------------
+
+
+@dataclasses.dataclass(eq=False)
+class _Case:
+    name: str
+    result: object
+    score: float
+    is_valid: bool = True
+    done: bool = True
+
+    @property
+    def model(self):
+        return self.result.model
+
+
+def _selection(cases, accepted="a"):
+    by_name = {c.name: c for c in cases}
+    tree = tuple(types.SimpleNamespace(case=c.name, criterion=c.score) for c in cases)
+    return types.SimpleNamespace(
+        greybox=types.SimpleNamespace(cases=by_name),
+        case=by_name[accepted],
+        accepted=accepted,
+        order=tuple(by_name),
+        tree=tree,
+        criterion="cv",
+    )
+
+
+def test_near_best_models_widen_the_interval(coloured_fits):
+    """Two near-best models that disagree (the same structure fitted to two replicates, HLCs
+    apart): the interval is the union of theirs; one outside the margin or not valid counts
+    not."""
+    ks = [kpis(r, interval="hac") for r in coloured_fits[:6]]
+    order = np.argsort([k.hlc.value for k in ks])
+    lo_i, hi_i = int(order[0]), int(order[-1])
+    a = _Case("a", coloured_fits[lo_i], 0.100)
+    b = _Case("b", coloured_fits[hi_i], 0.101)  # within 2 %
+    far = _Case("far", coloured_fits[int(order[2])], 0.2)
+    bad = _Case("bad", coloured_fits[int(order[3])], 0.1, is_valid=False)
+    alone = hlc_interval(_selection([a, far, bad]))
+    assert alone.method == HAC and len(alone.models) == 1
+    assert alone.ci95 == pytest.approx(ks[lo_i].hlc.ci95)
+    sel = _selection([a, b, far, bad])
+    assert [c.name for c in near_best(sel)] == ["a", "b"]
+    both = hlc_interval(sel)
+    assert "structure spread over 2 near-best models" in both.method
+    assert both.value == pytest.approx(ks[lo_i].hlc.value)
+    assert both.ci95[0] == pytest.approx(min(ks[lo_i].hlc.ci95[0], ks[hi_i].hlc.ci95[0]))
+    assert both.ci95[1] == pytest.approx(max(ks[lo_i].hlc.ci95[1], ks[hi_i].hlc.ci95[1]))
+    assert both.ci95[1] > alone.ci95[1]
+    doc = both.to_dict()
+    assert doc["method"] == both.method and doc["unit"] == "W/K"
+    assert [m["model"] for m in doc["models"]] == ["a", "b"]
+    assert "heat-loss coefficient" in both.text() and both.method in both.text()
+
+
+def test_the_select_outputs_carry_the_method(coloured_fits):
+    from jaxbox.cli._select import _hlc, _hlc_text
+    from jaxbox.report._html import _hlc_section
+
+    sel = _selection([_Case("a", coloured_fits[0], 0.1), _Case("b", coloured_fits[1], 0.1)])
+    doc = _hlc(sel)
+    assert doc["method"].startswith(HAC) and doc["ci95"][0] < doc["value"] < doc["ci95"][1]
+    assert doc["method"] in _hlc_text(doc)
+    html = "".join(_hlc_section(sel))
+    assert "Heat-loss coefficient" in html and "near-best" in html

@@ -279,7 +279,11 @@ def _print_table(gb, sel, hlc: dict | None = None) -> None:
         print(tree())
         print()
     print(sel.stopped)
-    if sel.case is None:
+    form = getattr(sel, "form_model", None)
+    if form is not None:  # the heat-demand or steady-state form of a held zone
+        print(f"accepted: the {sel.form} form ({sel.choice.why})")
+        print(form.summary())
+    elif sel.case is None:
         identified = any(case.done for case in gb.cases.values())
         print(
             "no valid model: none accepted"
@@ -407,7 +411,11 @@ def _no_valid_model(outcomes) -> int:
     """0 when every building has an accepted model; else 1, with one line on stderr."""
     import sys
 
-    none = [gb for gb, sel in outcomes if sel.case is None]
+    none = [
+        gb
+        for gb, sel in outcomes
+        if sel.case is None and getattr(sel, "form_model", None) is None
+    ]
     if not none:
         return 0
     which = "" if len(outcomes) == 1 else f" for {', '.join(gb.name for gb in none)}"

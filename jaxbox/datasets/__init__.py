@@ -8,6 +8,9 @@ generate synthetic buildings with known truth (the zoo: random structures of the
 grammar, realistic heating, sensor noise, offsets and gaps).
 """
 
+from ._detailed import HEATERS as HEATERS
+from ._detailed import DetailedBuilding as DetailedBuilding
+from ._detailed import make_detailed_zoo as make_detailed_zoo
 from ._fleet import FLEET_MODELS as FLEET_MODELS
 from ._fleet import TRUTH_FILE as TRUTH_FILE
 from ._fleet import make_fleet as make_fleet

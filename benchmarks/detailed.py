@@ -1,0 +1,318 @@
+"""Structure search on detailed buildings outside the grammar: can the heat-loss coefficient be
+trusted?
+
+For each building of :func:`jaxbox.datasets.make_detailed_zoo` (13–20-state networks with
+multi-layer walls, occupancy, scheduled ventilation, sun on every facade, PI thermostats or
+open-loop heating, coloured and quantised sensor noise), the default ``jaxbox select`` is run
+(the structure search, criterion ``cv``, its default beam and starts, the data split in halves)
+and the accepted model's heat-loss coefficient with its 95 % interval (as ``select`` reports
+it, :func:`jaxbox.validate.fit_report`) is compared with the truth (the static heat loss of the
+detailed network at the mean ventilation).
+
+Targets: a valid model on ≥ 95 % of the buildings; validation RMSE ≤ 0.3 K, HLC within ±15 %
+of the truth, the 95 % interval covering the truth and no wider than ±25 %, each on ≥ 80 %.
+
+Usage::
+
+    python benchmarks/detailed.py [--n 40] [--seed 0] [--rerun] [--report-only]
+
+Each building's row is cached in ``benchmarks/detailed.json`` as soon as it is done, with the
+git commit it was measured at; a second run resumes with the buildings not yet there
+(``--rerun`` measures every building again). ``--out`` (``benchmarks/ZOO.md``) gets the section
+"Detailed buildings (outside the grammar)" rewritten in place.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import json
+import os
+import platform
+import subprocess
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+SECTION = "## Detailed buildings (outside the grammar)"
+KINDS = ("thermostat", "prbs", "rolbs")
+#: targets: share of buildings
+TARGETS = {
+    "valid": 0.95,
+    "rmse": 0.80,
+    "hlc15": 0.80,
+    "covers": 0.80,
+    "narrow": 0.80,
+}
+
+
+def _commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            cwd=HERE,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", "jaxbox"],
+            cwd=HERE.parent,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        return out.stdout.strip() + ("+changes" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _select_defaults() -> dict:
+    """The search settings of ``jaxbox select`` (its defaults, no copy kept here)."""
+    import jaxbox
+    from jaxbox.select import forward_selection
+
+    starts = inspect.signature(forward_selection).parameters["starts"].default
+    sig = inspect.signature(jaxbox.structure_search).parameters
+    return {
+        "starts": starts,
+        "criterion": sig["criterion"].default,
+        "beam": sig["beam"].default,
+        "seed": 0,
+    }
+
+
+def run_one(b, settings: dict) -> dict:
+    import jaxbox
+    from jaxbox.data import DataWarning
+    from jaxbox.validate import fit_report
+
+    truth = float(b.kpis["hlc"])
+    row = {
+        "building": b.name,
+        "network": b.structure,
+        "states": b.states,
+        "step": b.step,
+        "heating": b.heating,
+        "heater": b.heater,
+        "use": b.use,
+        "samples": len(b.data),
+        "columns": list(b.data.columns),
+        "hlc_true": truth,
+        "commit": _commit(),
+    }
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            gb = jaxbox.GreyBox(b.data, name=b.name)
+            s = jaxbox.structure_search(gb, **settings)
+    except Exception as err:  # noqa: BLE001 - a benchmark row records any failure
+        row.update(status="failed", error=f"{type(err).__name__}: {err}"[:300])
+        row["search_s"] = time.perf_counter() - t0
+        return row
+    row["search_s"] = time.perf_counter() - t0
+    row["candidates"] = len(s.tree)
+    if s.case is None:
+        row["status"] = "no_valid_model"
+        return row
+    case = s.case
+    row["status"] = "ok"
+    row["accepted"] = case.model.name
+    rmse = case.validation.rmse_cross or case.validation.rmse_auto
+    row["rmse_valid"] = float(np.mean(list(rmse.values())))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            doc = fit_report(case.result, case.valid, validation=case.validation)
+        hlc = (doc.get("kpis") or {}).get("hlc")
+    except Exception as err:  # noqa: BLE001
+        row["kpi_error"] = f"{type(err).__name__}: {err}"[:300]
+        hlc = None
+    if hlc and hlc.get("value") is not None:
+        v = float(hlc["value"])
+        row["hlc"] = v
+        row["hlc_error"] = v / truth - 1.0
+        ci = hlc.get("ci95")
+        if ci is not None:
+            lo, hi = map(float, ci)
+            row["hlc_ci95"] = [lo, hi]
+            row["covers"] = bool(lo <= truth <= hi)
+            row["half_width"] = 0.5 * (hi - lo) / abs(v)
+    return row
+
+
+def _checks(r: dict) -> dict:
+    ok = r.get("status") == "ok"
+    return {
+        "valid": ok,
+        "rmse": ok and r.get("rmse_valid", np.inf) <= 0.3,
+        "hlc15": ok and abs(r.get("hlc_error", np.inf)) <= 0.15,
+        "covers": ok and bool(r.get("covers", False)),
+        "narrow": ok and r.get("half_width", np.inf) <= 0.25,
+    }
+
+
+def markdown(doc: dict) -> str:
+    rows = doc["rows"]
+    n = len(rows)
+    commits = sorted({r.get("commit", "?") for r in rows})
+    lines = [
+        SECTION,
+        "",
+        f"Written by `python benchmarks/detailed.py` (last row {doc['date']}); {doc['machine']}; "
+        f"jaxbox at commit{'s' if len(commits) > 1 else ''} {', '.join(commits)}; raw numbers in "
+        "`benchmarks/detailed.json`. Buildings of `jaxbox.datasets.make_detailed_zoo("
+        f"{doc['n']}, seed={doc['seed']})`: 13–20-state networks (multi-layer walls and roof, a "
+        "floor slab to the ground or a measured cellar, an internal mass, a radiator or a floor "
+        "heating), unmeasured occupancy gains, scheduled ventilation, the sun on each facade, "
+        "PI thermostats with night setback or open-loop PRBS/ROLBS heating, white and AR(1) "
+        "sensor noise quantised to 0.1 K — no structure of the grammar is the truth. Each is "
+        "searched as `jaxbox select` does (structure search, criterion "
+        f"{doc['settings']['criterion']}, beam {doc['settings']['beam']}, "
+        f"{doc['settings']['starts']} starts per candidate, data split in halves); the HLC and "
+        "its 95 % interval are those `select` reports, the truth the static heat loss of the "
+        "detailed network at its mean ventilation.",
+        "",
+    ]
+    if n < doc["n"]:
+        lines += [f"{n} of the {doc['n']} buildings are done; the numbers are theirs.", ""]
+    labels = {
+        "valid": "valid model",
+        "rmse": "validation RMSE ≤ 0.3 K",
+        "hlc15": "HLC within ±15 %",
+        "covers": "95 % interval covers the truth",
+        "narrow": "interval no wider than ±25 %",
+    }
+    groups = [("all", rows)] + [(k, [r for r in rows if r["heating"] == k]) for k in KINDS]
+    head = "| target | goal | " + " | ".join(f"{g} ({len(rs)})" for g, rs in groups) + " |"
+    lines += [head, "|---|---:|" + "---:|" * len(groups)]
+    for key, label in labels.items():
+        cells = []
+        for g, rs in groups:
+            hit = sum(_checks(r)[key] for r in rs)
+            share = hit / len(rs) if rs else float("nan")
+            mark = " ✓" if g == "all" and rs and share >= TARGETS[key] else ""
+            mark = " ✗" if g == "all" and rs and share < TARGETS[key] else mark
+            cells.append(f"{hit}/{len(rs)} ({100 * share:.0f} %){mark}" if rs else "–")
+        lines.append(f"| {label} | ≥ {100 * TARGETS[key]:.0f} % | " + " | ".join(cells) + " |")
+    errs = [abs(r["hlc_error"]) for r in rows if "hlc_error" in r]
+    if errs:
+        lines += [
+            "",
+            f"HLC error |reported/true − 1|: median {100 * np.median(errs):.1f} %, 90th "
+            f"percentile {100 * np.percentile(errs, 90):.1f} %, worst {100 * max(errs):.1f} %; "
+            f"median search {np.median([r['search_s'] for r in rows]):.0f} s.",
+        ]
+    lines += [
+        "",
+        "| building | step | heating | heater | states | accepted | RMSE [K] | true HLC [W/K] | "
+        "reported [W/K] | 95 % interval | error | half-width | covers |",
+        "|---|---|---|---|---:|---|---:|---:|---:|---|---:|---:|---|",
+    ]
+    for r in rows:
+        if r.get("status") != "ok":
+            lines.append(
+                f"| {r['building']} | {r['step']} | {r['heating']} | {r['heater']} | "
+                f"{r['states']} | {r.get('status')} | – | {r['hlc_true']:.0f} | – | – | – | – | – |"
+            )
+            continue
+        ci = r.get("hlc_ci95")
+        lines.append(
+            f"| {r['building']} | {r['step']} | {r['heating']} | {r['heater']} | {r['states']} | "
+            f"{r['accepted']} | {r['rmse_valid']:.3f} | {r['hlc_true']:.0f} | "
+            + (f"{r['hlc']:.0f}" if "hlc" in r else "–")
+            + " | "
+            + (f"{ci[0]:.0f}–{ci[1]:.0f}" if ci else "–")
+            + " | "
+            + (f"{100 * r['hlc_error']:+.1f} %" if "hlc_error" in r else "–")
+            + " | "
+            + (f"±{100 * r['half_width']:.1f} %" if "half_width" in r else "–")
+            + " | "
+            + ("yes" if r.get("covers") else "no")
+            + " |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (a stopped run leaves the last complete file)."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_section(path: Path, text: str) -> None:
+    """Replace (or append) the section :data:`SECTION` of the markdown file ``path``."""
+    old = path.read_text() if path.exists() else ""
+    if SECTION in old:
+        head, rest = old.split(SECTION, 1)
+        nxt = rest.find("\n## ")
+        tail = "" if nxt < 0 else rest[nxt + 1 :]
+        new = head + text + ("\n" + tail if tail else "")
+    else:
+        new = old.rstrip("\n") + ("\n\n" if old else "") + text
+    _write(path, new)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--out", default=str(HERE / "ZOO.md"))
+    ap.add_argument("--json", default=str(HERE / "detailed.json"))
+    ap.add_argument("--rerun", action="store_true", help="measure every building again")
+    ap.add_argument("--report-only", action="store_true", help="rewrite --out from --json")
+    ap.add_argument("--only", default="", help="comma list of buildings (d003,…)")
+    args = ap.parse_args(argv)
+    path = Path(args.json)
+    if args.report_only:
+        doc = json.loads(path.read_text())
+        write_section(Path(args.out), markdown(doc))
+        print(markdown(doc))
+        return
+
+    import jaxbox
+
+    jaxbox.enable_x64()
+    jaxbox.enable_compilation_cache()
+    settings = _select_defaults()
+    zoo = jaxbox.datasets.make_detailed_zoo(args.n, seed=args.seed)
+    done: dict[str, dict] = {}
+    if path.exists() and not args.rerun:
+        old = json.loads(path.read_text())
+        if old.get("seed") == args.seed:
+            done = {r["building"]: r for r in old.get("rows", [])}
+    doc = {
+        "date": time.strftime("%Y-%m-%d %H:%M"),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, one building at a time",
+        "n": args.n,
+        "seed": args.seed,
+        "settings": settings,
+        "commit": _commit(),
+        "rows": [],
+    }
+    chosen = set(args.only.split(",")) if args.only else None
+    for b in zoo:
+        if b.name in done and (chosen is None or b.name not in chosen):
+            doc["rows"].append(done[b.name])
+            continue
+        if chosen is not None and b.name not in chosen:
+            continue
+        row = run_one(b, settings)
+        jaxbox._compiled.release()  # every building compiles new structures
+        doc["rows"].append(row)
+        doc["date"] = time.strftime("%Y-%m-%d %H:%M")
+        print(json.dumps(row), flush=True)
+        _write(path, json.dumps(doc, indent=1))
+        write_section(Path(args.out), markdown(doc))
+    _write(path, json.dumps(doc, indent=1))
+    write_section(Path(args.out), markdown(doc))
+    print(markdown(doc))
+
+
+if __name__ == "__main__":
+    main()

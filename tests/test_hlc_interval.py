@@ -23,7 +23,7 @@ from jaxbox.validate import (
     robust_covariance,
     uncertainty,
 )
-from jaxbox.validate._hlc import HAC, WHITE
+from jaxbox.validate._hlc_hac import HAC, WHITE
 
 STEP = 3600.0
 N = 168

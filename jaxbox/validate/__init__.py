@@ -1,10 +1,10 @@
 """Validation: post-simulation, error metrics, uncertainty, residual analysis, verdicts, plots."""
 
 from ._hlc import HlcInterval as HlcInterval
-from ._hlc import RobustCovariance as RobustCovariance
 from ._hlc import hlc_interval as hlc_interval
 from ._hlc import near_best as near_best
-from ._hlc import robust_covariance as robust_covariance
+from ._hlc_hac import RobustCovariance as RobustCovariance
+from ._hlc_hac import robust_covariance as robust_covariance
 from ._kpi import KPI as KPI
 from ._kpi import Kpis as Kpis
 from ._kpi import kpi_values as kpi_values

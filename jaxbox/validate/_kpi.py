@@ -48,7 +48,7 @@ import numpy as np
 from .._compiled import cached, jit
 from .._x64 import require_x64
 from ..data import signal_unit
-from ._hlc import HAC, MAX_RHO, WHITE
+from ._hlc_hac import HAC, MAX_RHO, WHITE
 
 __all__ = ["KPI", "Kpis", "kpis", "kpi_values", "kpi_inputs"]
 
@@ -63,8 +63,8 @@ class KPI:
         value: estimate.
         std: standard error (``nan`` when a parameter it depends on has none).
         ci95: (lower, upper) of the interval at the :class:`Kpis`' level.
-        method: how the interval was made (:data:`~jaxbox.validate._hlc.WHITE` or
-            :data:`~jaxbox.validate._hlc.HAC`).
+        method: how the interval was made (:data:`~jaxbox.validate._hlc_hac.WHITE` or
+            :data:`~jaxbox.validate._hlc_hac.HAC`).
     """
 
     name: str
@@ -301,7 +301,7 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
     from scipy import stats
 
     from ._args import check_fit, check_level
-    from ._hlc import robust_covariance
+    from ._hlc_hac import robust_covariance
     from ._own import check_own
     from ._uncertainty import uncertainty as _uncertainty
 

@@ -74,6 +74,7 @@ from ..models._grammar import (
     roots,
 )
 from ._cases import Case, Progress, check_whole, quiet, run_cases, verdict_text
+from ._forms import FormChoice, choose_form
 from ._forward import (
     Selection,
     _as_greybox,
@@ -135,10 +136,25 @@ class Search(Selection):
 
     criterion: str = "cv"
     tree: tuple[SearchNode, ...] = ()
+    choice: FormChoice = FormChoice()
+
+    @property
+    def form(self) -> str:
+        """The form accepted: ``"temperature"`` (the case :attr:`accepted`), ``"heat demand"``
+        or ``"steady state"`` (the model in :attr:`form_model`); see
+        :mod:`jaxbox.select._forms`."""
+        return self.choice.form
+
+    @property
+    def form_model(self):
+        """The accepted heat-demand or steady-state model (``None`` for the temperature form or
+        when none is valid)."""
+        return self.choice.model
 
     def to_dict(self) -> dict:
         d = super().to_dict()
         d.update(criterion=self.criterion, tree=[n.to_dict() for n in self.tree])
+        d.update(self.choice.to_dict())
         return d
 
     def children(self) -> dict[str | None, list[SearchNode]]:
@@ -166,6 +182,14 @@ class Search(Selection):
                 walk(n.case, indent + 1)
 
         walk(None, 0)
+        hd = self.choice.heat_demand
+        if hd is not None and hd.tree:
+            lines.append("heat-demand form (the heating from the zone's measured temperature):")
+            lines += ["  " + line for line in hd.tree_text().splitlines()]
+        if self.choice.steady is not None:
+            lines.append(self.choice.steady.summary())
+        if self.choice.why:
+            lines.append(f"form accepted: {self.choice.form} ({self.choice.why})")
         return "\n".join(lines)
 
 
@@ -636,12 +660,23 @@ def structure_search(
     search = _Search(gb, grammar, judge, kw=kw, say=say, **counts)
     stopped = search.run()
     accepted = search.choose()
+    rel = math.inf if accepted is None else _relative_rmse(accepted, set(_lineage(accepted)))
+    choice = choose_form(gb, grammar, accepted, rel, starts=starts, seed=seed, say=say)
+    if choice.form != "temperature" and accepted is not None:
+        node = search.nodes[accepted.name]
+        node.update(status="grown", why=f"{node.get('why', '')}; the {choice.form} form accepted")
+        accepted = None
     elapsed = time.perf_counter() - t0
     nodes = search.nodes
     verdict = verdict_text(gb.cases, nodes, accepted)
+    if choice.form != "temperature":
+        verdict = f"the {choice.form} form: {choice.model.summary().splitlines()[0]}"
     say(f"accepted: {verdict}; {stopped} ({elapsed:.0f} s, {len(nodes)} candidates)")
+    if choice.why:
+        say(f"form accepted: {choice.form} ({choice.why})")
     return Search(
         greybox=gb,
+        choice=choice,
         accepted=None if accepted is None else accepted.name,
         order=tuple(nodes),
         stopped=stopped,

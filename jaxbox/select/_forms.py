@@ -104,8 +104,7 @@ def choose_form(gb, grammar, accepted, relative_rmse, *, starts: int = 4, seed=0
         return FormChoice("heat demand", why, text, best, hd)
     if accepted is not None:
         extra = (
-            f"the heat-demand form's {best.structure}: heating RMSE {best.relative:.3g} of "
-            "its std"
+            f"the heat-demand form's {best.structure}: heating RMSE {best.relative:.3g} of its std"
             if best is not None
             else "no heat-demand form is valid"
         )
@@ -123,4 +122,3 @@ def choose_form(gb, grammar, accepted, relative_rmse, *, starts: int = 4, seed=0
         )
         return FormChoice("heat demand", why, text, best, hd, steady)
     return FormChoice("temperature", f"zone {text}; no form is valid", text, None, hd, steady)
-

@@ -225,8 +225,10 @@ class _Network:
         return np.asarray(lo), np.asarray(hi)
 
     def matrices(self, theta: dict):
-        A, B, caps = (np.asarray(x, dtype=float) for x in self._rc(np.asarray(
-            [theta[n] for n in self.names], dtype=float)))
+        A, B, caps = (
+            np.asarray(x, dtype=float)
+            for x in self._rc(np.asarray([theta[n] for n in self.names], dtype=float))
+        )
         return A, B, caps
 
     def heating(self, theta: dict) -> np.ndarray:
@@ -418,8 +420,9 @@ def _invertible(structure: Structure) -> bool:
     """Whether the heating of ``structure`` enters the zone node only (no heater capacity, no
     radiative share), on one zone."""
     tokens = structure.name.split("+")
-    return not any(t in ("Hea", "Rad") or t.startswith("Zon2") or t.startswith("Cpl")
-                   for t in tokens)
+    return not any(
+        t in ("Hea", "Rad") or t.startswith("Zon2") or t.startswith("Cpl") for t in tokens
+    )
 
 
 def _vanishing(fit: HeatDemandFit) -> dict:
@@ -457,8 +460,11 @@ class HeatDemandSearch:
             where = "" if parent is None else f" (from {parent})"
             if isinstance(fit, HeatDemandFit):
                 extra = "" if fit.valid else f": {fit.reasons[0]}"
-                fixed = (" with " + ", ".join(f"{k}={v:.3g}" for k, v in fit.fixed.items())
-                         if fit.fixed else "")
+                fixed = (
+                    " with " + ", ".join(f"{k}={v:.3g}" for k, v in fit.fixed.items())
+                    if fit.fixed
+                    else ""
+                )
                 lines.append(
                     f"{mark} {name}{fixed}{where}  [heating RMSE {fit.rmse_valid:.4g} W, "
                     f"{fit.relative:.3g} of std; HLC {fit.hlc:.4g} W/K] {status}{extra}"
@@ -499,13 +505,22 @@ def heat_demand_search(
         if cut:
             tree.append((structure.name, parent_name, f, "reduced"))
             try:
-                f = heat_demand_fit(structure, grammar, problem, guess=f.params, fixed=cut,
-                                    starts=max(2, starts // 2), seed=seed)
+                f = heat_demand_fit(
+                    structure,
+                    grammar,
+                    problem,
+                    guess=f.params,
+                    fixed=cut,
+                    starts=max(2, starts // 2),
+                    seed=seed,
+                )
             except ValueError as err:
                 tree.append((structure.name, parent_name, str(err), "failed"))
                 return None
-        say(f"  heat-demand form {structure.name}: heating RMSE {f.rmse_valid:.4g} W, HLC "
-            f"{f.hlc:.4g} W/K, " + ("valid" if f.valid else f"not valid ({f.reasons[0]})"))
+        say(
+            f"  heat-demand form {structure.name}: heating RMSE {f.rmse_valid:.4g} W, HLC "
+            f"{f.hlc:.4g} W/K, " + ("valid" if f.valid else f"not valid ({f.reasons[0]})")
+        )
         return f
 
     root = next((s for s in roots(grammar) if _invertible(s)), None)
@@ -531,8 +546,14 @@ def heat_demand_search(
         for child, f in children:
             ref = best.rmse_valid if best is not None else current.rmse_valid
             better = f.valid and f.rmse_valid < (1.0 - margin) * ref
-            tree.append((child.name, cur_struct.name, f, "improves" if better else (
-                "no improvement" if f.valid else "not valid")))
+            tree.append(
+                (
+                    child.name,
+                    cur_struct.name,
+                    f,
+                    "improves" if better else ("no improvement" if f.valid else "not valid"),
+                )
+            )
             if better:
                 improving.append((child, f))
         if not improving:

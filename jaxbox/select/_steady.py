@@ -131,7 +131,14 @@ def steady_fit(data, zone: str = "T_zon", heating: str = "Q_hea") -> SteadyFit:
     nan = (float("nan"), float("nan"))
     if n < MIN_DAYS:
         return SteadyFit(
-            float("nan"), nan, 0.0, nan, n, float("nan"), float("nan"), False,
+            float("nan"),
+            nan,
+            0.0,
+            nan,
+            n,
+            float("nan"),
+            float("nan"),
+            False,
             (f"{n} complete days, fewer than {MIN_DAYS}",),
         )
     solar = bool(np.ptp(irr) > 0)

@@ -100,7 +100,7 @@ def solar_position(times: pd.DatetimeIndex, latitude: float = LATITUDE) -> tuple
     """Cosine of the zenith angle and the azimuth [rad, from north, clockwise] of the sun at
     local standard times (UTC + :data:`UTC_OFFSET`), by Spencer's declination and equation of
     time."""
-    doy = np.asarray(times.dayofyear, float)
+    doy = np.asarray(times.day_of_year, float)
     hours = np.asarray(times.hour + times.minute / 60.0 + times.second / 3600.0, float)
     g = 2.0 * np.pi * (doy - 1.0 + (hours - 12.0) / 24.0) / 365.0
     decl = (
@@ -156,7 +156,7 @@ def facade_irradiance(index: pd.DatetimeIndex, ghi: np.ndarray, dt: float) -> di
     at each interval's middle)."""
     mid = index - pd.Timedelta(seconds=dt / 2.0)
     cosz, az = solar_position(mid)
-    dni, dhi = split_irradiance(ghi, cosz, np.asarray(mid.dayofyear, float))
+    dni, dhi = split_irradiance(ghi, cosz, np.asarray(mid.day_of_year, float))
     sinz = np.sqrt(np.maximum(1.0 - cosz**2, 0.0))
     out = {}
     for f, azimuth in FACADES.items():
@@ -255,7 +255,7 @@ def static_hlc(A: np.ndarray, caps: Sequence[float], air: int = 0) -> float:
 def _occupancy(index: pd.DatetimeIndex, use: str) -> np.ndarray:
     """Occupancy and appliance gains as a fraction of the peak (0–1) at the times ``index``."""
     h = np.asarray(index.hour + index.minute / 60.0, float)
-    weekend = np.asarray(index.dayofweek >= 5)
+    weekend = np.asarray(index.day_of_week >= 5)
     if use == "office":
         day = (h >= 8) & (h < 18)
         return np.where(~weekend & day, 1.0, np.where(~weekend & (h >= 7) & (h < 19), 0.4, 0.08))
@@ -271,7 +271,7 @@ def _setpoints(index: pd.DatetimeIndex, use: str, day: float, night: float) -> n
     weekdays), ``night`` otherwise."""
     h = np.asarray(index.hour + index.minute / 60.0, float)
     if use == "office":
-        on = (h >= 7) & (h < 19) & np.asarray(index.dayofweek < 5)
+        on = (h >= 7) & (h < 19) & np.asarray(index.day_of_week < 5)
     else:
         on = (h >= 6) & (h < 22)
     return np.where(on, day, night)

@@ -85,7 +85,7 @@ def _select_defaults() -> dict:
     }
 
 
-def run_one(b, settings: dict) -> dict:
+def run_one(b, settings: dict, commit: str = "") -> dict:
     import jaxbox
     from jaxbox.data import DataWarning
     from jaxbox.validate import fit_report
@@ -102,7 +102,7 @@ def run_one(b, settings: dict) -> dict:
         "samples": len(b.data),
         "columns": list(b.data.columns),
         "hlc_true": truth,
-        "commit": _commit(),
+        "commit": commit or _commit(),
     }
     t0 = time.perf_counter()
     try:
@@ -164,7 +164,8 @@ def markdown(doc: dict) -> str:
         SECTION,
         "",
         f"Written by `python benchmarks/detailed.py` (last row {doc['date']}); {doc['machine']}; "
-        f"jaxbox at commit{'s' if len(commits) > 1 else ''} {', '.join(commits)}; raw numbers in "
+        f"jaxbox at commit{'s' if len(commits) > 1 else ''} {', '.join(commits)} (`+changes`: "
+        "with uncommitted changes to `jaxbox/` in the working tree); raw numbers in "
         "`benchmarks/detailed.json`. Buildings of `jaxbox.datasets.make_detailed_zoo("
         f"{doc['n']}, seed={doc['seed']})`: 13–20-state networks (multi-layer walls and roof, a "
         "floor slab to the ground or a measured cellar, an internal mass, a radiator or a floor "
@@ -206,7 +207,28 @@ def markdown(doc: dict) -> str:
             f"HLC error |reported/true − 1|: median {100 * np.median(errs):.1f} %, 90th "
             f"percentile {100 * np.percentile(errs, 90):.1f} %, worst {100 * max(errs):.1f} %; "
             f"median search {np.median([r['search_s'] for r in rows]):.0f} s.",
+            "",
+            "| group | buildings | median signed HLC error | HLC within ±15 % | interval covers |",
+            "|---|---:|---:|---:|---:|",
         ]
+        split = [
+            ("radiator", lambda r: r["heater"] == "radiator"),
+            ("floor heating", lambda r: r["heater"] == "floor"),
+            ("floor to the ground (unmeasured)", lambda r: "T_bou" not in r["columns"]),
+            ("floor to a measured cellar (T_bou)", lambda r: "T_bou" in r["columns"]),
+            ("facade irradiances measured", lambda r: "I_s" in r["columns"]),
+            ("global horizontal only", lambda r: "I_s" not in r["columns"]),
+        ] + [(f"step {s}", lambda r, s=s: r["step"] == s) for s in ("10min", "30min", "60min")]
+        for label, keep in split:
+            rs = [r for r in rows if keep(r)]
+            signed = [r["hlc_error"] for r in rs if "hlc_error" in r]
+            if not rs:
+                continue
+            med = f"{100 * np.median(signed):+.1f} %" if signed else "–"
+            lines.append(
+                f"| {label} | {len(rs)} | {med} | {sum(_checks(r)['hlc15'] for r in rs)} | "
+                f"{sum(_checks(r)['covers'] for r in rs)} |"
+            )
     lines += [
         "",
         "| building | step | heating | heater | states | accepted | RMSE [K] | true HLC [W/K] | "
@@ -302,7 +324,7 @@ def main(argv=None) -> None:
             continue
         if chosen is not None and b.name not in chosen:
             continue
-        row = run_one(b, settings)
+        row = run_one(b, settings, doc["commit"])  # the code imported at the start
         jaxbox._compiled.release()  # every building compiles new structures
         doc["rows"].append(row)
         doc["date"] = time.strftime("%Y-%m-%d %H:%M")

@@ -391,9 +391,13 @@ def _warnings(robust, interval: str) -> tuple[str, ...]:
     if interval == "white":
         if robust.white:
             return ()
+        if robust.inflation > 1.2:
+            how = f"too narrow, by about {robust.inflation:.2g}× going by the HAC covariance"
+        else:
+            how = "the HAC covariance gives intervals about as wide here"
         return (
-            f"the intervals assume white residuals but these are not ({said}): they are too "
-            f"narrow, about {robust.inflation:.2g}× by the HAC covariance (interval='hac')",
+            f"the intervals assume white residuals but these are not ({said}): {how} "
+            "(interval='hac')",
         )
     if np.any(np.abs(robust.rho) >= 0.999 * MAX_RHO) and robust.lag1 > MAX_RHO:
         return (

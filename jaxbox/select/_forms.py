@@ -38,7 +38,8 @@ class FormChoice:
         model: the accepted :class:`~jaxbox.select._heat_demand.HeatDemandFit` or
             :class:`~jaxbox.select._steady.SteadyFit` (``None`` for the temperature form).
         heat_demand: the heat-demand candidates (``None`` when not grown).
-        steady: the steady-state fit (``None`` when not made).
+        steady: the steady-state fit of a held zone (``None`` when not held), whichever form
+            is accepted: a check on the HLC.
     """
 
     form: str = "temperature"
@@ -63,7 +64,9 @@ def _dynamic(fit) -> bool:
     return any(n.startswith("C_") and n not in fit.fixed for n in fit.params)
 
 
-def choose_form(gb, grammar, accepted, relative_rmse, *, starts: int = 4, seed=0, say=None):
+def choose_form(
+    gb, grammar, accepted, relative_rmse, *, starts: int = 4, seed=0, max_depth=3, say=None
+):
     """The form of the model the data in ``gb`` determine (see the module).
 
     Args:
@@ -72,6 +75,7 @@ def choose_form(gb, grammar, accepted, relative_rmse, *, starts: int = 4, seed=0
         accepted: the temperature form's accepted case, or ``None``.
         relative_rmse: the accepted case's validation RMSE over the zone temperature's std.
         starts, seed: of the heat-demand fits.
+        max_depth: most components the heat-demand form adds to its root.
         say: progress.
 
     Returns:
@@ -87,8 +91,11 @@ def choose_form(gb, grammar, accepted, relative_rmse, *, starts: int = 4, seed=0
         return FormChoice(held=text)
     say(f"the zone is {text}: the heat-demand form too")
     problem = Problem(gb.data, gb.train, gb.valid_period, zone, heating)
-    hd = heat_demand_search(grammar, problem, starts=min(int(starts), 4), seed=seed or 0, say=say)
+    hd = heat_demand_search(
+        grammar, problem, starts=min(int(starts), 4), seed=seed or 0, max_depth=max_depth, say=say
+    )
     best = hd.best
+    steady = steady_fit(gb.data, zone, heating)  # cheap: always, as a check on the HLC
     rel_t = relative_rmse if accepted is not None else math.inf
     temp = (
         f"the temperature form's {accepted.model.name}: RMSE {rel_t:.3g} of the zone "
@@ -101,15 +108,15 @@ def choose_form(gb, grammar, accepted, relative_rmse, *, starts: int = 4, seed=0
             f"zone {text}; the heat-demand form's {best.structure}: heating RMSE "
             f"{best.relative:.3g} of its std, against {temp}"
         )
-        return FormChoice("heat demand", why, text, best, hd)
+        return FormChoice("heat demand", why, text, best, hd, steady)
     if accepted is not None:
         extra = (
             f"the heat-demand form's {best.structure}: heating RMSE {best.relative:.3g} of its std"
             if best is not None
             else "no heat-demand form is valid"
         )
-        return FormChoice("temperature", f"zone {text}; {temp}, against {extra}", text, None, hd)
-    steady = steady_fit(gb.data, zone, heating)
+        why = f"zone {text}; {temp}, against {extra}"
+        return FormChoice("temperature", why, text, None, hd, steady)
     if steady.valid:
         why = (
             f"zone {text}; neither the temperature form nor the heat-demand form determines "

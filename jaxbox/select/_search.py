@@ -661,7 +661,16 @@ def structure_search(
     stopped = search.run()
     accepted = search.choose()
     rel = math.inf if accepted is None else _relative_rmse(accepted, set(_lineage(accepted)))
-    choice = choose_form(gb, grammar, accepted, rel, starts=starts, seed=seed, say=say)
+    choice = choose_form(
+        gb,
+        grammar,
+        accepted,
+        rel,
+        starts=starts,
+        seed=seed,
+        max_depth=min(counts["max_depth"], 3),
+        say=say,
+    )
     if choice.form != "temperature" and accepted is not None:
         node = search.nodes[accepted.name]
         node.update(status="grown", why=f"{node.get('why', '')}; the {choice.form} form accepted")

@@ -4,12 +4,16 @@ nothing but it (a co-heating test: the zone held constant by heaters for weeks).
 Over whole days the heat stored in the building is small next to what flows through it, and
 the energy balance of the zone reads, day by day ``d``::
 
-    Q̄_d = HLC · (T̄_zon,d − T̄_amb,d) − gA · Ī_d                                          [W]
+    Q̄_d = H₀ · ΔT̄_d + H₁ · ΔT̄_d−1 − gA · Ī_d,    HLC = H₀ + H₁                       [W]
 
-with ``Q̄`` the heating, ``T̄`` the temperatures [°C] and ``Ī`` the irradiance [W/m²] (the sum
-of the data's irradiance columns) averaged over the day. :func:`steady_fit` fits it by least
-squares through the origin over the complete days (95 % intervals from Student's t); a solar
-aperture whose interval spans zero is dropped (``Q̄ = HLC · ΔT̄``). The model is valid when the
+with ``Q̄`` the heating, ``ΔT̄`` the zone's excess over the ambient [K] and ``Ī`` the
+irradiance [W/m²] (the sum of the data's irradiance columns) averaged over the day. The
+previous day's term takes the heat the envelope stores from one day to the next (a change of
+weather reaches the heating a day late); its share is dropped, and ``Q̄ = HLC · ΔT̄ − gA · Ī``
+fitted, when its interval spans zero. :func:`steady_fit` fits it by least squares through the
+origin over the complete days (95 % intervals from Student's t). The solar aperture is kept
+even where its interval spans zero (reported as undetermined): the sun and the temperature
+difference vary together, and leaving it out would bias the HLC. The model is valid when the
 HLC is positive and determined (half-width at most :data:`~jaxbox.validate.MAX_REL_CI` of it);
 the dynamics (every capacity) are reported as undetermined, which is not a reason to reject:
 the form does not claim them. Its error is the leave-one-day-out RMSE of the daily heating.
@@ -36,13 +40,14 @@ class SteadyFit:
 
     Attributes:
         hlc: heat-loss coefficient [W/K]; ``hlc_interval`` its 95 % interval.
-        gA: solar aperture [m²] (0 when dropped); ``gA_interval`` its 95 % interval.
+        gA: solar aperture [m²] (0 without irradiance); ``gA_interval`` its 95 % interval.
         days: complete days used.
         rmse_loo: leave-one-day-out RMSE of the daily mean heating [W]; ``q_std`` the std of
             the daily mean heating [W].
         valid: the verdict; ``reasons`` why not.
         undetermined: what the form does not determine (the dynamics).
-        dropped: terms dropped because their interval spans zero.
+        dropped: terms left out: ``H1`` (the previous day's share: its interval spans zero or too
+            few consecutive days), ``gA`` (no irradiance).
         form: ``"steady state"``.
     """
 
@@ -61,7 +66,10 @@ class SteadyFit:
 
     @property
     def structure(self) -> str:
-        return "HLC" if "gA" in self.dropped else "HLC+gA"
+        """The terms kept: ``HLC`` (with ``lag`` when the previous day's share is kept) and
+        ``gA``."""
+        kept = ["HLC"] + (["lag"] if "H1" not in self.dropped else [])
+        return "+".join(kept + ([] if "gA" in self.dropped else ["gA"]))
 
     @property
     def relative(self) -> float:
@@ -74,8 +82,10 @@ class SteadyFit:
             f"steady-state form on {self.days} daily means: HLC {self.hlc:.4g} W/K "
             f"[{lo:.4g}, {hi:.4g}]"
         )
+        if "H1" not in self.dropped:
+            text += " (a share a day late: the envelope's storage)"
         if "gA" in self.dropped:
-            text += ", solar aperture dropped (its interval spans zero)"
+            text += ", no irradiance"
         else:
             text += f", gA {self.gA:.3g} m² [{self.gA_interval[0]:.3g}, {self.gA_interval[1]:.3g}]"
         text += (
@@ -99,8 +109,9 @@ class SteadyFit:
 
 
 def daily_means(data, zone: str = "T_zon", heating: str = "Q_hea"):
-    """``(ΔT̄ [K], Ī [W/m²], Q̄ [W])`` over the complete days of ``data`` (every sample of the
-    day present)."""
+    """``(ΔT̄ [K], Ī [W/m²], Q̄ [W], previous)`` over the complete days of ``data`` (every
+    sample of the day present); ``previous`` [bool] marks the days whose previous day is
+    complete too."""
     frame = data.frame
     irr = [c for c in frame.columns if c.startswith("I_")]
     d = frame[[zone, "T_amb", heating]].copy()
@@ -109,10 +120,15 @@ def daily_means(data, zone: str = "T_zon", heating: str = "Q_hea"):
     groups = d.groupby(d.index.normalize())
     complete = groups.count().min(axis=1) >= per_day
     m = groups.mean()[complete]
+    days = m.index
+    previous = np.asarray(
+        [i > 0 and (days[i] - days[i - 1]).days == 1 for i in range(len(days))], dtype=bool
+    )
     return (
         (m[zone] - m["T_amb"]).to_numpy(float),
         m["I"].to_numpy(float),
         m[heating].to_numpy(float),
+        previous,
     )
 
 
@@ -126,63 +142,73 @@ def steady_fit(data, zone: str = "T_zon", heating: str = "Q_hea") -> SteadyFit:
     Returns:
         :class:`SteadyFit` (not valid, with the reason, on fewer than :data:`MIN_DAYS` days).
     """
-    dT, irr, q = daily_means(data, zone, heating)
-    n = q.size
+    dT, irr, q, previous = daily_means(data, zone, heating)
     nan = (float("nan"), float("nan"))
-    if n < MIN_DAYS:
+    if q.size < MIN_DAYS:
         return SteadyFit(
             float("nan"),
             nan,
             0.0,
             nan,
-            n,
+            q.size,
             float("nan"),
             float("nan"),
             False,
-            (f"{n} complete days, fewer than {MIN_DAYS}",),
+            (f"{q.size} complete days, fewer than {MIN_DAYS}",),
         )
-    solar = bool(np.ptp(irr) > 0)
-    X = np.stack([dT, -irr], axis=1) if solar else dT[:, None]
-    beta, se, dof = _ols(X, q)
-    dropped: tuple = ()
-    t = stats.t.ppf(0.975, max(dof, 1))
-    if solar and abs(beta[1]) <= t * se[1]:  # the aperture's interval spans zero: dropped
-        X = dT[:, None]
-        beta, se, dof = _ols(X, q)
-        t = stats.t.ppf(0.975, max(dof, 1))
-        dropped = ("gA",)
-    elif not solar:
-        dropped = ("gA",)
-    hlc, gA = float(beta[0]), float(beta[1]) if X.shape[1] > 1 else 0.0
-    hlc_int = (hlc - t * se[0], hlc + t * se[0])
-    gA_int = (gA - t * se[1], gA + t * se[1]) if X.shape[1] > 1 else (0.0, 0.0)
-    loo = _loo(X, q)
+    lagged = np.concatenate([[np.nan], dT[:-1]])
+    terms = {"H0": dT, "H1": lagged, "gA": -irr}
+    dropped = [] if np.ptp(irr) > 0 else ["gA"]
+    if previous.sum() < MIN_DAYS:
+        dropped.append("H1")
+    while True:  # the lag dropped when its interval spans zero
+        names = [k for k in terms if k not in dropped]
+        rows = previous if "H1" in names else np.ones(q.size, dtype=bool)
+        X = np.stack([terms[k][rows] for k in names], axis=1)
+        y = q[rows]
+        beta, cov, dof = _ols(X, y)
+        t = float(stats.t.ppf(0.975, max(dof, 1)))
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        if "H1" not in names or abs(beta[names.index("H1")]) > t * se[names.index("H1")]:
+            break
+        dropped.append("H1")
+    c = np.asarray([k in ("H0", "H1") for k in names], dtype=float)
+    hlc, hlc_se = float(c @ beta), float(np.sqrt(max(c @ cov @ c, 0.0)))
+    hlc_int = (hlc - t * hlc_se, hlc + t * hlc_se)
+    if "gA" in names:
+        i = names.index("gA")
+        gA, gA_int = float(beta[i]), (float(beta[i] - t * se[i]), float(beta[i] + t * se[i]))
+    else:
+        gA, gA_int = 0.0, (0.0, 0.0)
+    undetermined = ["the dynamics (every capacity)"]
+    if "gA" in names and abs(gA) <= t * se[names.index("gA")]:
+        undetermined.append("gA (its interval spans zero)")
     reasons = []
     if not hlc > 0:
         reasons.append(f"HLC {hlc:.3g} W/K not positive")
-    elif not t * se[0] <= MAX_REL_CI * hlc:
+    elif not t * hlc_se <= MAX_REL_CI * hlc:
         reasons.append(f"HLC undetermined (95 % interval {hlc_int[0]:.3g} to {hlc_int[1]:.3g})")
     return SteadyFit(
         hlc=hlc,
         hlc_interval=hlc_int,
         gA=gA,
         gA_interval=gA_int,
-        days=n,
-        rmse_loo=loo,
-        q_std=float(np.std(q)),
+        days=int(y.size),
+        rmse_loo=_loo(X, y),
+        q_std=float(np.std(y)),
         valid=not reasons,
         reasons=tuple(reasons),
-        dropped=dropped,
+        undetermined=tuple(undetermined),
+        dropped=tuple(dropped),
     )
 
 
 def _ols(X, y):
-    """Least squares through the origin: ``(β, standard errors, degrees of freedom)``."""
+    """Least squares through the origin: ``(β, covariance, degrees of freedom)``."""
     beta, *_ = np.linalg.lstsq(X, y, rcond=None)
     dof = X.shape[0] - X.shape[1]
     s2 = float(np.sum((y - X @ beta) ** 2)) / max(dof, 1)
-    cov = s2 * np.linalg.pinv(X.T @ X)
-    return beta, np.sqrt(np.maximum(np.diag(cov), 0.0)), dof
+    return beta, s2 * np.linalg.pinv(X.T @ X), dof
 
 
 def _loo(X, y) -> float:

@@ -14,9 +14,10 @@ interval ``[t_k, t_k+1]`` is what the zone node's balance asks for::
 
 compared with the measured interval mean ``(Q_k + Q_k+1)/2`` (first-order hold). The fit is a
 least-squares fit of the heating [W] (:func:`scipy.optimize.least_squares`, a few starts), the
-other nodes starting in steady state with the first day's mean inputs. The 95 % intervals are
-``σ²(JᵀJ)⁻¹`` inflated by ``(1 + ρ)/(1 − ρ)`` for the lag-one autocorrelation ``ρ`` of the
-residuals. The heat-loss coefficient is the steady-state heat the zone node loses per kelvin
+other nodes starting in steady state with the first day's mean inputs. The 95 % intervals come
+from the prewhitened Newey–West (HAC) covariance of :mod:`jaxbox.validate._hlc_hac` (the
+residuals of hourly heating are autocorrelated; ``σ²(JᵀJ)⁻¹`` would understate them). The
+heat-loss coefficient is the steady-state heat the zone node loses per kelvin
 above the ambient (every other input at zero), with its interval by the delta method.
 
 Only structures whose heating enters the zone node alone can be inverted this way (no heater
@@ -148,7 +149,7 @@ class HeatDemandFit:
     def summary(self) -> str:
         lo, hi = self.hlc_interval
         lines = [
-            f"{self.structure} in its {self.form} form: HLC {self.hlc:.4g} W/K "
+            f"{self.structure} in its heat-demand form: HLC {self.hlc:.4g} W/K "
             f"[{lo:.4g}, {hi:.4g}], heating RMSE {self.rmse_valid:.4g} W on validation "
             f"({self.relative:.3g} of its std {self.q_std:.4g} W), "
             + ("valid" if self.valid else "not valid: " + "; ".join(self.reasons))
@@ -358,10 +359,7 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
     q = net.heating(theta)
     e_id = (q - problem.q_mean)[problem.ident]
     e_va = (q - problem.q_mean)[problem.valid]
-    n, k = e_id.size, p.size
-    s2 = float(np.sum(e_id**2)) / max(n - k, 1)
-    rho = float(np.corrcoef(e_id[:-1], e_id[1:])[0, 1]) if n > 3 else 0.0
-    rho = min(max(rho, 0.0), 0.95)
+    k = p.size
     J = np.asarray(sol.jac, dtype=float) * scale
     lo, hi = net.bounds()
     width = hi - lo
@@ -371,7 +369,7 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
         if (x - a) < 1e-4 * w or (b - x) < 1e-4 * w
     ]
     try:
-        cov = np.linalg.pinv(J.T @ J) * s2 * (1.0 + rho) / (1.0 - rho)
+        cov = _hac(J, e_id)
     except np.linalg.LinAlgError:
         cov = np.full((k, k), np.inf)
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
@@ -411,6 +409,25 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
         reasons=tuple(reasons),
         undetermined=tuple(undetermined),
     )
+
+
+def _hac(J: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The prewhitened Newey–West (HAC) covariance ``B Ω B · N/(N − p)`` of the parameters of a
+    least-squares fit with sensitivities ``J`` [N, p] and residuals ``e`` [N], ``B = (JᵀJ)⁺``:
+    the sandwich of :mod:`jaxbox.validate._hlc_hac` (hourly residuals of the heating are
+    autocorrelated; the white covariance would understate the intervals)."""
+    from ..validate._hlc_hac import MAX_RHO, _ar1, _bandwidth, _long_run
+
+    n, k = J.shape
+    bread = np.linalg.pinv(J.T @ J)
+    scores = J * e[:, None]
+    rho = np.clip(_ar1(scores), -MAX_RHO, MAX_RHO)
+    white = scores[1:] - rho * scores[:-1]
+    omega = _long_run(white, _bandwidth(white))
+    recolour = 1.0 / (1.0 - rho)
+    omega = omega * recolour[:, None] * recolour[None, :]
+    cov = bread @ omega @ bread * n / max(n - k, 1)
+    return 0.5 * (cov + cov.T)
 
 
 # ---- the search ---------------------------------------------------------------------------------

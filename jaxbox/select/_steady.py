@@ -4,13 +4,14 @@ nothing but it (a co-heating test: the zone held constant by heaters for weeks).
 Over whole days the heat stored in the building is small next to what flows through it, and
 the energy balance of the zone reads, day by day ``d``::
 
-    Q̄_d = H₀ · ΔT̄_d + H₁ · ΔT̄_d−1 − gA · Ī_d,    HLC = H₀ + H₁                       [W]
+    Q̄_d = H₀ · ΔT̄_d + H₁ · ΔT̄_d−1 − gA · Ī_d − Q₀,    HLC = H₀ + H₁                  [W]
 
 with ``Q̄`` the heating, ``ΔT̄`` the zone's excess over the ambient [K] and ``Ī`` the
 irradiance [W/m²] (the sum of the data's irradiance columns) averaged over the day. The
 previous day's term takes the heat the envelope stores from one day to the next (a change of
-weather reaches the heating a day late); its share is dropped, and ``Q̄ = HLC · ΔT̄ − gA · Ī``
-fitted, when its interval spans zero. :func:`steady_fit` fits it by least squares through the
+weather reaches the heating a day late); ``Q₀`` is a constant heat gain (occupants,
+appliances: heat the heating need not supply). Each is dropped, the least significant first,
+while its interval spans zero. :func:`steady_fit` fits it by least squares through the
 origin over the complete days (95 % intervals from Student's t). The solar aperture is kept
 even where its interval spans zero (reported as undetermined): the sun and the temperature
 difference vary together, and leaving it out would bias the HLC. The model is valid when the
@@ -46,8 +47,9 @@ class SteadyFit:
             the daily mean heating [W].
         valid: the verdict; ``reasons`` why not.
         undetermined: what the form does not determine (the dynamics).
+        q0: constant heat gain [W] (0 when dropped).
         dropped: terms left out: ``H1`` (the previous day's share: its interval spans zero or too
-            few consecutive days), ``gA`` (no irradiance).
+            few consecutive days), ``gA`` (no irradiance), ``Q0`` (its interval spans zero).
         form: ``"steady state"``.
     """
 
@@ -62,6 +64,7 @@ class SteadyFit:
     reasons: tuple = ()
     undetermined: tuple = ("the dynamics (every capacity)",)
     dropped: tuple = ()
+    q0: float = 0.0
     form: str = "steady state"
 
     @property
@@ -69,7 +72,8 @@ class SteadyFit:
         """The terms kept: ``HLC`` (with ``lag`` when the previous day's share is kept) and
         ``gA``."""
         kept = ["HLC"] + (["lag"] if "H1" not in self.dropped else [])
-        return "+".join(kept + ([] if "gA" in self.dropped else ["gA"]))
+        kept += [] if "gA" in self.dropped else ["gA"]
+        return "+".join(kept + ([] if "Q0" in self.dropped else ["Q0"]))
 
     @property
     def relative(self) -> float:
@@ -84,6 +88,8 @@ class SteadyFit:
         )
         if "H1" not in self.dropped:
             text += " (a share a day late: the envelope's storage)"
+        if "Q0" not in self.dropped:
+            text += f", constant gains {self.q0:.4g} W"
         if "gA" in self.dropped:
             text += ", no irradiance"
         else:
@@ -157,11 +163,11 @@ def steady_fit(data, zone: str = "T_zon", heating: str = "Q_hea") -> SteadyFit:
             (f"{q.size} complete days, fewer than {MIN_DAYS}",),
         )
     lagged = np.concatenate([[np.nan], dT[:-1]])
-    terms = {"H0": dT, "H1": lagged, "gA": -irr}
+    terms = {"H0": dT, "H1": lagged, "gA": -irr, "Q0": -np.ones(q.size)}
     dropped = [] if np.ptp(irr) > 0 else ["gA"]
     if previous.sum() < MIN_DAYS:
         dropped.append("H1")
-    while True:  # the lag dropped when its interval spans zero
+    while True:  # the lag and the constant gain dropped while their interval spans zero
         names = [k for k in terms if k not in dropped]
         rows = previous if "H1" in names else np.ones(q.size, dtype=bool)
         X = np.stack([terms[k][rows] for k in names], axis=1)
@@ -169,9 +175,13 @@ def steady_fit(data, zone: str = "T_zon", heating: str = "Q_hea") -> SteadyFit:
         beta, cov, dof = _ols(X, y)
         t = float(stats.t.ppf(0.975, max(dof, 1)))
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        if "H1" not in names or abs(beta[names.index("H1")]) > t * se[names.index("H1")]:
+        ratio = {
+            k: abs(beta[i]) / max(se[i], 1e-300) for i, k in enumerate(names) if k in ("H1", "Q0")
+        }
+        weakest = min(ratio, key=ratio.get, default=None)
+        if weakest is None or ratio[weakest] > t:
             break
-        dropped.append("H1")
+        dropped.append(weakest)
     c = np.asarray([k in ("H0", "H1") for k in names], dtype=float)
     hlc, hlc_se = float(c @ beta), float(np.sqrt(max(c @ cov @ c, 0.0)))
     hlc_int = (hlc - t * hlc_se, hlc + t * hlc_se)
@@ -200,6 +210,7 @@ def steady_fit(data, zone: str = "T_zon", heating: str = "Q_hea") -> SteadyFit:
         reasons=tuple(reasons),
         undetermined=tuple(undetermined),
         dropped=tuple(dropped),
+        q0=float(beta[names.index("Q0")]) if "Q0" in names else 0.0,
     )
 
 

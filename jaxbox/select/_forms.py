@@ -18,6 +18,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
+
 from ._heat_demand import HeatDemandSearch, Problem, heat_demand_search, held_zone
 from ._steady import steady_fit
 
@@ -90,12 +92,21 @@ def choose_form(
     if not held:
         return FormChoice(held=text)
     say(f"the zone is {text}: the heat-demand form too")
-    problem = Problem(gb.data, gb.train, gb.valid_period, zone, heating)
-    hd = heat_demand_search(
-        grammar, problem, starts=min(int(starts), 4), seed=seed or 0, max_depth=max_depth, say=say
-    )
+    try:  # another form that cannot be posed is a note, never the end of the search
+        problem = Problem(gb.data, gb.train, gb.valid_period, zone, heating)
+        hd = heat_demand_search(
+            grammar,
+            problem,
+            starts=min(int(starts), 4),
+            seed=seed or 0,
+            max_depth=max_depth,
+            say=say,
+        )
+        steady = steady_fit(gb.data, zone, heating)  # cheap: always, as a check on the HLC
+    except (ValueError, KeyError, np.linalg.LinAlgError, FloatingPointError) as err:
+        say(f"  the heat-demand and steady-state forms could not be posed: {err}")
+        return FormChoice(held=f"{text}; the other forms could not be posed: {err}")
     best = hd.best
-    steady = steady_fit(gb.data, zone, heating)  # cheap: always, as a check on the HLC
     rel_t = relative_rmse if accepted is not None else math.inf
     temp = (
         f"the temperature form's {accepted.model.name}: RMSE {rel_t:.3g} of the zone "

@@ -515,7 +515,7 @@ def heat_demand_search(
         guess = dict(parent_fit.params) if parent_fit is not None else None
         try:
             f = heat_demand_fit(structure, grammar, problem, guess=guess, starts=starts, seed=seed)
-        except ValueError as err:
+        except (ValueError, np.linalg.LinAlgError) as err:
             tree.append((structure.name, parent_name, str(err), "failed"))
             return None
         cut = {} if f.valid else _vanishing(f)
@@ -531,7 +531,7 @@ def heat_demand_search(
                     starts=max(2, starts // 2),
                     seed=seed,
                 )
-            except ValueError as err:
+            except (ValueError, np.linalg.LinAlgError) as err:
                 tree.append((structure.name, parent_name, str(err), "failed"))
                 return None
         say(

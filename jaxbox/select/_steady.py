@@ -81,6 +81,8 @@ class SteadyFit:
         return self.rmse_loo / max(self.q_std, 1e-9)
 
     def summary(self) -> str:
+        if not np.isfinite(self.hlc):
+            return f"steady-state form: not valid: {'; '.join(self.reasons)}"
         lo, hi = self.hlc_interval
         text = (
             f"steady-state form on {self.days} daily means: HLC {self.hlc:.4g} W/K "

@@ -178,3 +178,12 @@ def test_bad_arguments():
         make_detailed_zoo(1, heating="boiler")
     with pytest.raises(ValueError):
         make_detailed_zoo(1, days=60.0)
+
+
+def test_without_occupancy_the_same_building(zoo):
+    quiet = make_detailed_zoo(2, seed=3, occupancy=False)
+    for a, b in zip(zoo[:2], quiet, strict=True):
+        assert a.structure == b.structure and a.states == b.states
+        assert a.params["q_occ_peak"] == b.params["q_occ_peak"]
+        assert b.kpis["hlc"] <= a.kpis["hlc"]  # the ventilation at its base rate
+        assert b.hlc_parts["ventilation"] == pytest.approx(b.params["H_ven_base"])

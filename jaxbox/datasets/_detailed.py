@@ -490,7 +490,8 @@ def _building(k: int, name: str, rng, opts) -> DetailedBuilding:
     use = "office" if rng.random() < 0.3 else "home"
     # share of a week ventilated at the higher level
     a_week = pd.date_range("2013-09-02", periods=int(7 * 86400 / dt), freq=f"{int(dt)}s")
-    week = float(np.mean(_occupancy(a_week + pd.Timedelta(seconds=dt / 2.0), use) > 0.5))
+    on = 1.0 if opts["occupancy"] else 0.0
+    week = float(np.mean(on * _occupancy(a_week + pd.Timedelta(seconds=dt / 2.0), use) > 0.5))
     # the house: redrawn until its loss is plausible
     for _ in range(200):
         net, p, layout = _draw_envelope(rng)
@@ -515,7 +516,7 @@ def _building(k: int, name: str, rng, opts) -> DetailedBuilding:
     index = w.index
     N = len(index)
     mid = index - pd.Timedelta(seconds=dt / 2.0)
-    occ = _occupancy(mid, use)
+    occ = on * _occupancy(mid, use)
     # ventilation levels per interval: the base, and the base plus the extra while occupied
     vent = (occ > 0.5).astype(int)
     h_ven = (h_base, h_base + h_extra)
@@ -539,7 +540,7 @@ def _building(k: int, name: str, rng, opts) -> DetailedBuilding:
     else:
         t_gnd = np.full(N, float(rng.uniform(9.0, 13.0)))
     peak = p["floor_area"] * float(rng.uniform(2.0, 6.0))  # [W]
-    q_occ = peak * _occupancy(index, use)
+    q_occ = on * peak * _occupancy(index, use)
     U = np.zeros((N, len(_INPUTS)))
     U[:, _INPUTS.index("T_amb")] = t_amb
     U[:, _INPUTS.index("T_gnd")] = t_gnd
@@ -685,6 +686,7 @@ def make_detailed_zoo(
     days: float | None = None,
     heating: str | Sequence[str] = HEATING_KINDS,
     facades: float = 0.4,
+    occupancy: bool = True,
     prefix: str = "d",
 ) -> list[DetailedBuilding]:
     """``n`` detailed synthetic buildings whose truth is outside the component grammar.
@@ -741,6 +743,8 @@ def make_detailed_zoo(
         heating: heating kind, or a list to draw from (see
             :data:`~jaxbox.datasets.HEATING_KINDS`).
         facades: probability of the facade irradiance columns ``I_s``, ``I_e``, ``I_w``.
+        occupancy: ``False`` for the same buildings without occupancy gains and with the
+            ventilation at its base rate throughout (to measure what the unmeasured gains do).
         prefix: names are ``prefix`` + a zero-padded number.
 
     Returns:
@@ -761,6 +765,7 @@ def make_detailed_zoo(
         "days": days,
         "heating": tuple(heating) if isinstance(heating, list | tuple) else heating,
         "facades": float(facades),
+        "occupancy": bool(occupancy),
     }
     width = max(3, len(str(int(n) - 1)))
     zoo = []

@@ -470,10 +470,11 @@ class HeatDemandSearch:
     best: HeatDemandFit | None
     tree: tuple = ()
 
-    def tree_text(self) -> str:
+    def tree_text(self, accepted: bool = True) -> str:
+        """One line per candidate; ``*`` marks the best when ``accepted`` (the form chosen)."""
         lines = []
         for name, parent, fit, status in self.tree:
-            mark = "*" if self.best is not None and fit is self.best else " "
+            mark = "*" if accepted and self.best is not None and fit is self.best else " "
             where = "" if parent is None else f" (from {parent})"
             if isinstance(fit, HeatDemandFit):
                 extra = "" if fit.valid else f": {fit.reasons[0]}"

@@ -49,6 +49,12 @@ zone's measured spread, lower by a third: a zone fed the other zone's measured t
 an edge it does not owe to its structure); between lineages of as many zones, the lower such
 relative RMSE.
 
+A zone held by its thermostat (its temperature barely varies, the heating does) gives the
+temperature form little to predict: there the search also fits the heat-demand form (the
+heating from the zone's measured temperature through the same network) and the steady state
+(daily means), and accepts the form the data determine (:mod:`jaxbox.select._forms`);
+:attr:`Search.form` says which, :attr:`Search.form_model` holds a model of another form.
+
 Validity is judged lazily: a candidate's intervals and verdict are computed only when its
 criterion value could make it improve, which keeps the cost of a step close to the cost of its
 batched fits.
@@ -185,7 +191,8 @@ class Search(Selection):
         hd = self.choice.heat_demand
         if hd is not None and hd.tree:
             lines.append("heat-demand form (the heating from the zone's measured temperature):")
-            lines += ["  " + line for line in hd.tree_text().splitlines()]
+            chosen = self.choice.model is not None and self.choice.model is hd.best
+            lines += ["  " + line for line in hd.tree_text(chosen).splitlines()]
         if self.choice.steady is not None:
             lines.append(self.choice.steady.summary())
         if self.choice.why:

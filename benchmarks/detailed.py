@@ -1,7 +1,7 @@
 """Structure search on detailed buildings outside the grammar: can the heat-loss coefficient be
 trusted?
 
-For each building of :func:`jaxbox.datasets.make_detailed_zoo` (13–20-state networks with
+For each building of :func:`jaxbox.datasets.make_detailed_zoo` (15–20-state networks with
 multi-layer walls, occupancy, scheduled ventilation, sun on every facade, PI thermostats or
 open-loop heating, coloured and quantised sensor noise), the default ``jaxbox select`` is run
 (the structure search, criterion ``cv``, its default beam and starts, the data split in halves)
@@ -197,7 +197,7 @@ def markdown(doc: dict) -> str:
         f"jaxbox at commit{'s' if len(commits) > 1 else ''} {', '.join(commits)} (`+changes`: "
         "with uncommitted changes to `jaxbox/` in the working tree); raw numbers in "
         "`benchmarks/detailed.json`. Buildings of `jaxbox.datasets.make_detailed_zoo("
-        f"{doc['n']}, seed={doc['seed']})`: 13–20-state networks (multi-layer walls and roof, a "
+        f"{doc['n']}, seed={doc['seed']})`: 15–20-state networks (multi-layer walls and roof, a "
         "floor slab to the ground or a measured cellar, an internal mass, a radiator or a floor "
         "heating), unmeasured occupancy gains, scheduled ventilation, the sun on each facade, "
         "PI thermostats with night setback or open-loop PRBS/ROLBS heating, white and AR(1) "

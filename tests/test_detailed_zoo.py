@@ -38,7 +38,7 @@ def test_building_k_independent_of_n(zoo):
 def test_plausible_buildings(zoo):
     for b in zoo:
         assert isinstance(b, DetailedBuilding)
-        assert 6 <= b.states <= 20
+        assert 15 <= b.states <= 20
         assert 40.0 <= b.kpis["hlc"] <= 400.0
         assert b.step in ("10min", "30min", "60min")
         days = (b.data.index[-1] - b.data.index[0]) / pd.Timedelta(days=1)

@@ -1,6 +1,6 @@
 """Detailed synthetic buildings whose truth lies outside the component grammar.
 
-Each building of :func:`make_detailed_zoo` is a fine resistance–capacitance network of 13–20
+Each building of :func:`make_detailed_zoo` is a fine resistance–capacitance network of 15–20
 states (multi-layer walls and roof, a floor slab to the ground or a measured cellar, an internal
 mass, the air and a radiator or a floor heating), driven by real weather (the bundled twin-house
 data, Holzkirchen 2013), with the sun on every facade from the solar position and a
@@ -704,7 +704,7 @@ def make_detailed_zoo(
       temperature ``T_bou`` (the ambient smoothed over 2–5 days, 3–7 K warmer) is measured;
       every layer cut into 2–4 nodes, cut back to at most 20 states in all, with the air
       (and furniture, 2–5 times the air's capacity), an internal mass (20–80 kJ/(m²·K)) and
-      the heater — 13 to 20 states;
+      the heater — 15 to 20 states;
     * the sun: the measured global horizontal irradiance split into direct and diffuse (Erbs)
       at the solar position of Holzkirchen (47.85° N, 11.72° E, time stamps UTC+1) and cast on
       each facade (isotropic sky, ground reflectance 0.2): through the windows onto the floor

@@ -42,8 +42,11 @@ from jaxbox.validate import uncertainty  # noqa: E402
 
 #: horizons reported [h]
 HOURS = (1, 2, 4, 6, 12, 24)
-#: the fits (and, +θ, the bands with the uncertainty of their parameters)
-METHODS = ("oe", "ml", "oe+θ", "ml+θ")
+#: the fits: ``raw`` the stochastic form's bands as they are; plain, calibrated on the
+#: identification half (the default); ``+θ``, calibrated and with the parameters' uncertainty
+METHODS = ("oe raw", "ml raw", "oe", "ml", "oe+θ", "ml+θ")
+#: (label suffix, parameters' uncertainty, calibrate)
+VARIANTS = ((" raw", False, False), ("", False, True), ("+θ", True, True))
 
 
 def _cases(n_zoo: int, seed: int):
@@ -70,14 +73,20 @@ def _one(name: str, data, model: str, starts: int) -> list[dict]:
     for method in ("oe", "ml"):
         t0 = time.perf_counter()
         fit = jaxbox.fit_model(model, ident, method=method, starts=starts)
-        for with_theta in (False, True):
+        for suffix, with_theta, calibrate in VARIANTS:
             t1 = time.perf_counter()
             params = False
             try:
                 if with_theta:
                     params = True if method == "ml" else uncertainty(fit)
                 table = backtest(
-                    fit, data, start=origin, horizon="24h", every=every, parameters=params
+                    fit,
+                    data,
+                    start=origin,
+                    horizon="24h",
+                    every=every,
+                    parameters=params,
+                    calibrate=calibrate,
                 )
             except (FitError, ValueError) as err:  # a covariance that is not finite
                 print(f"{name:<34} {method}+θ: {err}", flush=True)
@@ -90,7 +99,7 @@ def _one(name: str, data, model: str, starts: int) -> list[dict]:
                 {
                     "building": name,
                     "model": model,
-                    "method": method + ("+θ" if with_theta else ""),
+                    "method": method + suffix,
                     "origins": table.attrs["origins"],
                     "fit_s": t1 - t0,
                     "backtest_s": t2 - t1,
@@ -145,9 +154,12 @@ def _markdown(rows: list[dict], args, total_s: float) -> str:
         "Each model is fitted on the first half of the data, by output error (`oe`: the noise of "
         "its stochastic form estimated from its residuals) and by maximum likelihood (`ml`); "
         "from every hour of the second half the Kalman state is propagated 1–24 h ahead with "
-        "the measured inputs (`jaxbox.forecast.backtest`). The bands of `oe` and `ml` are "
-        "those of the stochastic model (process and measurement noise); those of `oe+θ` and "
-        "`ml+θ` also hold the uncertainty of the estimated parameters, to first order "
+        "the measured inputs (`jaxbox.forecast.backtest`). The bands of `oe raw` and `ml raw` "
+        "are those of the stochastic model (process and measurement noise) as they are; those "
+        "of `oe` and `ml` (the default) are calibrated on the identification half: scaled at "
+        "each horizon to the model's own standardised errors of forecasts over that half "
+        "(never narrower than the raw bands); those of `oe+θ` and `ml+θ` are calibrated and "
+        "also hold the uncertainty of the estimated parameters, to first order "
         "(`parameters=True` for `ml`, `parameters=uncertainty(fit)` for `oe`: the forecast's "
         "sensitivities to the parameters and their covariance). Forecasts from neighbouring "
         "hours overlap, so the coverages of one building are correlated: read them to about "

@@ -76,7 +76,7 @@ def test_mean_is_the_simulation_when_the_state_is_known(data):
     form = _form(params)
     garbage = data.with_columns(T_zon=np.full(len(data), 35.0))
     history = garbage.slice(None, data.index[100])
-    out = forecast(form, history, data, horizon="30h")
+    out = forecast(form, history, data, horizon="30h", calibrate=False)
     model = form.model
     A, B, C, D = model.state_space_numpy(params)
     u = data.array(list(model.inputs))
@@ -114,7 +114,7 @@ def test_bands_match_a_monte_carlo_of_the_stochastic_model(data):
     form = _form(TRUE, x0_std=1.0)
     history = data.slice(None, data.index[60])
     steps = 12
-    out = forecast(form, history, data, horizon=steps)
+    out = forecast(form, history, data, horizon=steps, calibrate=False)
     m = np.asarray(out.attrs["state"])
     P = np.asarray(out.attrs["state_cov"])
     u = data.array(list(form.model.inputs))[60 : 60 + steps + 1]
@@ -142,6 +142,49 @@ def test_backtest_of_the_true_model_covers_at_its_nominal_levels(data):
     assert table["cover50"].mean() == pytest.approx(0.50, abs=0.08)
     # the forecast sd at 1 h is near the measurement noise plus one hour of diffusion
     assert table["sd"].iloc[0] == pytest.approx(np.hypot(0.05, 4e-4 * 60), rel=0.25)
+
+
+def test_calibration_equals_the_standardised_errors_of_forecasts_over_the_history(data):
+    """The factors against forecasts made one origin at a time by :func:`forecast` (uncalibrated):
+    the running maximum over the horizon of the mean squared standardised error, at least 1."""
+    wrong = _form({**TRUE, "gA": 0.0, "R_wal": 0.7 * TRUE["R_wal"]}, x0_std=1.0)
+    history = data.slice(None, data.index[80])
+    steps = 6
+    z2 = []
+    for o in range(0, 81 - steps):
+        f = forecast(
+            wrong, data.slice(None, data.index[o]), history, horizon=steps, calibrate=False
+        )
+        z2.append(((f["T_zon_measured"] - f["T_zon_mean"]) / f["T_zon_sd"]).to_numpy() ** 2)
+    expected = np.maximum.accumulate(np.maximum(np.mean(z2, axis=0), 1.0))
+    out = forecast(wrong, history, data, horizon=steps)
+    raw = forecast(wrong, history, data, horizon=steps, calibrate=False)
+    np.testing.assert_allclose(out["T_zon_sd"] / raw["T_zon_sd"], np.sqrt(expected), rtol=1e-8)
+    np.testing.assert_allclose(out["T_zon_mean"], raw["T_zon_mean"], rtol=0)
+    assert expected[-1] > 2.0 and "75 in-sample forecasts" in out.attrs["calibration"]
+    assert raw.attrs["calibration"] == "none (calibrate=False)"
+    short = forecast(wrong, data.slice(None, data.index[20]), data, horizon=steps)
+    assert short.attrs["calibration"].startswith("none: 15 in-sample forecasts")
+    with pytest.raises(FitError, match="calibrate must be True or False, got 'yes'"):
+        forecast(wrong, history, data, horizon=steps, calibrate="yes")
+
+
+def test_calibrated_bands_of_a_wrong_model_cover_and_of_the_true_model_stay(data):
+    """A model without its solar gain and with a wrong loss: its own bands hold far fewer than
+    95 % of the later measurements; calibrated on the data before the scored forecasts they hold
+    about as many as they should. The true model's bands barely move."""
+    wrong = _form({**TRUE, "gA": 0.0, "R_wal": 0.7 * TRUE["R_wal"]}, x0_std=1.0)
+    start = data.index[96]
+    raw = backtest(wrong, data, start=start, horizon="12h", calibrate=False)
+    cal = backtest(wrong, data, start=start, horizon="12h")
+    assert raw["cover95"].mean() < 0.7
+    assert cal["cover95"].mean() > 0.85
+    assert "in-sample forecasts" in cal.attrs["calibration"]
+    true = backtest(_form(TRUE, x0_std=1.0), data, start=start, horizon="12h")
+    true_raw = backtest(_form(TRUE, x0_std=1.0), data, start=start, horizon="12h", calibrate=False)
+    assert np.all(true["sd"] <= 1.25 * true_raw["sd"])
+    assert true["cover95"].mean() == pytest.approx(0.95, abs=0.04)
+    assert backtest(wrong, data, horizon="12h").attrs["calibration"].startswith("none (no start")
 
 
 @pytest.fixture(scope="module")

@@ -305,6 +305,7 @@ def forecast_command(args) -> int:
         "horizon_samples": len(frame),
         "noise": form.note,
         "parameters": bool(cov),
+        "calibration": frame.attrs["calibration"],
         "out": str(out),
         "outputs": {},
     }
@@ -329,6 +330,7 @@ def forecast_command(args) -> int:
         return 0
     with_theta = "; the bands hold the parameters' uncertainty" if cov else ""
     print(f"wrote {len(frame)} rows to {out} ({form.note}{with_theta})")
+    print(f"bands calibrated on the history: {frame.attrs['calibration']}")
     for o, row in summary["outputs"].items():
         end = frame.index[-1]
         print(f"{o} at {end}: {row['mean_end']:.2f} ± {row['sd_end']:.2f} °C (mean ± sd)")

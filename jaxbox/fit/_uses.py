@@ -17,14 +17,25 @@ class ModelUses:
 
         return stochastic_form(self)
 
-    def forecast(self, history, future, *, horizon="24h", x0=None, parameters=False):
+    def forecast(
+        self, history, future, *, horizon="24h", x0=None, parameters=False, calibrate=True
+    ):
         """Forecast of the outputs with 50 % and 95 % bands from the state the Kalman filter
         estimates at the end of ``history``, driven by the inputs of ``future`` over ``horizon``
         (samples or a duration such as ``"24h"``; ``parameters``: the bands also hold the
-        uncertainty of the estimate): :func:`jaxbox.forecast.forecast`."""
+        uncertainty of the estimate; ``calibrate``: the bands scaled to the model's own
+        multi-step errors over the history): :func:`jaxbox.forecast.forecast`."""
         from ..forecast import forecast
 
-        return forecast(self, history, future, horizon=horizon, x0=x0, parameters=parameters)
+        return forecast(
+            self,
+            history,
+            future,
+            horizon=horizon,
+            x0=x0,
+            parameters=parameters,
+            calibrate=calibrate,
+        )
 
     def heat_demand(self, history, future, *, setpoint, q_max, **options):
         """The heating power [W] that holds the zone at ``setpoint`` [°C] over the horizon,

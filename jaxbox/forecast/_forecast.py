@@ -16,6 +16,18 @@ uncertainty of the estimated parameters, to first order: the forecast mean's sen
 ``diag(J Σ_θ Jᵀ)`` to the variance, ``Σ_θ`` the covariance of the estimate (the inverse Hessian
 of a maximum-likelihood fit; for an output-error fit pass ``parameters=uncertainty(fit)``, its
 ``σ²(JᵀJ)⁻¹`` from :func:`jaxbox.validate.uncertainty`).
+
+**Calibration on the history** (``calibrate=True``, the default). The stochastic form's noise
+explains the one-step errors; a model's error over many hours (a solar gain it places wrongly,
+a slow state it lacks) grows faster than its process noise says, and the bands at 12–24 h
+would hold too few measurements. So the history itself is forecast from every origin whose
+horizon lies within it (at most :data:`CALIBRATION_ORIGINS`, evenly spread), and at each
+horizon step ``k`` and output the variance is scaled by ``c_k = max_{j ≤ k} max(1, mean(e_j² /
+S_j))``, the mean squared standardised error of those in-sample forecasts (kept ≥ 1, and
+non-decreasing in the horizon). The bands are then as wide as the model's own errors on the
+data it knows, never narrower than its noise. ``frame.attrs["calibration"]`` gives the factors
+(of the sd) per output at the last step, or says why there was none (a history shorter than
+the horizon plus :data:`CALIBRATION_MIN` origins).
 """
 
 from __future__ import annotations
@@ -39,11 +51,18 @@ __all__ = [
     "horizon_steps",
     "future_inputs",
     "BANDS",
+    "CALIBRATION_ORIGINS",
+    "CALIBRATION_MIN",
+    "calibration",
 ]
 
 #: the central bands reported, as fractions
 BANDS = (0.5, 0.95)
 _Z = {b: float(stats.norm.ppf(0.5 + b / 2)) for b in BANDS}
+#: at most this many in-sample forecasts calibrate the bands (evenly spread over the history)
+CALIBRATION_ORIGINS = 400
+#: no calibration from fewer in-sample forecasts than this
+CALIBRATION_MIN = 24
 
 
 def horizon_steps(horizon, dt: float) -> int:
@@ -138,6 +157,45 @@ def propagate(sysm: DiscreteSystem, m, P, u) -> dict[str, np.ndarray]:
     return {"x": x, "Px": Px, "y": y, "var": var}
 
 
+def calibration(run, steps: int, end: int | None = None) -> tuple[np.ndarray | None, str]:
+    """Variance factors ``[steps, p]`` from forecasts of the filtered data ``run`` itself (its
+    samples before ``end``), and a line that says what they rest on (see the module docstring).
+
+    ``None`` (and the reason) where fewer than :data:`CALIBRATION_MIN` origins leave a whole
+    horizon within the data.
+    """
+    n = len(run.y) if end is None else int(end)
+    origins = np.arange(0, n - steps)
+    if origins.size < CALIBRATION_MIN:
+        return None, (
+            f"none: {max(origins.size, 0)} in-sample forecasts of {steps} steps fit in the "
+            f"history, fewer than {CALIBRATION_MIN}"
+        )
+    if origins.size > CALIBRATION_ORIGINS:
+        origins = np.unique(np.linspace(0, n - steps - 1, CALIBRATION_ORIGINS).round().astype(int))
+    u = np.stack([run.u[o : o + steps + 1] for o in origins])
+    out = propagate(run.system, run.m[origins], run.P[origins], u)
+    meas = np.stack([run.y[o + 1 : o + steps + 1] for o in origins])
+    z2 = (meas - out["y"]) ** 2 / np.clip(out["var"], 1e-300, None)
+    with np.errstate(invalid="ignore"):
+        ratio = np.nanmean(np.where(np.isfinite(z2), z2, np.nan), axis=0)  # [H, p]
+    ratio = np.where(np.isfinite(ratio), ratio, 1.0)
+    factor = np.maximum.accumulate(np.maximum(ratio, 1.0), axis=0)
+    return factor, f"from {origins.size} in-sample forecasts of the history"
+
+
+def _calibrated(out: dict, run, steps: int, calibrate: bool, end: int | None = None) -> str:
+    """Scale ``out["var"]`` in place by the history's calibration; the line for ``attrs``."""
+    if not calibrate:
+        return "none (calibrate=False)"
+    factor, note = calibration(run, steps, end)
+    if factor is None:
+        return note
+    out["var"] = out["var"] * factor
+    last = ", ".join(f"{float(np.sqrt(f)):.2f}" for f in factor[-1])
+    return f"{note}: sd × {last} at the last step"
+
+
 def _frame(outputs: Sequence[str], index, y, var, measured=None) -> pd.DataFrame:
     sd = np.sqrt(np.clip(var, 0.0, None))
     cols: dict[str, np.ndarray] = {"step": np.arange(1, len(index) + 1)}
@@ -221,6 +279,7 @@ def forecast(
     horizon: int | str | pd.Timedelta = "24h",
     x0: Mapping[str, float] | None = None,
     parameters: bool | tuple = False,
+    calibrate: bool = True,
 ) -> pd.DataFrame:
     """Forecast the outputs of a fitted model with their uncertainty.
 
@@ -240,14 +299,18 @@ def forecast(
             module docstring): ``True`` (a maximum-likelihood fit's covariance), an
             :class:`~jaxbox.validate.Uncertainty` (``jaxbox.validate.uncertainty(fit)``), or
             ``(names, covariance)`` [SI²].
+        calibrate: scale the bands to the model's own multi-step errors over the history
+            (see the module docstring); ``False``: the stochastic form's bands as they are.
 
     Returns:
         A DataFrame indexed by time (``t + step`` … ``t + horizon``): ``step`` (samples after
         ``t``) and per output ``<output>_mean``, ``_sd``, ``_lo50``, ``_hi50``, ``_lo95``,
         ``_hi95`` [°C, K] (and ``_measured`` where ``future`` holds the output). ``attrs``:
         ``model``, ``origin``, ``noise`` (where the noise comes from), ``state`` and
-        ``state_cov`` (the filtered state at ``t`` [°C] and its covariance [K²]).
+        ``state_cov`` (the filtered state at ``t`` [°C] and its covariance [K²]),
+        ``calibration`` (what scaled the bands).
     """
+    _check_flag(calibrate, "calibrate")
     form = stochastic_form(result)
     model = form.model
     history = as_data(history, "history")
@@ -257,6 +320,7 @@ def forecast(
     steps = horizon_steps(horizon, dt)
     u = future_inputs(model, history, future, steps)
     out = propagate(run.system, run.m[-1], run.P[-1], u)
+    note = _calibrated(out, run, steps, calibrate)
     cov = _covariance_of(result, parameters)
     if cov is not None:
 
@@ -273,6 +337,7 @@ def forecast(
     frame = _frame(model.outputs, index, out["y"], out["var"], measured)
     frame.attrs.update(_attrs(form, history.index[-1], run.m[-1], run.P[-1]))
     frame.attrs["parameters"] = cov is not None
+    frame.attrs["calibration"] = note
     return frame
 
 
@@ -297,6 +362,7 @@ def backtest(
     horizon: int | str | pd.Timedelta = "24h",
     every: int = 1,
     parameters: bool | tuple = False,
+    calibrate: bool = True,
 ) -> pd.DataFrame:
     """Forecasts from many origins over measured data, scored against the measurements.
 
@@ -328,6 +394,15 @@ def backtest(
         )
     u = np.stack([run.u[o : o + steps + 1] for o in origins])
     out = propagate(run.system, run.m[origins], run.P[origins], u)
+    _check_flag(calibrate, "calibrate")
+    if start is None:
+        note = (
+            "none (no start: no history before the scored forecasts)"
+            if calibrate
+            else ("none (calibrate=False)")
+        )
+    else:
+        note = _calibrated(out, run, steps, calibrate, end=first)
     cov = _covariance_of(result, parameters)
     if cov is not None:
 
@@ -366,6 +441,12 @@ def backtest(
             "noise": form.note,
             "origins": int(origins.size),
             "parameters": cov is not None,
+            "calibration": note,
         }
     )
     return table
+
+
+def _check_flag(value, name: str) -> None:
+    if not isinstance(value, bool | np.bool_):
+        raise FitError(f"{name} must be True or False, got {value!r}")

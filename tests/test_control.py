@@ -172,3 +172,42 @@ def test_upper_edge_is_priced_and_never_heated_past():
     np.testing.assert_allclose(plan.above, np.clip(free - 24.0, 0, None), atol=1e-9)
     kh = DT / 3600.0
     assert plan.cost == pytest.approx(2.0 * kh * np.clip(free - 24.0, 0, None).sum(), rel=1e-7)
+
+
+@pytest.mark.slow
+def test_closed_loop_check_tells_a_model_fit_for_control_from_one_that_is_not():
+    """The fit of a zoo building's true structure controls it as well as the truth (model cost
+    near 1, the band held); the same fit with its resistances at 40 % (a heat loss 2.5 times
+    too high) is not fit for control. The verdict carries the check where the plant is given."""
+    import dataclasses
+
+    from jaxbox.control import MAX_MODEL_COST, closed_loop_check
+    from jaxbox.datasets import make_zoo
+    from jaxbox.validate import check_validity
+
+    (b,) = make_zoo(
+        1,
+        seed=38,
+        zones=(1,),
+        step="60min",
+        days=12,
+        heating="prbs",
+        gaps=0.0,
+        offset=0.0,
+        max_states=2,
+        prefix="m",
+    )
+    n = len(b.data)
+    fit = jaxbox.fit_model(b.structure, b.data.slice(None, b.data.index[(n - 1) // 2]), starts=2)
+    verdict = check_validity(fit, plant=b)
+    good = verdict.closed_loop
+    assert good.ok and abs(good.model_cost - 1.0) < 0.03 and good.days == pytest.approx(5.0)
+    assert good.discomfort_kh_per_day <= 1.0
+    assert "(control) closed loop on the true building" in verdict.summary()
+    assert verdict.to_dict()["closed_loop"]["model_cost"] == good.model_cost
+    scaled = {k: v * 0.4 if k.startswith("R_") else v for k, v in fit.params.items()}
+    bad = closed_loop_check(dataclasses.replace(fit, params=scaled), b, days=3)
+    assert not bad.ok and bad.model_cost > MAX_MODEL_COST
+    assert "NOT fit for control" in bad.line
+    with pytest.raises(TypeError, match="building must be a jaxbox.datasets.ZooBuilding"):
+        closed_loop_check(fit, b.data)

@@ -9,8 +9,14 @@ estimate); :class:`StateSpaceModel` saves it as JSON, NPZ, a Modelica model
 time-varying price plus the price of discomfort, the heater's bounds) solved as a linear program
 by HiGHS; :func:`closed_loop` runs it, with the Kalman state at each step
 (:class:`KalmanTracker`), or a :class:`PIController`, on a simulated building.
+:func:`closed_loop_check` tells whether a fit is fit for control, where the true building is at
+hand: its MPC against the true model's in closed loop (the verdict's closed-loop line).
 """
 
+from ._check import MAX_DISCOMFORT as MAX_DISCOMFORT
+from ._check import MAX_MODEL_COST as MAX_MODEL_COST
+from ._check import ClosedLoopCheck as ClosedLoopCheck
+from ._check import closed_loop_check as closed_loop_check
 from ._export import FORMATS as FORMATS
 from ._export import StateSpaceModel as StateSpaceModel
 from ._export import modelica_model as modelica_model

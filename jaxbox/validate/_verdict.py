@@ -118,8 +118,8 @@ class Flag:
         kind: ``failed``, ``not_converged``, ``at_bound``, ``non_physical``, ``time_constant``,
             ``heat_loss``, ``capacity``, ``prediction``, ``implausible_data``, ``not_identifiable``,
             ``poorly_identifiable``, ``wide_interval``, ``no_intervals`` (invalidating) or
-            ``fast_dynamics``, ``multistart``, ``residuals`` (warnings); ``at_bound`` and
-            ``implausible_data`` can be warnings too.
+            ``fast_dynamics``, ``multistart``, ``residuals``, ``control`` (warnings);
+            ``at_bound`` and ``implausible_data`` can be warnings too.
         parameters: the parameters concerned (may be empty).
         message: the reason in words.
         severe: True when it makes the model invalid.
@@ -150,6 +150,10 @@ class Verdict:
         flags: every finding, structured.
         time_constants: time constants of the state matrix [s], ascending (constant nodes left
             out).
+        closed_loop: where the true building was at hand (``plant=``), the
+            :class:`~jaxbox.control.ClosedLoopCheck` of the model's MPC against the true
+            model's; else ``None``. A model not fit for control gets a warning (``control``),
+            not a reason: its validity is judged on its fit.
     """
 
     valid: bool
@@ -157,6 +161,7 @@ class Verdict:
     warnings: tuple[str, ...]
     flags: tuple[Flag, ...]
     time_constants: np.ndarray
+    closed_loop: object = None
 
     def __bool__(self) -> bool:
         return self.valid
@@ -177,6 +182,7 @@ class Verdict:
             "warnings": list(self.warnings),
             "flags": [f.to_dict() for f in self.flags],
             "time_constants_h": [float(t) / 3600.0 for t in self.time_constants],
+            "closed_loop": None if self.closed_loop is None else self.closed_loop.to_dict(),
         }
 
     def summary(self) -> str:
@@ -184,6 +190,8 @@ class Verdict:
         lines = [head]
         lines += [f"  - {r}" for r in self.reasons]
         lines += [f"  (warning) {w}" for w in self.warnings]
+        if self.closed_loop is not None and self.closed_loop.ok:
+            lines.append(f"  (control) {self.closed_loop.line}")
         return "\n".join(lines)
 
 
@@ -809,6 +817,7 @@ def check_validity(
     slowest_tau_range: tuple[float, float] | None = SLOWEST_TAU_RANGE,
     check_data: bool = True,
     data_overrides: Mapping[str, tuple[float, float]] | None = None,
+    plant=None,
 ) -> Verdict:
     """The validity verdict of a fit, with reasons.
 
@@ -844,6 +853,10 @@ def check_validity(
         check_data: check the model's columns of the identification data (and of the
             validation data, with ``validation``) with :func:`jaxbox.data.find_implausible`.
         data_overrides: plausible ranges per column for that check (``{"T_zon": (lo, hi)}``).
+        plant: the true building, where it is at hand (a one-zone
+            :class:`~jaxbox.datasets.ZooBuilding` whose data ``result`` was fitted on): the
+            verdict gains a closed-loop line, :func:`jaxbox.control.closed_loop_check` (an MPC
+            on the model against one on the truth, over the data after the fit's).
 
     Returns:
         :class:`Verdict` (truthy when valid).
@@ -888,6 +901,13 @@ def check_validity(
         or None,
     )
     flags = [flag for check in _CHECKS for flag in check(ctx)]
+    loop = None
+    if plant is not None:
+        from ..control import closed_loop_check
+
+        loop = closed_loop_check(result, plant)
+        if not loop.ok:
+            flags.append(Flag("control", (), loop.line, severe=False))
     reasons = tuple(f.message for f in flags if f.severe)
     warnings = tuple(f.message for f in flags if not f.severe)
     return Verdict(
@@ -896,4 +916,5 @@ def check_validity(
         warnings=warnings,
         flags=tuple(flags),
         time_constants=ctx.tau,
+        closed_loop=loop,
     )

@@ -52,6 +52,7 @@ class FormChoice:
     steady: object = None
 
     def to_dict(self) -> dict:
+        """JSON-ready: ``form``, ``form_why``, ``held``, ``form_model``, ``steady``."""
         return {
             "form": self.form,
             "form_why": self.why,

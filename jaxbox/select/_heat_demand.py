@@ -101,6 +101,7 @@ class Problem:
         self.has_valid = valid is not None
 
     def column(self, name: str) -> np.ndarray:
+        """A column of the data, gaps interpolated (``"one"``: ones)."""
         if name == "one":
             return np.ones(len(self.frame))
         return np.asarray(self.frame[name], dtype=float)
@@ -147,6 +148,7 @@ class HeatDemandFit:
         return self.rmse_valid / max(self.q_std, 1e-9)
 
     def summary(self) -> str:
+        """The model, its HLC, errors and verdict, then one line per parameter."""
         lo, hi = self.hlc_interval
         lines = [
             f"{self.structure} in its heat-demand form: HLC {self.hlc:.4g} W/K "
@@ -163,6 +165,7 @@ class HeatDemandFit:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
+        """JSON-ready fields (SI units)."""
         d = dataclasses.asdict(self)
         d["relative"] = self.relative
         d["hlc_interval"] = list(self.hlc_interval)

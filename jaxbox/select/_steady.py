@@ -81,6 +81,7 @@ class SteadyFit:
         return self.rmse_loo / max(self.q_std, 1e-9)
 
     def summary(self) -> str:
+        """The HLC, the aperture, the error and the verdict on one line."""
         if not np.isfinite(self.hlc):
             return f"steady-state form: not valid: {'; '.join(self.reasons)}"
         lo, hi = self.hlc_interval
@@ -103,6 +104,7 @@ class SteadyFit:
         return text + ("valid" if self.valid else "not valid: " + "; ".join(self.reasons))
 
     def to_dict(self) -> dict:
+        """JSON-ready fields (SI units)."""
         d = dataclasses.asdict(self)
         d.update(
             structure=self.structure,

@@ -113,6 +113,14 @@ def test_the_method_and_a_warning_are_reported(coloured_fits):
         kpis(r, interval="bootstrap")
 
 
+def test_a_record_shorter_than_the_slowest_time_constant_is_named():
+    """36 h of data for a slowest time constant of 36 h: the HLC extrapolates."""
+    r = fit_model("ZonWal", _data(3, 0.0, 0.05, n=30), starts=_start())
+    k = kpis(r, interval="hac")
+    assert max(t.value for t in k.time_constants) > 30
+    assert any("longer than the identification record" in w for w in k.warnings), k.warnings
+
+
 # ---- structure spread: a stand-in selection ----------------------------------------------------
 
 

@@ -84,7 +84,9 @@ def _criterion(selection, case) -> float:
 def near_best(selection, margin: float = NEAR_BEST) -> list:
     """The accepted case of ``selection`` and the valid candidates of the same zones whose
     criterion is within ``margin`` of it (relative for the validation SE, ``2·margin/0.02``
-    units for AIC/BIC), the accepted one first."""
+    units for AIC/BIC), the accepted one first. A search judges validity lazily; a close
+    candidate it left unjudged is judged here (:func:`~jaxbox.validate.check_validity`, without
+    storing the verdict in the case)."""
     gb = selection.greybox
     acc = selection.case
     if acc is None:
@@ -94,7 +96,7 @@ def near_best(selection, margin: float = NEAR_BEST) -> list:
     out = [acc]
     for name in selection.order:
         case = gb.cases.get(name)
-        if case is None or case is acc or not case.done or not case.is_valid:
+        if case is None or case is acc or not case.done:
             continue
         if tuple(case.model.outputs) != tuple(acc.model.outputs):
             continue
@@ -107,9 +109,29 @@ def near_best(selection, margin: float = NEAR_BEST) -> list:
             close = c <= c0 + 2.0 * margin / NEAR_BEST
         else:
             close = False
-        if close:
+        if close and _valid(case):
             out.append(case)
     return out
+
+
+def _valid(case) -> bool:
+    """Whether a candidate is valid: its verdict, or one judged now when it has none."""
+    if getattr(case, "verdict", None) is not None or getattr(case, "validation", None) is None:
+        return bool(case.is_valid)
+    from ._uncertainty import uncertainty
+    from ._verdict import check_validity
+
+    try:
+        unc = uncertainty(case.result)
+    except ValueError:
+        unc = None
+    try:
+        verdict = check_validity(
+            case.result, unc, check_intervals=unc is not None, validation=case.validation
+        )
+    except (ValueError, np.linalg.LinAlgError):
+        return False
+    return bool(verdict.valid)
 
 
 def hlc_interval(

@@ -109,8 +109,9 @@ class Kpis:
         residuals: ``{"lag1", "ljung_box_p", "white", "bandwidth", "inflation"}`` of the
             identification residuals (``bandwidth`` [samples] and ``inflation`` (HAC over
             white standard errors, median over the parameters) of the HAC covariance).
-        warnings: what the intervals cannot vouch for (white residuals assumed where they are
-            not).
+        warnings: what the intervals cannot vouch for: white residuals assumed where they
+            are not; a slowest time constant longer than the identification record (the HLC
+            then extrapolates to a steady state the data never came near).
     """
 
     hlc: KPI | None
@@ -363,6 +364,14 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
             sol = make(i, "solar_aperture", "m²")
             i += 1
     taus = tuple(make(j, f"tau{j - i + 1}", "h") for j in range(i, len(values)))
+    record_h = len(result.data) * float(result.data.step) / 3600.0
+    slowest = max((t.value for t in taus), default=0.0)
+    if hlc is not None and slowest > record_h:
+        warnings += (
+            f"the slowest time constant ({slowest:.3g} h) is longer than the identification "
+            f"record ({record_h:.3g} h): the HLC is a steady state the data never came near, "
+            "and its interval holds only if the structure is right",
+        )
     return Kpis(
         hlc=hlc,
         solar_aperture=sol,

@@ -33,7 +33,7 @@ SETTINGS = settings(
 #: (separator, decimal mark) of the CSV dialects
 DIALECTS = [(",", "."), (";", ","), ("\t", "."), (";", ".")]
 #: how time stamps are written: (name, formatter of a naive UTC DatetimeIndex, load options)
-TIMES = ["iso", "iso-t", "offset", "epoch-s", "epoch-min"]
+TIMES = ["iso", "iso-t", "offset", "epoch-s", "epoch-min", "day-first", "dotted"]
 
 
 @st.composite
@@ -76,6 +76,10 @@ def _write(frame: pd.DataFrame, path, dialect, timefmt) -> dict:
             "%Y-%m-%d %H:%M:%S%z"
         )
         options["tz"] = "UTC"
+    elif timefmt == "day-first":  # 01/02/2024 13:00 is the 1st of February: from the order
+        stamps = index.strftime("%d/%m/%Y %H:%M")
+    elif timefmt == "dotted":  # as a German spreadsheet writes it
+        stamps = index.strftime("%d.%m.%Y %H:%M")
     elif timefmt == "epoch-s":
         stamps = (index - pd.Timestamp("1970-01-01")) // pd.Timedelta(seconds=1)
     else:  # minutes since an epoch
@@ -105,6 +109,34 @@ def test_a_clean_file_in_any_dialect_is_read_with_its_values(tmp_path, frame, di
             data.array(name).ravel(), frame[name].to_numpy(), rtol=0, atol=1e-9
         )
     check_plausibility(data, warn=False)  # a plausible building passes the checks
+
+
+@SETTINGS
+@given(
+    frame=buildings(),
+    dialect=st.sampled_from([(";", ",", "."), ("\t", ".", ","), (";", ".", "'"), (";", ",", " ")]),
+    timefmt=st.sampled_from(TIMES),
+)
+def test_thousands_separators_are_read_with_their_values(tmp_path, frame, dialect, timefmt):
+    """Every number written with a thousands separator (1.501,25 / 1,501.25 / 1'501.25 /
+    1 501,25) and read back with ``thousands=``."""
+    sep, decimal, thousands = dialect
+    frame = frame.assign(Q_hea=frame["Q_hea"] * 3.0)  # powers above 1000 W
+    path = tmp_path / "building.csv"
+    options = _write(frame, path, (sep, decimal), timefmt)
+    table = pd.read_csv(path, sep=sep, dtype=str)
+    for name in frame.columns:
+        text = [f"{v:,.4f}" for v in frame[name]]  # 1,501.2500
+        table[name] = [
+            t.replace(",", "\0").replace(".", decimal).replace("\0", thousands) for t in text
+        ]
+    table.to_csv(path, sep=sep, index=False)
+    data = load(path, **options, thousands=thousands)
+    assert _same_stamps(data, frame)
+    for name in frame.columns:
+        np.testing.assert_allclose(
+            data.array(name).ravel(), frame[name].to_numpy(), rtol=0, atol=1e-9
+        )
 
 
 @SETTINGS

@@ -14,7 +14,8 @@ interval ``[t_k, t_k+1]`` is what the zone node's balance asks for::
 
 compared with the measured interval mean ``(Q_k + Q_k+1)/2`` (first-order hold). The fit is a
 least-squares fit of the heating [W] (:func:`scipy.optimize.least_squares`, a few starts), the
-other nodes starting in steady state with the first day's mean inputs. The 95 % intervals come
+other nodes' initial temperatures estimated with the rest (from their steady state with the
+first day's mean inputs; they judge nothing in the verdict). The 95 % intervals come
 from the prewhitened Newey–West (HAC) covariance of :mod:`jaxbox.validate._hlc_hac` (the
 residuals of hourly heating are autocorrelated; ``σ²(JᵀJ)⁻¹`` would understate them). The
 heat-loss coefficient is the steady-state heat the zone node loses per kelvin
@@ -47,9 +48,6 @@ Z95 = 1.959963984540054
 HELD_STD = 0.6
 #: … and at most this fraction of the ambient temperature's std
 HELD_RATIO = 0.15
-#: samples at the start of the record left out of the identification residuals (the other nodes
-#: start in steady state with the first day's mean inputs)
-WARMUP = 12
 
 
 def held_zone(data, zone: str = "T_zon", heating: str = "Q_hea") -> tuple[bool, str]:
@@ -96,7 +94,6 @@ class Problem:
             return np.asarray(m)
 
         self.ident = mask(ident)
-        self.ident[:WARMUP] = False
         self.valid = mask(valid) if valid is not None else self.ident
         self.has_valid = valid is not None
 
@@ -192,8 +189,10 @@ class _Network:
         self.rest = [j for j in range(len(self.inputs)) if j != self.qi]
         self.names = [n for n in model.param_names if not (n.startswith("T_") and n.endswith("0"))]
         self.fixed = {k: v for k, v in fixed.items() if k in self.names}
-        self.free = [n for n in self.names if n not in self.fixed]
-        self.log = [model.parameter(n).lower > 0 for n in self.free]
+        # the other nodes' initial temperatures are estimated (linear, within the data's range)
+        self.x0_names = [nodes[i].T0 for i in self.o]
+        self.free = [n for n in self.names if n not in self.fixed] + self.x0_names
+        self.log = [n not in self.x0_names and model.parameter(n).lower > 0 for n in self.free]
         names = self.names
         defaults = {n: model.parameter(n).default for n in model.param_names}
 
@@ -205,17 +204,25 @@ class _Network:
         self._rc = jax.jit(rc)
         self.u = np.stack([problem.column(c) for c in self.inputs], axis=1)
         self.tz = problem.column(problem.zone)
+        temps = np.concatenate([self.tz, problem.column("T_amb")])
+        self.t_range = (float(np.nanmin(temps)) - 5.0, float(np.nanmax(temps)) + 5.0)
+
+    def limits(self, name: str) -> tuple[float, float]:
+        """Bounds of a parameter (SI): an initial temperature within the data's range."""
+        if name in self.x0_names:
+            return self.t_range
+        return self.model.parameter(name).lower, self.model.parameter(name).upper
 
     # parameters <-> search coordinates
     def theta(self, p) -> dict:
         pairs = zip(self.free, p, self.log, strict=True)
         vals = {n: (math.exp(x) if lg else x) for n, x, lg in pairs}
-        return {n: vals.get(n, self.fixed.get(n)) for n in self.names}
+        return {n: vals.get(n, self.fixed.get(n)) for n in self.names + self.x0_names}
 
     def coords(self, theta: dict) -> np.ndarray:
         out = []
         for n, lg in zip(self.free, self.log, strict=True):
-            lo, hi = self.model.parameter(n).lower, self.model.parameter(n).upper
+            lo, hi = self.limits(n)
             v = float(np.clip(theta[n], lo, hi))
             out.append(math.log(v) if lg else v)
         return np.asarray(out)
@@ -223,7 +230,7 @@ class _Network:
     def bounds(self):
         lo, hi = [], []
         for n, lg in zip(self.free, self.log, strict=True):
-            a, b = self.model.parameter(n).lower, self.model.parameter(n).upper
+            a, b = self.limits(n)
             lo.append(math.log(a) if lg else a)
             hi.append(math.log(b) if lg else b)
         return np.asarray(lo), np.asarray(hi)
@@ -248,7 +255,8 @@ class _Network:
         if o:
             if np.any(B[np.ix_(o, [self.qi])] != 0.0):
                 raise ValueError("the heating enters a node other than the zone")
-            xbar = _node_means(A, B, z, o, self.rest, tz, u, dt)
+            x0 = np.asarray([theta[n] for n in self.x0_names], dtype=float)
+            xbar = _node_means(A, B, z, o, self.rest, tz, u, dt, x0)
             flow = flow + cz * (xbar @ A[z, o])
         return (cz * np.diff(tz) / dt - flow) / bq
 
@@ -263,10 +271,19 @@ class _Network:
         return float(-caps[z] * row)
 
 
-def _node_means(A, B, z, o, rest, tz, u, dt) -> np.ndarray:
+def _steady_nodes(A, B, z, o, rest, tz, u, dt) -> np.ndarray:
+    """Temperatures [°C] of the nodes ``o`` in steady state with the first day's mean zone
+    temperature ``tz`` and inputs ``u``."""
+    first = max(1, min(len(tz), int(round(86400.0 / dt))))
+    w = np.concatenate([[np.mean(tz[:first])], np.mean(u[:first], axis=0)])
+    Bo = np.concatenate([A[np.ix_(o, [z])], B[np.ix_(o, rest)]], axis=1)
+    return np.linalg.solve(A[np.ix_(o, o)], -Bo @ w)
+
+
+def _node_means(A, B, z, o, rest, tz, u, dt, x0=None) -> np.ndarray:
     """Mean temperature of the nodes ``o`` over each interval, driven by the zone's imposed
-    temperature ``tz`` and the inputs ``u`` (first-order hold), exact (one matrix exponential);
-    in steady state at the start with the first day's mean inputs."""
+    temperature ``tz`` and the inputs ``u`` (first-order hold), exact (one matrix exponential),
+    from ``x0`` (``None``: in steady state with the first day's mean inputs)."""
     n = len(o)
     Ao = A[np.ix_(o, o)]
     Bo = np.concatenate([A[np.ix_(o, [z])], B[np.ix_(o, rest)]], axis=1)
@@ -280,8 +297,10 @@ def _node_means(A, B, z, o, rest, tz, u, dt) -> np.ndarray:
     E = linalg.expm(M * dt)
     Ix, Iw, Iv = E[:n, n : 2 * n], E[:n, 2 * n : 2 * n + m], E[:n, 2 * n + m :]
     Xx, Xw, Xv = E[n : 2 * n, n : 2 * n], E[n : 2 * n, 2 * n : 2 * n + m], E[n : 2 * n, 2 * n + m :]
-    first = w[: max(1, min(len(w), int(round(86400.0 / dt))))].mean(axis=0)
-    x = np.linalg.solve(Ao, -Bo @ first)
+    if x0 is None:
+        x = _steady_nodes(A, B, z, o, rest, tz, u, dt)
+    else:
+        x = np.asarray(x0, dtype=float)
     v = np.diff(w, axis=0) / dt
     # x_{k+1} = Xx x_k + c_k with c_k known: a linear recurrence
     c = w[:-1] @ Xw.T + v @ Xv.T
@@ -327,6 +346,11 @@ def heat_demand_fit(
     base = {n: net.model.parameter(n).default for n in net.names}
     base.update({k: v for k, v in (guess or {}).items() if k in base})
     base.update(net.fixed)
+    if net.o:  # initial temperatures: in steady state with the first day's mean inputs
+        A, B, _ = net.matrices(base)
+        x = _steady_nodes(A, B, net.z, net.o, net.rest, net.tz, net.u[:, net.rest], problem.dt)
+        for n, v in zip(net.x0_names, x, strict=True):
+            base[n] = (guess or {}).get(n, float(v))
     lo, hi = net.bounds()
     scale = float(np.nanstd(problem.q_mean[problem.ident])) or 1.0
     y, mi = problem.q_mean, problem.ident
@@ -366,10 +390,10 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
     J = np.asarray(sol.jac, dtype=float) * scale
     lo, hi = net.bounds()
     width = hi - lo
-    on_bound = [
+    on_bound = [  # (an initial temperature the fit leaves at a bound judges nothing)
         n_
         for n_, x, a, b, w in zip(net.free, p, lo, hi, width, strict=True)
-        if (x - a) < 1e-4 * w or (b - x) < 1e-4 * w
+        if ((x - a) < 1e-4 * w or (b - x) < 1e-4 * w) and n_ not in net.x0_names
     ]
     try:
         cov = _hac(J, e_id)
@@ -381,7 +405,7 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
         v = theta[name]
         half = Z95 * sd[i] * (abs(v) if lg else 1.0)  # delta method in value space
         intervals[name] = (v - half, v + half)
-        if not np.isfinite(half) or half > MAX_REL_CI * abs(v):
+        if name not in net.x0_names and (not np.isfinite(half) or half > MAX_REL_CI * abs(v)):
             undetermined.append(name)
     hlc = net.hlc(theta)
     g = np.zeros(k)
@@ -400,7 +424,7 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
         reasons.append(f"HLC {hlc:.3g} W/K not positive")
     return HeatDemandFit(
         structure=net.model.name,
-        params={n_: float(theta[n_]) for n_ in net.names},
+        params={n_: float(theta[n_]) for n_ in net.names + net.x0_names},
         fixed={k_: float(v) for k_, v in net.fixed.items()},
         intervals=intervals,
         hlc=hlc,

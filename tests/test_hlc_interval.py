@@ -152,19 +152,20 @@ def _selection(cases, accepted="a"):
 
 def test_near_best_models_widen_the_interval(coloured_fits):
     """Two near-best models that disagree (the same structure fitted to two replicates, HLCs
-    apart): the interval is the union of theirs; one outside the margin or not valid counts
-    not."""
+    apart): the interval is the union of theirs; one outside the margin, not valid, or with
+    the accepted one's criterion (the same model) counts not."""
     ks = [kpis(r, interval="hac") for r in coloured_fits[:6]]
     order = np.argsort([k.hlc.value for k in ks])
     lo_i, hi_i = int(order[0]), int(order[-1])
     a = _Case("a", coloured_fits[lo_i], 0.100)
     b = _Case("b", coloured_fits[hi_i], 0.101)  # within 2 %
     far = _Case("far", coloured_fits[int(order[2])], 0.2)
-    bad = _Case("bad", coloured_fits[int(order[3])], 0.1, is_valid=False)
+    bad = _Case("bad", coloured_fits[int(order[3])], 0.1005, is_valid=False)
     alone = hlc_interval(_selection([a, far, bad]))
     assert alone.method == HAC and len(alone.models) == 1
     assert alone.ci95 == pytest.approx(ks[lo_i].hlc.ci95)
-    sel = _selection([a, b, far, bad])
+    same = _Case("same", coloured_fits[hi_i], 0.1000001)  # a's criterion: a vanished component
+    sel = _selection([a, b, far, bad, same])
     assert [c.name for c in near_best(sel)] == ["a", "b"]
     both = hlc_interval(sel)
     assert "structure spread over 2 near-best models" in both.method
@@ -182,7 +183,7 @@ def test_the_select_outputs_carry_the_method(coloured_fits):
     from jaxbox.cli._select import _hlc, _hlc_text
     from jaxbox.report._html import _hlc_section
 
-    sel = _selection([_Case("a", coloured_fits[0], 0.1), _Case("b", coloured_fits[1], 0.1)])
+    sel = _selection([_Case("a", coloured_fits[0], 0.1), _Case("b", coloured_fits[1], 0.1005)])
     doc = _hlc(sel)
     assert doc["method"].startswith(HAC) and doc["ci95"][0] < doc["value"] < doc["ci95"][1]
     assert doc["method"] in _hlc_text(doc)

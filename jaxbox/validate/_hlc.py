@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import weakref
 
 import numpy as np
 
@@ -26,6 +27,12 @@ __all__ = ["HlcInterval", "hlc_interval", "near_best", "NEAR_BEST"]
 
 #: relative criterion margin of the near-best candidates (the structure search's default margin)
 NEAR_BEST = 0.02
+#: criteria closer than this (relative) are of the same model (a component that vanished)
+SAME = 1e-4
+#: the most candidates left unjudged by the search that one call judges
+MAX_JUDGED = 3
+#: verdicts judged here, per case (weakly: they go with their cases)
+_VERDICTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,14 +93,16 @@ def near_best(selection, margin: float = NEAR_BEST) -> list:
     criterion is within ``margin`` of it (relative for the validation SE, ``2·margin/0.02``
     units for AIC/BIC), the accepted one first. A search judges validity lazily; a close
     candidate it left unjudged is judged here (:func:`~jaxbox.validate.check_validity`, without
-    storing the verdict in the case)."""
+    storing the verdict in the case; at most :data:`MAX_JUDGED` per call, closest first). A
+    candidate whose criterion equals (within :data:`SAME`) that of one already taken is the
+    same model with a component that vanished and is left out."""
     gb = selection.greybox
     acc = selection.case
     if acc is None:
         return []
     crit = getattr(selection, "criterion", "cv")
     c0 = _criterion(selection, acc)
-    out = [acc]
+    close = []
     for name in selection.order:
         case = gb.cases.get(name)
         if case is None or case is acc or not case.done:
@@ -103,21 +112,41 @@ def near_best(selection, margin: float = NEAR_BEST) -> list:
         c = _criterion(selection, case)
         if not (math.isfinite(c) and math.isfinite(c0)):
             continue
-        if crit == "cv":
-            close = c <= (1.0 + margin) * c0
-        elif crit in ("aic", "bic"):
-            close = c <= c0 + 2.0 * margin / NEAR_BEST
-        else:
-            close = False
-        if close and _valid(case):
+        if crit == "cv" and c <= (1.0 + margin) * c0:
+            close.append((c, case))
+        elif crit in ("aic", "bic") and c <= c0 + 2.0 * margin / NEAR_BEST:
+            close.append((c, case))
+    out = [acc]
+    seen = [c0]
+    judged = 0
+    for c, case in sorted(close, key=lambda item: abs(item[0] - c0)):
+        if any(abs(c - v) <= SAME * abs(v) for v in seen):
+            continue  # a component that vanished: the same model as one already taken
+        fresh = (
+            getattr(case, "verdict", None) is None
+            and getattr(case, "validation", None) is not None
+            and case not in _VERDICTS
+        )
+        if fresh and judged >= MAX_JUDGED:
+            continue
+        judged += fresh
+        if _valid(case):
             out.append(case)
+            seen.append(c)
     return out
 
 
 def _valid(case) -> bool:
-    """Whether a candidate is valid: its verdict, or one judged now when it has none."""
+    """Whether a candidate is valid: its verdict, or one judged now when it has none (kept
+    for the next call, not in the case)."""
     if getattr(case, "verdict", None) is not None or getattr(case, "validation", None) is None:
         return bool(case.is_valid)
+    if case not in _VERDICTS:
+        _VERDICTS[case] = _judge(case)
+    return _VERDICTS[case]
+
+
+def _judge(case) -> bool:
     from ._uncertainty import uncertainty
     from ._verdict import check_validity
 

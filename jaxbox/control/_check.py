@@ -108,10 +108,9 @@ def closed_loop_check(
     and 17 to 21 h, 0.12 otherwise; unmeasured gains 1 K worth of loss at 7–9 h and 17–23 h,
     with white noise of 0.3 K worth.
     """
-    import jaxbox
-
     from ..forecast import StochasticForm, noise_from_residuals, stochastic_form
     from ..forecast._forecast import horizon_steps
+    from ..models import get_model
     from ..stochastic import noise_names
     from ._loop import MPCController, closed_loop, comfort_band
     from ._mpc import KalmanTracker, LinearMPC
@@ -128,7 +127,7 @@ def closed_loop_check(
         )
     form = stochastic_form(result)
     model = form.model
-    truth = jaxbox.get_model(building.structure)
+    truth = get_model(building.structure)
     if len(model.outputs) != 1 or "Q_hea" not in model.inputs:
         raise FitError(
             f"closed_loop_check needs a one-zone model heated by Q_hea, got {model.name} "

@@ -49,6 +49,6 @@ class ModelUses:
         """The exact discrete-time state space at ``step`` (seconds or ``"15min"``; default the
         fit's), with names, units, noise covariances and the last Kalman state estimate over
         ``data`` (default the fit's): :func:`jaxbox.control.to_state_space`."""
-        from ..control import to_state_space
+        from ..control._export import to_state_space
 
         return to_state_space(self, step, data=data)

@@ -34,7 +34,7 @@ __all__ = ["RobustCovariance", "robust_covariance", "MAX_RHO", "WHITE", "HAC", "
 MAX_RHO = 0.97
 #: method names of the intervals
 WHITE = "delta (white residuals)"
-HAC = "delta (HAC: prewhitened Newey-West)"
+HAC = "delta (HAC: prewhitened Newey-West, at least the white)"
 #: lag-1 autocorrelation of the residuals above which they are not called white
 HIGH_LAG1 = 0.5
 

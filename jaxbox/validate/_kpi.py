@@ -281,8 +281,8 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
         interval: the parameter covariance the intervals rest on: ``"white"`` (default,
             ``σ̂² (JᵀJ)⁻¹``: white output errors; a warning when the residuals are not white)
             or ``"hac"`` (the prewhitened Newey–West sandwich of
-            :func:`~jaxbox.validate.robust_covariance`, for autocorrelated errors: what the
-            fit report shows).
+            :func:`~jaxbox.validate.robust_covariance`, for autocorrelated errors, and never
+            narrower than the white interval: what the fit report shows).
 
     Returns:
         :class:`Kpis` (definitions in :mod:`jaxbox.validate._kpi`).
@@ -335,16 +335,12 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
         tq = float(uncertainty.t_quantile)
     else:
         tq = float(stats.t.ppf(0.5 + level / 2, uncertainty.dof))
-    std = np.full(len(values), np.nan)
-    for k in range(len(values)):
-        row = grad[k]
-        used = np.abs(row) > 0
-        if not np.all(np.isfinite(row)):
-            continue
-        sub = cov[np.ix_(used, used)]
-        if np.all(np.isfinite(sub)):
-            var = float(row[used] @ sub @ row[used])
-            std[k] = math.sqrt(var) if var >= 0 else math.nan
+    std = _delta(grad, cov)
+    if interval == "hac":
+        # never narrower than the white interval: a HAC estimate below it (residuals that
+        # alternate) is mostly the sampling error of the long-run variance of a short record
+        white = _delta(grad, np.asarray(uncertainty.cov_free, dtype=float))
+        std = np.where(np.isfinite(std) & np.isfinite(white), np.maximum(std, white), std)
 
     def make(i: int, name: str, unit: str) -> KPI:
         v, s = float(values[i]), float(std[i])
@@ -392,6 +388,22 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
         },
         warnings=warnings,
     )
+
+
+def _delta(grad: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Standard errors ``√(∇g Σ ∇gᵀ)`` per KPI (rows of ``grad``); ``nan`` where a parameter it
+    depends on has no covariance."""
+    std = np.full(len(grad), np.nan)
+    for k in range(len(grad)):
+        row = grad[k]
+        used = np.abs(row) > 0
+        if not np.all(np.isfinite(row)):
+            continue
+        sub = cov[np.ix_(used, used)]
+        if np.all(np.isfinite(sub)):
+            var = float(row[used] @ sub @ row[used])
+            std[k] = math.sqrt(var) if var >= 0 else math.nan
+    return std
 
 
 def _warnings(robust, interval: str) -> tuple[str, ...]:

@@ -442,7 +442,8 @@ def _hac(J: np.ndarray, e: np.ndarray) -> np.ndarray:
     """The prewhitened Newey–West (HAC) covariance ``B Ω B · N/(N − p)`` of the parameters of a
     least-squares fit with sensitivities ``J`` [N, p] and residuals ``e`` [N], ``B = (JᵀJ)⁺``:
     the sandwich of :mod:`jaxbox.validate._hlc_hac` (hourly residuals of the heating are
-    autocorrelated; the white covariance would understate the intervals)."""
+    autocorrelated; the white covariance would understate the intervals), never narrower than
+    the white one."""
     from ..validate._hlc_hac import MAX_RHO, _ar1, _bandwidth, _long_run
 
     n, k = J.shape
@@ -454,7 +455,13 @@ def _hac(J: np.ndarray, e: np.ndarray) -> np.ndarray:
     recolour = 1.0 / (1.0 - rho)
     omega = omega * recolour[:, None] * recolour[None, :]
     cov = bread @ omega @ bread * n / max(n - k, 1)
-    return 0.5 * (cov + cov.T)
+    cov = 0.5 * (cov + cov.T)
+    # never narrower than the white covariance σ²(JᵀJ)⁺, parameter by parameter
+    white = bread * float(e @ e) / max(n - k, 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        widen = np.sqrt(np.maximum(np.diag(white) / np.diag(cov), 1.0))
+    widen = np.where(np.isfinite(widen), widen, 1.0)
+    return cov * widen[:, None] * widen[None, :]
 
 
 # ---- the search ---------------------------------------------------------------------------------

@@ -46,3 +46,25 @@ def pytest_sessionfinish(session, exitstatus):
     """The controlling process (not an xdist worker) removes the run's cache folder."""
     if not hasattr(session.config, "workerinput"):
         shutil.rmtree(_SHARED.parent, ignore_errors=True)
+
+
+# ``JAXBOX_TEST_CPU=FILE``: append each test's CPU seconds (its process and the processes it
+# waited for: the command line, notebook kernels), a line per test, to FILE. CPU time, unlike
+# wall time, hardly depends on what else the machine runs: it is how the tiers are sized.
+_CPU_LOG = os.environ.get("JAXBOX_TEST_CPU")
+if _CPU_LOG:
+    import resource
+
+    import pytest
+
+    def _cpu() -> float:
+        own = resource.getrusage(resource.RUSAGE_SELF)
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+    @pytest.hookimpl(hookwrapper=True)
+    def pytest_runtest_protocol(item, nextitem):
+        start = _cpu()
+        yield
+        with open(_CPU_LOG, "a", encoding="utf-8") as log:
+            log.write(f"{_cpu() - start:.3f}\t{item.nodeid}\n")

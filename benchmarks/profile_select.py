@@ -1,0 +1,231 @@
+"""Where the default ``jaxbox select`` spends its time: tracing, lowering, XLA compilation, the
+fits, the verdicts and intervals, the validation, the report.
+
+Each run is a fresh process (``python benchmarks/profile_select.py --child ...``) that runs the
+command in-process under :mod:`cProfile`, with JAX's monitoring events summed: the time spent
+tracing Python into jaxprs, lowering them to MLIR, compiling them with XLA, and loading
+executables from the persistent compilation cache. *Cold*: an empty persistent cache; *warm*: a
+second process on the cache the cold one filled. The profile's cumulative times of jaxbox's
+own phases (fits, verdicts, intervals, validation, KPIs, report) overlap the JAX columns (a
+fit's first call includes its compilation); the table says which is which.
+
+    python benchmarks/profile_select.py [--data twinhouse_exp1:N2] [--out benchmarks/PROFILE.md]
+
+Writes ``benchmarks/PROFILE.md`` (and ``benchmarks/profile.json``), and the same table into
+``benchmarks/RESULTS.md`` between the lines ``<!-- profile_select -->`` and
+``<!-- /profile_select -->`` (appended when they are missing).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import os
+import platform
+import pstats
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+#: JAX's monitoring events, summed per run [s]
+EVENTS = {
+    "/jax/core/compile/jaxpr_trace_duration": "tracing",
+    "/jax/core/compile/jaxpr_to_mlir_module_duration": "lowering",
+    "/jax/core/compile/backend_compile_duration": "XLA compile",
+    "/jax/compilation_cache/cache_retrieval_time_sec": "cache loads",
+}
+
+#: jaxbox's phases: (label, module path fragment, function name); cumulative time of the
+#: outermost call of each
+PHASES = [
+    ("fits: the batched multistart (incl. its compilation)", "jaxbox/fit/_fit.py", "_multistart"),
+    ("verdicts", "jaxbox/validate/_verdict.py", "check_validity"),
+    ("parameter intervals", "jaxbox/validate/_uncertainty.py", "uncertainty"),
+    ("validation (post-simulation)", "jaxbox/validate/_postsim.py", "validate"),
+    ("residual analysis", "jaxbox/validate/_residuals.py", "analyse_residuals"),
+    ("KPIs and their intervals", "jaxbox/validate/_kpi.py", "kpis"),
+    ("reductions", "jaxbox/select/_reduce.py", "reduction"),
+    ("data loading and checks", "jaxbox/data/_load.py", "load"),
+    ("report (HTML, plots)", "jaxbox/report/_html.py", "write_report"),
+]
+
+
+def _child(args) -> None:
+    t_start = time.perf_counter()
+    import jax
+
+    from jaxbox.cli._main import main as cli_main
+
+    sums: dict[str, float] = defaultdict(float)
+    counts: dict[str, int] = defaultdict(int)
+
+    def listen(event: str, duration: float, **_):
+        if event in EVENTS:
+            sums[EVENTS[event]] += duration
+            counts[EVENTS[event]] += 1
+
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    t_import = time.perf_counter() - t_start
+    argv = ["select", args.data, "--json"]
+    if args.report:
+        argv += ["--out", str(Path(args.workdir) / "out")]
+    prof = cProfile.Profile()
+    t0 = time.perf_counter()
+    with open(os.devnull, "w") as sink:
+        stdout = sys.stdout
+        sys.stdout = sink
+        try:
+            prof.enable()
+            code = cli_main(argv)
+            prof.disable()
+        finally:
+            sys.stdout = stdout
+    wall = time.perf_counter() - t0
+    stats = pstats.Stats(prof)
+    phases = {}
+    for label, path, name in PHASES:
+        cum = 0.0
+        calls = 0
+        for (file, _line, func), (cc, _nc, _tt, ct, _callers) in stats.stats.items():
+            if func == name and file.replace(os.sep, "/").endswith(path):
+                cum += ct
+                calls += cc
+        phases[label] = {"seconds": cum, "calls": calls}
+    top = sorted(
+        (
+            (ct, cc, f"{file.split('jaxbox/', 1)[-1]}:{func}")
+            for (file, _line, func), (cc, _nc, _tt, ct, _callers) in stats.stats.items()
+            if "/jaxbox/" in file.replace(os.sep, "/") and "/site-packages/" not in file
+        ),
+        reverse=True,
+    )[:40]
+    doc = {
+        "top": [{"seconds": t, "calls": c, "function": f} for t, c, f in top],
+        "exit": code,
+        "import_s": t_import,
+        "wall_s": wall,
+        "jax": {k: {"seconds": sums[k], "events": counts[k]} for k in EVENTS.values()},
+        "phases": phases,
+    }
+    Path(args.result).write_text(json.dumps(doc, indent=1))
+
+
+def _run(data: str, cache: Path, workdir: Path, report: bool) -> dict:
+    result = workdir / f"result-{time.monotonic_ns()}.json"
+    env = {
+        **os.environ,
+        "JAXBOX_CACHE_DIR": str(cache),
+        "PYTHONPATH": str(ROOT),
+    }
+    env.pop("JAXBOX_CACHE", None)
+    t0 = time.perf_counter()
+    cmd = [sys.executable, __file__, "--child", "--data", data, "--result", str(result)]
+    cmd += ["--workdir", str(workdir)] + (["--report"] if report else [])
+    subprocess.run(cmd, env=env, check=True)
+    doc = json.loads(result.read_text())
+    doc["process_s"] = time.perf_counter() - t0
+    return doc
+
+
+def _markdown(runs: dict, args, load: tuple[float, float]) -> str:
+    cold, warm = runs["cold"], runs["warm"]
+    lines = [
+        "# Where the default select spends its time",
+        "",
+        f"Generated by `python benchmarks/profile_select.py` on {time.strftime('%Y-%m-%d %H:%M')} "
+        f"({platform.machine()}, {os.cpu_count()} CPUs; load average {load[0]:.1f} at the "
+        f"start, {load[1]:.1f} at the end): `jaxbox select {args.data} --json`"
+        + (" --out DIR" if args.report else "")
+        + ", each run a fresh process.",
+        "",
+        "| | cold (empty cache) [s] | warm (persistent cache) [s] |",
+        "|---|---:|---:|",
+        f"| process, end to end | {cold['process_s']:.1f} | {warm['process_s']:.1f} |",
+        f"| the command (after imports) | {cold['wall_s']:.1f} | {warm['wall_s']:.1f} |",
+    ]
+    for name in EVENTS.values():
+        c, w = cold["jax"][name], warm["jax"][name]
+        lines.append(
+            f"| JAX: {name} ({c['events']} / {w['events']} events) | {c['seconds']:.1f} | "
+            f"{w['seconds']:.1f} |"
+        )
+    lines.append("| *jaxbox's phases (cumulative; they include the JAX time of their calls)* | | |")
+    for label, _, _ in PHASES:
+        c, w = cold["phases"][label], warm["phases"][label]
+        if c["calls"] == 0 and w["calls"] == 0:
+            continue
+        lines.append(f"| {label} ({c['calls']} calls) | {c['seconds']:.1f} | {w['seconds']:.1f} |")
+    jax_cold = sum(cold["jax"][k]["seconds"] for k in ("tracing", "lowering", "XLA compile"))
+    jax_warm = sum(warm["jax"][k]["seconds"] for k in ("tracing", "lowering", "XLA compile"))
+    lines += [
+        "",
+        "The functions of jaxbox with the most cumulative time, cold:",
+        "",
+        "| function | calls | cold [s] |",
+        "|---|---:|---:|",
+        *[f"| `{r['function']}` | {r['calls']} | {r['seconds']:.1f} |" for r in cold["top"][:25]],
+    ]
+    lines += [
+        "",
+        f"Tracing, lowering and compiling take {jax_cold:.0f} s of {cold['wall_s']:.0f} s cold "
+        f"({jax_cold / cold['wall_s']:.0%}) and {jax_warm:.0f} s of {warm['wall_s']:.0f} s warm "
+        f"({jax_warm / warm['wall_s']:.0%}): the persistent cache saves XLA's compilation, not "
+        "the tracing and lowering that find the cache key.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default="twinhouse_exp1:N2")
+    ap.add_argument("--report", action="store_true", help="also --out (the HTML report)")
+    ap.add_argument("--out", default=str(HERE / "PROFILE.md"))
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--result", help=argparse.SUPPRESS)
+    ap.add_argument("--workdir", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child:
+        _child(args)
+        return
+    load0 = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        cache = work / "cache"
+        runs = {
+            "cold": _run(args.data, cache, work, args.report),
+            "warm": _run(args.data, cache, work, args.report),
+        }
+    load1 = os.getloadavg()[0]
+    out = Path(args.out)
+    text = _markdown(runs, args, (load0, load1))
+    out.write_text(text)
+    out.with_name("profile.json").write_text(json.dumps(runs, indent=1))
+    _into_results(out.with_name("RESULTS.md"), text)
+    print(text)
+
+
+def _into_results(path: Path, text: str) -> None:
+    """The table as a section of RESULTS.md, between its markers."""
+    if not path.exists():
+        return
+    start, end = "<!-- profile_select -->", "<!-- /profile_select -->"
+    body = "\n".join(["#" + line if line.startswith("# ") else line for line in text.splitlines()])
+    block = f"{start}\n{body}\n{end}"
+    old = path.read_text()
+    if start in old and end in old:
+        new = old[: old.index(start)] + block + old[old.index(end) + len(end) :]
+    else:
+        new = old.rstrip("\n") + "\n\n" + block + "\n"
+    path.write_text(new)
+
+
+if __name__ == "__main__":
+    main()

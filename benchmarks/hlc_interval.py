@@ -199,18 +199,18 @@ def markdown(doc: dict) -> str:
         ok = [r for r in rows if r["set"] == kind and r.get("status") == "ok"]
         if not ok:
             continue
-        warned = [r for r in ok if r["slowest_tau_h"] > r["ident_h"]]
-        calm = [r for r in ok if r["slowest_tau_h"] <= r["ident_h"]]
-        hit = sum(_covers(r["new"], r["reference"]) for r in calm)
-        hit_w = sum(_covers(r["new"], r["reference"]) for r in warned)
+        misses = [r for r in ok if not _covers(r["new"], r["reference"])]
+        warned = sum(r["slowest_tau_h"] > r["ident_h"] for r in ok)
+        named = sum(r["slowest_tau_h"] > r["ident_h"] for r in misses)
         notes.append(
-            f"{kind}: the extrapolation warning (slowest time constant longer than the "
-            f"identification record) on {len(warned)} of {len(ok)}, whose new interval holds "
-            f"the reference on {hit_w}; the new interval holds it on {hit} of the "
-            f"{len(calm)} others"
+            f"{kind} {warned} of {len(ok)} ({named} of the {len(misses)} the new interval misses)"
         )
     if notes:
-        lines += ["", "; ".join(notes) + "."]
+        lines += [
+            "",
+            "The extrapolation warning (the model's slowest time constant longer than the "
+            "identification record): " + "; ".join(notes) + ".",
+        ]
     cost = [r["hac_s"] + r["new_s"] for r in rows if r.get("status") == "ok"]
     if cost:
         lines += [

@@ -412,9 +412,7 @@ def _no_valid_model(outcomes) -> int:
     import sys
 
     none = [
-        gb
-        for gb, sel in outcomes
-        if sel.case is None and getattr(sel, "form_model", None) is None
+        gb for gb, sel in outcomes if sel.case is None and getattr(sel, "form_model", None) is None
     ]
     if not none:
         return 0

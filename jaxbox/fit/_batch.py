@@ -209,6 +209,8 @@ _DEFAULTS = {
 #: the problem arguments, the solver settings (requests solved together share them) and the
 #: start arguments of a request
 _PROBLEM = ("free", "fixed", "bounds", "guess", "weights", "simulator", "sim_options")
+
+
 def _release(value) -> bool:
     """``release=``: True or False (numpy's bool too); anything else is refused by name."""
     if not isinstance(value, bool | np.bool_):

@@ -158,6 +158,7 @@ def test_bad_input_exits_2_with_one_line(csv_file, capsys, args, words):
     assert "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_fit_several_files_in_one_batch(csv_file, capsys, tmp_path):
     """Two buildings of the same length: one compiled call, each result the one fitted alone."""
     frame = pd.read_csv(csv_file)
@@ -197,6 +198,7 @@ def test_fit_several_files_in_one_batch(csv_file, capsys, tmp_path):
     assert all(line.startswith(f"warning: {gappy}: ") for line in err.splitlines()), err
 
 
+@pytest.mark.slow
 def test_command_line_keeps_a_persistent_compilation_cache(tmp_path):
     """The command line writes its compiled solves to the cache folder for the next process;
     a folder it cannot create costs the reuse, never the run."""

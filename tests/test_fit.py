@@ -93,6 +93,7 @@ def test_noisy_fit_is_close(zonwal_data):
     assert np.sqrt(r.cost) == pytest.approx(0.05, rel=0.2)
 
 
+@pytest.mark.slow
 def test_diffrax_simulator_fits_too(zonwal_data):
     r = fit_model("Zon", zonwal_data, simulator="diffrax", starts=1, max_steps=60)
     r_ex = fit_model("Zon", zonwal_data, starts=1, max_steps=60)

@@ -234,6 +234,7 @@ def test_cli_make_run_and_bad_input(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_the_default_is_the_structure_search(fleet, tmp_path):
     """Without models the fleet searches the grammar, as ``jaxbox select`` does: on a ZonWal
     building it accepts the envelope state, with the true heat-loss coefficient."""

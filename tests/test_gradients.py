@@ -86,6 +86,7 @@ def test_exact_simulation_derivatives(data) -> None:
 
 
 @pytest.mark.parametrize("mode", ["fwd", "rev"])
+@pytest.mark.slow
 def test_diffrax_fixed_step_derivatives(data, mode: str) -> None:
     """The diffrax route of the fit (one Kvaerno5 step per sample): forward mode through
     ``ForwardMode``, reverse mode through the default checkpointed adjoint."""

@@ -101,6 +101,7 @@ def test_parallel_in_time_only_on_an_accelerator_and_for_a_narrow_batch(monkeypa
 TRUTH = {"C_zon": 3.0e6, "C_wal": 4.0e7, "R_wal": 0.012, "gA": 2.5, "T_zon0": 26.0, "T_wal0": 19.0}
 
 
+@pytest.mark.slow
 def test_a_fit_parallel_in_time_reaches_the_same_optimum(monkeypatch):
     data = synthetic_building(get_model("ZonWal"), TRUTH, n=150, seed=3, noise=0.02, step=3600.0)
     runs = {}

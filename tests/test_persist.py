@@ -481,6 +481,7 @@ def _saver(folder, start=0):
     )
 
 
+@pytest.mark.slow
 def test_kill_during_save_leaves_the_old_or_the_new_version(tmp_path):
     """A save killed (SIGKILL) at random moments: the folder always loads, as the last
     version completed or the one being saved; the next save removes what the killed one
@@ -511,6 +512,7 @@ def test_kill_during_save_leaves_the_old_or_the_new_version(tmp_path):
     assert _version(load_greybox(folder)) >= 9001
 
 
+@pytest.mark.slow
 def test_a_reader_during_saves_sees_a_whole_version(tmp_path):
     """One process saves over and over while this one loads over and over: every load gives a
     complete version (its index and its arrays), never an error."""
@@ -529,6 +531,7 @@ def test_a_reader_during_saves_sees_a_whole_version(tmp_path):
     assert versions == sorted(versions) and versions[-1] > versions[0]  # saves went on
 
 
+@pytest.mark.slow
 def test_two_savers_and_a_reader(tmp_path):
     """Two processes save into one folder at the same time while this one loads: the saves
     take turns, every load gives a whole version of one of them, and the folder loads after."""

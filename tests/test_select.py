@@ -408,6 +408,7 @@ def test_select_command_json(data, tmp_path, capsys):
     assert (tmp_path / "o" / "greybox" / "greybox.json").exists()
 
 
+@pytest.mark.slow
 def test_select_command_on_two_buildings(data, tmp_path, capsys):
     import json
 

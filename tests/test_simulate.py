@@ -58,6 +58,7 @@ def test_exact_and_diffrax_agree_at_tight_tolerance(inputs):
     assert np.max(np.abs(np.asarray(y1) - np.asarray(y2))) <= 1e-6
 
 
+@pytest.mark.slow
 def test_fixed_step_diffrax_converges_to_exact(inputs):
     """Fixed steps on the sample grid converge to the exact solution.
 
@@ -150,6 +151,7 @@ def test_hostile_parameters_are_refused_by_name(inputs):
     simulate_model(rad, rad.defaults() | {"fra_rad": 1.0}, ds)  # all of it to the mass: fine
 
 
+@pytest.mark.slow
 def test_hostile_data_options_and_x0_are_refused_early(inputs):
     from jaxbox.data import DataError, prepare_window
     from jaxbox.models import ModelError
@@ -235,6 +237,7 @@ def test_numpy_post_simulation_equals_the_jax_exact_route(inputs, name):
         np.testing.assert_allclose(y[k], np.asarray(yj), rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_diffrax_post_simulation_shares_one_program_and_keeps_its_tolerance(inputs):
     """The diffrax route of the post-simulation integrates the state-space matrices padded to
     the next multiple of 4 states and inputs: models of different structures share one

@@ -76,6 +76,7 @@ def building():
 
 
 @pytest.mark.parametrize("name", ["ZonWal", "ZonWalIntInf", "BM_TiTe"])
+@pytest.mark.slow
 def test_stock_optimistix_lm_reaches_the_same_optimum(building, name):
     """From the same start, jaxbox's solver and optimistix's own reach the same cost (the
     solver alone: no continuation route, no release from the bounds)."""
@@ -111,6 +112,7 @@ def reference(building):
     return fit_model("ZonWal", building, starts=1, **TIGHT)
 
 
+@pytest.mark.slow
 def test_other_optimistix_solvers_plug_in(building, reference):
     tight = dict(rtol=1e-10, atol=1e-12)
     ref = reference

@@ -124,6 +124,7 @@ def test_estimate_with_initial_spreads_of_another_model_is_one_line(csv_file, tm
 
 
 @pytest.mark.parametrize("json_out", [True, False], ids=["json", "text"])
+@pytest.mark.slow
 def test_fit_method_ml_without_validation(csv_file, capsys, json_out):
     """``--validate none`` with ``--method ml``: no validation period, so its entries are null
     (once an internal error reading the length of a validation that does not exist)."""

@@ -124,6 +124,7 @@ def short_n2():
     return data.slice(None, data.index[79])
 
 
+@pytest.mark.slow
 def test_structures_of_one_padded_size_compile_once(short_n2):
     """BM_TiTe and BM_TiTh (two states, ten parameters each) share the compiled solve and the
     compiled Hessian: the second fit adds nothing to the cache, whatever ran before."""
@@ -153,6 +154,7 @@ def test_jobs_of_different_structures_in_one_solve_equal_separate_solves(short_n
         )
 
 
+@pytest.mark.slow
 def test_a_network_with_a_held_node_keeps_a_program_of_its_own():
     """A node at a constant temperature has no array form: its fit runs the per-structure
     program and still recovers a finite optimum with its intervals."""

@@ -132,6 +132,7 @@ def test_coheating_steady_state_covers_the_hlc():
     assert "dynamics" in fit.undetermined[0]
 
 
+@pytest.mark.slow
 def test_coheating_without_dynamics_is_a_valid_steady_state_model():
     # an envelope too light for hourly data to see: only the steady state is determined
     frame = simulate(control="constant", gains=150.0, noise_q=150.0, seed=3, truth={"C_wal": 2e5})

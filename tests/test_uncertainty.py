@@ -46,6 +46,7 @@ def _start(theta, free, factor=1.1):
 FREE = ("C_zon", "R_wal", "gA", "T_zon0")
 
 
+@pytest.mark.slow
 def test_coverage_of_95_percent_intervals():
     """The 95 % intervals cover the true parameters about 95 % of the time.
 

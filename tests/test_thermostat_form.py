@@ -120,6 +120,11 @@ def test_heat_demand_form_recovers_the_hlc_and_the_search_says_so():
     assert d["form"] == "heat demand" and d["form_model"]["hlc"] == best.hlc
     assert d["form_model"]["structure"] == best.structure
     assert "form accepted: heat demand" in search.tree_text()
+    from jaxbox.report import greybox_report
+
+    page = greybox_report(search.greybox, search)
+    assert "Accepted model: heat demand form" in page and "No valid model" not in page
+    assert f"{best.structure} in its heat-demand form" in page
 
 
 def test_coheating_steady_state_covers_the_hlc():

@@ -272,6 +272,18 @@ def _hlc_section(selection) -> list[str]:
     return out + [f"<p class=bad>Warning: {_e(w)}</p>" for w in hlc.warnings]
 
 
+def _form_section(selection, model) -> list[str]:
+    """The accepted model of another form than the zone temperature's (a held zone: the
+    heat-demand form; steady-state data: the steady-state model), with why."""
+    why = getattr(selection, "choice", None)
+    why = getattr(why, "why", "") if why is not None else ""
+    return [
+        f"<h2>Accepted model: {_e(selection.form)} form</h2>",
+        f"<p>{_e(why)}</p>" if why else "",
+        f"<pre>{_e(model.summary())}</pre>",
+    ]
+
+
 def greybox_report(gb, selection=None, *, title: str | None = None) -> str:
     """The HTML page (a string) of a :class:`~jaxbox.select.GreyBox`.
 
@@ -315,8 +327,11 @@ def greybox_report(gb, selection=None, *, title: str | None = None) -> str:
     parts += _data_section(gb)
     parts += _table_section(gb, accepted)
     parts += _tree_section(selection)
+    other = getattr(selection, "form_model", None) if accepted is None else None
     if accepted is not None:
         parts += _accepted_section(gb.cases[accepted], selection)
+    elif other is not None:
+        parts += _form_section(selection, other)
     else:
         parts.append("<h2>Accepted model</h2><p class=bad>No valid model.</p>")
     parts.append("</body></html>")

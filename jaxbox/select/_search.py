@@ -138,10 +138,13 @@ class Search(Selection):
     Attributes:
         criterion: the criterion used.
         tree: every candidate, in the order identified.
+        margin: the relative decrease of the criterion that counted as an improvement (also
+            the margin of the near-best models of :func:`~jaxbox.validate.hlc_interval`).
     """
 
     criterion: str = "cv"
     tree: tuple[SearchNode, ...] = ()
+    margin: float = 0.02
     choice: FormChoice = FormChoice()
 
     @property
@@ -700,6 +703,7 @@ def structure_search(
         elapsed_s=elapsed,
         criterion=criterion,
         tree=tuple(SearchNode(**nodes[n]) for n in nodes),
+        margin=float(margin),
     )
 
 

@@ -164,7 +164,7 @@ def _judge(case) -> bool:
 
 
 def hlc_interval(
-    selection, *, margin: float = NEAR_BEST, level: float = 0.95
+    selection, *, margin: float | None = None, level: float = 0.95
 ) -> HlcInterval | None:
     """The accepted model's HLC with an interval for coloured residuals and near-best structures.
 
@@ -174,7 +174,8 @@ def hlc_interval(
 
     Args:
         selection: a :class:`~jaxbox.select.Selection` (or :class:`~jaxbox.select.Search`).
-        margin: relative criterion margin of the near-best models.
+        margin: relative criterion margin of the near-best models (default: the search's own
+            ``margin``, else :data:`NEAR_BEST`).
         level: confidence level.
 
     Returns:
@@ -182,6 +183,8 @@ def hlc_interval(
     """
     from ._kpi import kpis
 
+    if margin is None:
+        margin = float(getattr(selection, "margin", NEAR_BEST))
     cases = near_best(selection, margin)
     models = []
     warns: list[str] = []

@@ -196,6 +196,7 @@ def test_designed_beats_baselines_and_respects_constraints(planned):
     assert "Q_hea_prbs" in frame.columns
 
 
+@pytest.mark.slow
 def test_binary_robust_design_with_energy_budget():
     budget = 30 * 3.6e6  # 30 kWh over two days: less than the unconstrained design uses
     with warnings.catch_warnings():

@@ -183,6 +183,7 @@ def test_clean_edges_are_kept_and_trim_can_drop_them_anyway():
         trim_edges(data, "middle")
 
 
+@pytest.mark.slow
 def test_fit_drops_a_partial_last_sample_with_a_warning(tmp_path, capsys):
     import json
 

@@ -126,6 +126,7 @@ def test_a_solver_that_is_not_one_is_refused(building):
         fit_model("Zon", building, solver="lm")
 
 
+@pytest.mark.slow
 def test_slot_refilling_batch_equals_one_start_at_a_time(building, reference):
     """The batched multistart, with few slots that refill, gives each start the result it gets
     when solved alone (the program of the reference fit: one start, the same settings)."""

@@ -51,6 +51,7 @@ def fit_quiet(ti, data):
     return fit_ml(ti, data, starts=STARTS, fixed={"sigma_zon": 1e-10}, x0_std=1e-5)
 
 
+@pytest.mark.slow
 def test_ml_recovers_parameters_and_reports_statistics(fit, ti, data):
     assert fit.converged
     assert fit.free == ("C_zon", "R_wal", "gA", "T_zon0", "sigma_zon", "sigma_y_zon")

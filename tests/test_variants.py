@@ -44,6 +44,7 @@ def together_and_alone(data):
     return together, alone, compiled
 
 
+@pytest.mark.slow
 def test_variants_of_different_sizes_share_one_compiled_solve(together_and_alone):
     together, _, compiled = together_and_alone
     assert compiled == 1  # four structures, 1 to 3 states, 4 to 9 parameters: one program

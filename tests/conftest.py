@@ -35,10 +35,13 @@ if os.environ.get("JAXBOX_TEST_CACHE", "1").strip().lower() not in ("0", "no", "
     from jaxbox import enable_compilation_cache  # noqa: E402
 
     enable_compilation_cache(_SHARED)
+    # the tests compile many programs of 0.1–0.5 s (at the lowest optimisation level) that
+    # several workers need: shared too
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
     # the processes the tests start (notebook kernels, the command line, cluster workers)
     # share it too
     os.environ["JAX_COMPILATION_CACHE_DIR"] = str(_SHARED)
-    os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0.5"
+    os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0.1"
     os.environ["JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES"] = "0"
 
 

@@ -5,8 +5,9 @@ For each building of :func:`jaxbox.datasets.make_detailed_zoo` (15–20-state ne
 multi-layer walls, occupancy, scheduled ventilation, sun on every facade, PI thermostats or
 open-loop heating, coloured and quantised sensor noise), the default ``jaxbox select`` is run
 (the structure search, criterion ``cv``, its default beam and starts, the data split in halves)
-and the accepted model's heat-loss coefficient with its 95 % interval (as ``select`` reports
-it, :func:`jaxbox.validate.fit_report`) is compared with the truth (the static heat loss of the
+and the accepted model's heat-loss coefficient with its 95 % interval, as ``select`` reports
+it (:func:`jaxbox.validate.hlc_interval`: the accepted model's HAC interval widened over the
+near-best structures), is compared with the truth (the static heat loss of the
 detailed network at the mean ventilation).
 
 Targets: a valid model on ≥ 95 % of the buildings; validation RMSE ≤ 0.3 K, HLC within ±15 %
@@ -91,7 +92,7 @@ def _select_defaults() -> dict:
 def run_one(b, settings: dict, commit: str = "") -> dict:
     import jaxbox
     from jaxbox.data import DataWarning
-    from jaxbox.validate import fit_report
+    from jaxbox.validate import fit_report, hlc_interval
 
     truth = float(b.kpis["hlc"])
     row = {
@@ -120,6 +121,17 @@ def run_one(b, settings: dict, commit: str = "") -> dict:
         return row
     row["search_s"] = time.perf_counter() - t0
     row["candidates"] = len(s.tree)
+    row["form"] = s.form
+    if s.case is None and s.form_model is not None:  # a held zone's heat-demand or steady form
+        m = s.form_model
+        row.update(
+            status="ok", accepted=f"{m.structure} ({s.form})" if hasattr(m, "structure") else s.form
+        )
+        v = float(m.hlc)
+        lo, hi = map(float, m.hlc_interval)
+        row.update(hlc=v, hlc_error=v / truth - 1.0, hlc_ci95=[lo, hi])
+        row.update(covers=bool(lo <= truth <= hi), half_width=0.5 * (hi - lo) / abs(v))
+        return row
     if s.case is None:
         row["status"] = "no_valid_model"
         return row
@@ -136,6 +148,15 @@ def run_one(b, settings: dict, commit: str = "") -> dict:
     except Exception as err:  # noqa: BLE001
         row["kpi_error"] = f"{type(err).__name__}: {err}"[:300]
         hlc = None
+    if hlc and hlc.get("ci95") is not None:  # the accepted model's own (HAC) interval
+        row["hlc_ci95_model"] = [float(x) for x in hlc["ci95"]]
+    try:  # what `jaxbox select` reports: widened over the near-best structures
+        spread = hlc_interval(s)
+        if spread is not None:
+            hlc = {**(hlc or {}), **spread.to_dict()}
+            row["hlc_method"] = spread.method
+    except Exception as err:  # noqa: BLE001
+        row["spread_error"] = f"{type(err).__name__}: {err}"[:300]
     if hlc and hlc.get("value") is not None:
         v = float(hlc["value"])
         row["hlc"] = v

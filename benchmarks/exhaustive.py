@@ -80,6 +80,16 @@ def searched(gb, starts: int = 8) -> dict:
     t0 = time.perf_counter()
     s = jaxbox.structure_search(gb, starts=starts)
     out = {"seconds": time.perf_counter() - t0, "candidates": len(s.tree)}
+    if s.case is None and s.form_model is not None:  # a held zone: another form accepted
+        m = s.form_model
+        name = getattr(m, "structure", None)
+        return {
+            **out,
+            "accepted": f"{name} ({s.form} form)" if name else f"{s.form} form",
+            "form": s.form,
+            "se": None,  # not a zone-temperature SE: no regret
+            "hlc": float(m.hlc),
+        }
     if s.case is None:
         return {**out, "accepted": None, "se": None}
     case = s.case

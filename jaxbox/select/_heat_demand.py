@@ -444,17 +444,12 @@ def _hac(J: np.ndarray, e: np.ndarray) -> np.ndarray:
     the sandwich of :mod:`jaxbox.validate._hlc_hac` (hourly residuals of the heating are
     autocorrelated; the white covariance would understate the intervals), never narrower than
     the white one."""
-    from ..validate._hlc_hac import MAX_RHO, _ar1, _bandwidth, _long_run
+    from ..validate._hlc_hac import MAX_RHO, _sandwich
 
     n, k = J.shape
     bread = np.linalg.pinv(J.T @ J)
-    scores = J * e[:, None]
-    rho = np.clip(_ar1(scores), -MAX_RHO, MAX_RHO)
-    white = scores[1:] - rho * scores[:-1]
-    omega = _long_run(white, _bandwidth(white))
-    recolour = 1.0 / (1.0 - rho)
-    omega = omega * recolour[:, None] * recolour[None, :]
-    cov = bread @ omega @ bread * n / max(n - k, 1)
+    sandwich, _, _ = _sandwich(J * e[:, None], bread, MAX_RHO)
+    cov = sandwich * n / max(n - k, 1)
     cov = 0.5 * (cov + cov.T)
     # never narrower than the white covariance σ²(JᵀJ)⁺, parameter by parameter
     white = bread * float(e @ e) / max(n - k, 1)

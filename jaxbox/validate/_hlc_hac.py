@@ -126,6 +126,20 @@ def _long_run(s: np.ndarray, b: float) -> np.ndarray:
     return omega
 
 
+def _sandwich(scores: np.ndarray, bread: np.ndarray, max_rho: float):
+    """``(B Ω B, bandwidth, ρ)``: the prewhitened Newey–West sandwich of the parameter scores
+    ``s`` [N, p] with bread ``B`` [p, p] (unscaled: the caller applies its degrees of freedom).
+    Each score series is prewhitened by its AR(1) coefficient ρ (clipped to ``max_rho``), its
+    long-run covariance taken with the Bartlett kernel at Andrews' bandwidth, and recoloured."""
+    rho = np.clip(_ar1(scores), -max_rho, max_rho)
+    white = scores[1:] - rho * scores[:-1]
+    b = _bandwidth(white)
+    omega = _long_run(white, b)
+    recolour = 1.0 / (1.0 - rho)
+    omega = omega * recolour[:, None] * recolour[None, :]
+    return bread @ omega @ bread, b, rho
+
+
 def robust_covariance(result, uncertainty=None, *, max_rho: float = MAX_RHO) -> RobustCovariance:
     """The HAC (prewhitened Newey–West) covariance of a fit's free parameters.
 
@@ -157,14 +171,9 @@ def robust_covariance(result, uncertainty=None, *, max_rho: float = MAX_RHO) -> 
     sigma2 = float(uncertainty.sigma2)
     if sigma2 > 0:
         bread[np.ix_(ok, ok)] = uncertainty.cov_free[np.ix_(ok, ok)] / sigma2
-    rho = np.clip(_ar1(s), -max_rho, max_rho)
-    white = s[1:] - rho * s[:-1]
-    b = _bandwidth(white)
-    omega = _long_run(white, b)
-    recolour = 1.0 / (1.0 - rho)
-    omega = omega * recolour[:, None] * recolour[None, :]
+    sandwich, b, rho = _sandwich(s, bread, max_rho)
     dof = max(uncertainty.dof, 1)
-    cov = bread @ omega @ bread * (n * e.shape[1] / dof)
+    cov = sandwich * (n * e.shape[1] / dof)
     cov = np.where(ok[:, None] & ok[None, :], cov, np.nan)
     cov = 0.5 * (cov + cov.T)
     pooled = e[np.any(e != 0, axis=1)]

@@ -42,8 +42,8 @@ from jaxbox.validate import uncertainty  # noqa: E402
 
 #: horizons reported [h]
 HOURS = (1, 2, 4, 6, 12, 24)
-#: the fits: ``raw`` the stochastic form's bands as they are; plain, calibrated on the
-#: identification half (the default); ``+θ``, calibrated and with the parameters' uncertainty
+#: the fits: ``raw`` the stochastic form's bands as they are; plain, calibrated on the data
+#: before each origin (the default); ``+θ``, calibrated and with the parameters' uncertainty
 METHODS = ("oe raw", "ml raw", "oe", "ml", "oe+θ", "ml+θ")
 #: (label suffix, parameters' uncertainty, calibrate)
 VARIANTS = ((" raw", False, False), ("", False, True), ("+θ", True, True))
@@ -156,10 +156,13 @@ def _markdown(rows: list[dict], args, total_s: float) -> str:
         "from every hour of the second half the Kalman state is propagated 1–24 h ahead with "
         "the measured inputs (`jaxbox.forecast.backtest`). The bands of `oe raw` and `ml raw` "
         "are those of the stochastic model (process and measurement noise) as they are; those "
-        "of `oe` and `ml` (the default) are calibrated on the identification half: scaled at "
-        "each horizon to the model's own standardised errors of forecasts over that half "
-        "(never narrower than the raw bands); those of `oe+θ` and `ml+θ` are calibrated and "
-        "also hold the uncertainty of the estimated parameters, to first order "
+        "of `oe` and `ml` (the default) are calibrated as `forecast` calibrates them at each "
+        "origin, on the data before it (the identification half and the hours of the second "
+        "half already past; nothing after the origin): scaled at each horizon to the larger of "
+        "the model's mean squared standardised errors of forecasts over all that history and "
+        "over its last day (never below a quarter of the raw variance); those of `oe+θ` and "
+        "`ml+θ` are calibrated and also hold the uncertainty of the estimated parameters, to "
+        "first order "
         "(`parameters=True` for `ml`, `parameters=uncertainty(fit)` for `oe`: the forecast's "
         "sensitivities to the parameters and their covariance). Forecasts from neighbouring "
         "hours overlap, so the coverages of one building are correlated: read them to about "
@@ -207,9 +210,9 @@ def _misses(rows: list[dict]) -> list[str]:
         "Where the band holds far less than 95 %: "
         + "; ".join(items)
         + ". There the model fitted on the first half does not carry over to the second (an "
-        "error and a bias well above the noise it was fitted with, also at one hour): a model "
-        "that fails validation gives bands that do not hold, unless the uncertainty of its "
-        "parameters covers the difference (`+θ`).",
+        "error and a bias well above the noise it was fitted with, also at one hour): its raw "
+        "bands do not hold; the calibration, which follows the model's errors over the last "
+        "day of the history, widens them as soon as the errors grow.",
         "",
     ]
 

@@ -146,27 +146,53 @@ def test_backtest_of_the_true_model_covers_at_its_nominal_levels(data):
 
 def test_calibration_equals_the_standardised_errors_of_forecasts_over_the_history(data):
     """The factors against forecasts made one origin at a time by :func:`forecast` (uncalibrated):
-    the running maximum over the horizon of the mean squared standardised error, at least 1."""
+    per horizon step, the larger of the mean squared standardised error over the whole history
+    and over its last day of origins, counting only targets within the history, at least 1/4."""
     wrong = _form({**TRUE, "gA": 0.0, "R_wal": 0.7 * TRUE["R_wal"]}, x0_std=1.0)
     history = data.slice(None, data.index[80])
     steps = 6
     z2 = []
-    for o in range(0, 81 - steps):
-        f = forecast(
-            wrong, data.slice(None, data.index[o]), history, horizon=steps, calibrate=False
-        )
-        z2.append(((f["T_zon_measured"] - f["T_zon_mean"]) / f["T_zon_sd"]).to_numpy() ** 2)
-    expected = np.maximum.accumulate(np.maximum(np.mean(z2, axis=0), 1.0))
+    for o in range(0, 80):
+        f = forecast(wrong, data.slice(None, data.index[o]), data, horizon=steps, calibrate=False)
+        e = (f["T_zon_measured"] - f["T_zon_mean"]).where(f.index <= history.index[-1])
+        z2.append((e / f["T_zon_sd"]).to_numpy() ** 2)
+    z2 = np.asarray(z2)  # [origin, step]: NaN where the target lies after the history
+    assert np.isnan(z2[79, 1]) and np.isfinite(z2[79, 0]) and np.isfinite(z2[78, 1])
+    expected = np.array(
+        [
+            max(np.nanmean(z2[: 81 - h, h - 1]), np.nanmean(z2[81 - h - 24 : 81 - h, h - 1]), 0.25)
+            for h in range(1, steps + 1)
+        ]
+    )
     out = forecast(wrong, history, data, horizon=steps)
     raw = forecast(wrong, history, data, horizon=steps, calibrate=False)
     np.testing.assert_allclose(out["T_zon_sd"] / raw["T_zon_sd"], np.sqrt(expected), rtol=1e-8)
     np.testing.assert_allclose(out["T_zon_mean"], raw["T_zon_mean"], rtol=0)
-    assert expected[-1] > 2.0 and "75 in-sample forecasts" in out.attrs["calibration"]
+    assert expected[-1] > 2.0 and "80 in-sample forecasts" in out.attrs["calibration"]
     assert raw.attrs["calibration"] == "none (calibrate=False)"
     short = forecast(wrong, data.slice(None, data.index[20]), data, horizon=steps)
     assert short.attrs["calibration"].startswith("none: 15 in-sample forecasts")
     with pytest.raises(FitError, match="calibrate must be True or False, got 'yes'"):
         forecast(wrong, history, data, horizon=steps, calibrate="yes")
+
+
+def test_a_backtest_calibrates_each_origin_as_a_forecast_there_would(data):
+    """Each origin of a backtest gets the bands :func:`forecast` gives with the data up to it;
+    origins with too little history before them keep the raw bands."""
+    wrong = _form({**TRUE, "gA": 0.0, "R_wal": 0.7 * TRUE["R_wal"]}, x0_std=1.0)
+    steps = 6
+    table = backtest(wrong, data, start=data.index[20], horizon=steps, every=40)
+    assert "4 of 5 origins calibrated" in table.attrs["calibration"]
+    for o in (100, 140):
+        f = forecast(wrong, data.slice(None, data.index[o]), data, horizon=steps)
+        g = forecast(wrong, data.slice(None, data.index[o]), data, horizon=steps, calibrate=False)
+        one = backtest(wrong, data, start=data.index[o], horizon=steps, every=1000)
+        np.testing.assert_allclose(one["sd"], f["T_zon_sd"], rtol=1e-8)
+        assert np.all(f["T_zon_sd"] > g["T_zon_sd"])
+    early = backtest(wrong, data, start=data.index[20], horizon=steps, every=1000)
+    raw = backtest(wrong, data, start=data.index[20], horizon=steps, every=1000, calibrate=False)
+    np.testing.assert_allclose(early["sd"], raw["sd"], rtol=1e-12)
+    assert "0 of 1 origins calibrated" in early.attrs["calibration"]
 
 
 def test_calibrated_bands_of_a_wrong_model_cover_and_of_the_true_model_stay(data):
@@ -179,12 +205,11 @@ def test_calibrated_bands_of_a_wrong_model_cover_and_of_the_true_model_stay(data
     cal = backtest(wrong, data, start=start, horizon="12h")
     assert raw["cover95"].mean() < 0.7
     assert cal["cover95"].mean() > 0.85
-    assert "in-sample forecasts" in cal.attrs["calibration"]
+    assert "85 of 85 origins calibrated" in cal.attrs["calibration"]
     true = backtest(_form(TRUE, x0_std=1.0), data, start=start, horizon="12h")
     true_raw = backtest(_form(TRUE, x0_std=1.0), data, start=start, horizon="12h", calibrate=False)
     assert np.all(true["sd"] <= 1.25 * true_raw["sd"])
     assert true["cover95"].mean() == pytest.approx(0.95, abs=0.04)
-    assert backtest(wrong, data, horizon="12h").attrs["calibration"].startswith("none (no start")
 
 
 @pytest.fixture(scope="module")

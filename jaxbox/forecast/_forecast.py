@@ -19,20 +19,26 @@ of a maximum-likelihood fit; for an output-error fit pass ``parameters=uncertain
 
 **Calibration on the history** (``calibrate=True``, the default). The stochastic form's noise
 explains the one-step errors; a model's error over many hours (a solar gain it places wrongly,
-a slow state it lacks) grows faster than its process noise says, and the bands at 12–24 h
-would hold too few measurements. So the history itself is forecast from every origin whose
-horizon lies within it (at most :data:`CALIBRATION_ORIGINS`, evenly spread), and at each
-horizon step ``k`` and output the variance is scaled by ``c_k = max_{j ≤ k} max(1, mean(e_j² /
-S_j))``, the mean squared standardised error of those in-sample forecasts (kept ≥ 1, and
-non-decreasing in the horizon). The bands are then as wide as the model's own errors on the
-data it knows, never narrower than its noise. ``frame.attrs["calibration"]`` gives the factors
-(of the sd) per output at the last step, or says why there was none (a history shorter than
-the horizon plus :data:`CALIBRATION_MIN` origins).
+a slow state it lacks, parameters that do not carry over to new weather) grows faster than its
+process noise says, and the bands would hold too few measurements. So the history itself is
+forecast from its own samples, and at each horizon step ``k`` and output the variance is scaled
+by ``c_k = max(m_k, r_k, 1/4)``: ``m_k`` the mean squared standardised error ``e²/S`` of the
+``k``-step forecasts over the whole history (at most :data:`CALIBRATION_ORIGINS` origins, evenly
+spread), ``r_k`` the same over the last :data:`CALIBRATION_RECENT` seconds of origins (the
+model's errors of the last day: a model whose error has grown since the fit gets wider bands at
+once, not after weeks). Only forecasts whose target lies within the history count, so a
+forecast at ``t`` uses nothing after ``t``. The bands are as wide as the model's own recent and
+long-run errors, never narrower than half the model's sd. ``frame.attrs["calibration"]`` gives
+the factors (of the sd) per output at the last step, or says why there was none (fewer than
+:data:`CALIBRATION_MIN` whole horizons in the history). :func:`backtest` calibrates each origin
+on the data before it, as :func:`forecast` would at that origin (from all its origins rather
+than ≤ 400 spread ones).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -53,6 +59,8 @@ __all__ = [
     "BANDS",
     "CALIBRATION_ORIGINS",
     "CALIBRATION_MIN",
+    "CALIBRATION_RECENT",
+    "CALIBRATION_FLOOR",
     "calibration",
 ]
 
@@ -61,8 +69,14 @@ BANDS = (0.5, 0.95)
 _Z = {b: float(stats.norm.ppf(0.5 + b / 2)) for b in BANDS}
 #: at most this many in-sample forecasts calibrate the bands (evenly spread over the history)
 CALIBRATION_ORIGINS = 400
-#: no calibration from fewer in-sample forecasts than this
+#: no calibration from fewer in-sample forecasts (whole horizons within the history) than this
 CALIBRATION_MIN = 24
+#: the recent window of the calibration [s]: the origins of the history's last day
+CALIBRATION_RECENT = 86400.0
+#: the calibration never scales the sd below this fraction
+CALIBRATION_FLOOR = 0.5
+#: in-sample forecasts are propagated this many origins at a time (bounded memory)
+_CHUNK = 256
 
 
 def horizon_steps(horizon, dt: float) -> int:
@@ -157,38 +171,109 @@ def propagate(sysm: DiscreteSystem, m, P, u) -> dict[str, np.ndarray]:
     return {"x": x, "Px": Px, "y": y, "var": var}
 
 
-def calibration(run, steps: int, end: int | None = None) -> tuple[np.ndarray | None, str]:
-    """Variance factors ``[steps, p]`` from forecasts of the filtered data ``run`` itself (its
-    samples before ``end``), and a line that says what they rest on (see the module docstring).
+def _standardised(run, origins: np.ndarray, steps: int) -> np.ndarray:
+    """``e²/S`` [O, H, p] of the forecasts of ``run``'s own data from ``origins``: NaN where the
+    target lies beyond the data or is not measured."""
+    n = len(run.y)
+    out = []
+    for lo in range(0, origins.size, _CHUNK):
+        o = origins[lo : lo + _CHUNK]
+        idx = o[:, None] + np.arange(steps + 1)[None, :]
+        within = idx[:, 1:] < n
+        idx = np.minimum(idx, n - 1)
+        f = propagate(run.system, run.m[o], run.P[o], run.u[idx])
+        meas = np.where(within[..., None], run.y[idx[:, 1:]], np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z2 = (meas - f["y"]) ** 2 / np.clip(f["var"], 1e-300, None)
+        out.append(np.where(np.isfinite(z2), z2, np.nan))
+    if not out:
+        return np.full((0, steps, run.y.shape[1]), np.nan)
+    return np.concatenate(out, axis=0)
 
-    ``None`` (and the reason) where fewer than :data:`CALIBRATION_MIN` origins leave a whole
-    horizon within the data.
-    """
-    n = len(run.y) if end is None else int(end)
-    origins = np.arange(0, n - steps)
-    if origins.size < CALIBRATION_MIN:
-        return None, (
-            f"none: {max(origins.size, 0)} in-sample forecasts of {steps} steps fit in the "
+
+def _recent(dt: float) -> int:
+    """The recent window in origins: :data:`CALIBRATION_RECENT` at the step ``dt`` [s]."""
+    return max(CALIBRATION_MIN, int(round(CALIBRATION_RECENT / dt)))
+
+
+def _combine(m: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The factor from the long-run and recent means (NaN: no forecast known, factor 1)."""
+    f = np.fmax(np.where(np.isfinite(m), m, 1.0), r)
+    return np.maximum(f, CALIBRATION_FLOOR**2)
+
+
+def _too_short(n: int, steps: int) -> str | None:
+    whole = n - steps
+    if whole < CALIBRATION_MIN:
+        return (
+            f"none: {max(whole, 0)} in-sample forecasts of {steps} steps fit in the "
             f"history, fewer than {CALIBRATION_MIN}"
         )
-    if origins.size > CALIBRATION_ORIGINS:
-        origins = np.unique(np.linspace(0, n - steps - 1, CALIBRATION_ORIGINS).round().astype(int))
-    u = np.stack([run.u[o : o + steps + 1] for o in origins])
-    out = propagate(run.system, run.m[origins], run.P[origins], u)
-    meas = np.stack([run.y[o + 1 : o + steps + 1] for o in origins])
-    z2 = (meas - out["y"]) ** 2 / np.clip(out["var"], 1e-300, None)
-    with np.errstate(invalid="ignore"):
-        ratio = np.nanmean(np.where(np.isfinite(z2), z2, np.nan), axis=0)  # [H, p]
-    ratio = np.where(np.isfinite(ratio), ratio, 1.0)
-    factor = np.maximum.accumulate(np.maximum(ratio, 1.0), axis=0)
-    return factor, f"from {origins.size} in-sample forecasts of the history"
+    return None
 
 
-def _calibrated(out: dict, run, steps: int, calibrate: bool, end: int | None = None) -> str:
+def calibration(run, steps: int) -> tuple[np.ndarray | None, str]:
+    """Variance factors ``[steps, p]`` for a forecast from the last sample of the filtered data
+    ``run``, from forecasts of that data, and a line that says what they rest on (see the module
+    docstring).
+
+    ``None`` (and the reason) where fewer than :data:`CALIBRATION_MIN` origins leave a whole
+    horizon within the history.
+    """
+    n = len(run.y)
+    short = _too_short(n, steps)
+    if short:
+        return None, short
+    h = np.arange(1, steps + 1)
+    spread = np.arange(0, n - 1)
+    if spread.size > CALIBRATION_ORIGINS:
+        spread = np.unique(np.linspace(0, n - 2, CALIBRATION_ORIGINS).round().astype(int))
+    window = _recent(_dt(run))
+    recent = np.arange(max(0, n - steps - window), n - 1)
+    z_all = _standardised(run, spread, steps)
+    z_rec = _standardised(run, recent, steps)
+    # the k-step forecasts of the last `window` origins whose target lies within the history
+    keep = recent[:, None] >= (n - 1 - h - window + 1)[None, :]
+    z_rec = np.where(keep[..., None], z_rec, np.nan)
+    with warnings.catch_warnings():  # an all-NaN column: no forecast known there (factor 1)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        factor = _combine(np.nanmean(z_all, axis=0), np.nanmean(z_rec, axis=0))
+    return factor, (
+        f"from {spread.size} in-sample forecasts of the history and those of its last "
+        f"{window} samples"
+    )
+
+
+def _per_origin(run, origins: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Factors ``[O, H, p]`` for forecasts from ``origins`` of ``run``, each from the data up to
+    its origin (as :func:`calibration` there, from all its origins), and which were calibrated."""
+    z2 = _standardised(run, np.arange(0, max(int(origins.max()), 1)), steps)  # [K, H, p]
+    ok = np.isfinite(z2)
+    cs = np.concatenate([np.zeros((1,) + z2.shape[1:]), np.cumsum(np.where(ok, z2, 0.0), 0)])
+    cn = np.concatenate([np.zeros((1,) + z2.shape[1:]), np.cumsum(ok, 0)])
+    h = np.arange(1, steps + 1)
+    last = np.clip(origins[:, None] - h[None, :], -1, None)  # [O, H]: the last k with k + h <= o
+    lo = np.clip(last - _recent(_dt(run)) + 1, 0, None)
+    col = np.arange(steps)[None, :]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m = cs[last + 1, col] / cn[last + 1, col]
+        r = (cs[last + 1, col] - cs[lo, col]) / (cn[last + 1, col] - cn[lo, col])
+    factor = _combine(m, r)
+    calibrated = origins + 1 - steps >= CALIBRATION_MIN
+    factor = np.where(calibrated[:, None, None], factor, 1.0)
+    return factor, calibrated
+
+
+def _dt(run) -> float:
+    """The step [s] of a filter run (its index is regular)."""
+    return float(pd.Timedelta(run.index[1] - run.index[0]).total_seconds())
+
+
+def _calibrated(out: dict, run, steps: int, calibrate: bool) -> str:
     """Scale ``out["var"]`` in place by the history's calibration; the line for ``attrs``."""
     if not calibrate:
         return "none (calibrate=False)"
-    factor, note = calibration(run, steps, end)
+    factor, note = calibration(run, steps)
     if factor is None:
         return note
     out["var"] = out["var"] * factor
@@ -369,7 +454,9 @@ def backtest(
     The filter runs once over ``data``; from every ``every``-th sample at or after ``start``
     (default: the first) whose horizon lies within the data, the measured inputs drive a
     forecast (:func:`forecast`), which is compared with the measured outputs. ``parameters``:
-    as in :func:`forecast`.
+    as in :func:`forecast`. ``calibrate``: each origin's bands calibrated on the data before
+    it, as :func:`forecast` would calibrate them there (module docstring); origins with fewer
+    than :data:`CALIBRATION_MIN` whole horizons before them keep the raw bands.
 
     Returns:
         One row per horizon step and output: ``step``, ``hours``, ``output``, ``n`` (scored
@@ -395,14 +482,16 @@ def backtest(
     u = np.stack([run.u[o : o + steps + 1] for o in origins])
     out = propagate(run.system, run.m[origins], run.P[origins], u)
     _check_flag(calibrate, "calibrate")
-    if start is None:
+    if calibrate:
+        factor, calibrated = _per_origin(run, origins, steps)
+        out["var"] = out["var"] * factor
         note = (
-            "none (no start: no history before the scored forecasts)"
-            if calibrate
-            else ("none (calibrate=False)")
+            f"per origin, from the forecasts of the data before it (all of it and its last "
+            f"{_recent(dt)} samples): {int(calibrated.sum())} of {origins.size} origins "
+            f"calibrated (the others have fewer than {CALIBRATION_MIN} whole horizons before them)"
         )
     else:
-        note = _calibrated(out, run, steps, calibrate, end=first)
+        note = "none (calibrate=False)"
     cov = _covariance_of(result, parameters)
     if cov is not None:
 

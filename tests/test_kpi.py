@@ -5,6 +5,8 @@ one-state model, and a Monte Carlo of the parameter covariance through an indepe
 computation of the steady-state gain and the eigenvalues.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,7 @@ from jaxbox.data import Dataset
 from jaxbox.fit import fit_model
 from jaxbox.models import get_model
 from jaxbox.simulate import simulate_model
-from jaxbox.validate import fit_report, kpi_values, kpis, uncertainty
+from jaxbox.validate import _uncertainty, fit_report, kpi_values, kpis, uncertainty
 
 STEP = 3600.0
 N = 168
@@ -153,3 +155,37 @@ def test_bad_level_or_uncertainty_is_refused(zon_fit, zonwal_fit):
         kpis(zon_fit, "wide")
     with pytest.raises(ValueError, match="uncertainty is of a fit"):
         kpis(zon_fit, uncertainty(zonwal_fit))
+
+
+def _numbers(k) -> np.ndarray:
+    """Every indicator's value, std and interval, and the residual statistics, as one array."""
+    rows = [[x.value, x.std, *x.ci95] for x in k.all()]
+    res = [k.residuals[n] for n in ("lag1", "ljung_box_p", "bandwidth", "inflation")]
+    return np.concatenate([np.ravel(rows), res])
+
+
+@pytest.mark.parametrize("interval", ["white", "hac"])
+def test_kpis_reuse_the_sensitivities_of_the_uncertainty(zonwal_fit, interval, monkeypatch):
+    """The HAC covariance (computed for the intervals and for the warning about non-white
+    residuals) recomputed the sensitivities the uncertainty already held: now they are computed
+    once, with the same numbers as a recomputation."""
+    calls = []
+    real = _uncertainty.sensitivities
+    monkeypatch.setattr(
+        _uncertainty, "sensitivities", lambda *a, **k: calls.append(1) or real(*a, **k)
+    )
+    unc = uncertainty(zonwal_fit)
+    reused = kpis(zonwal_fit, unc, interval=interval)
+    assert len(calls) == 1
+    kpis(zonwal_fit, interval=interval)  # the uncertainty computed inside: reused as well
+    assert len(calls) == 2
+    bare = dataclasses.replace(unc, _optimum=None)  # an uncertainty without them: recomputed
+    again = kpis(zonwal_fit, bare, interval=interval)
+    assert len(calls) == 3
+    np.testing.assert_allclose(_numbers(reused), _numbers(again), rtol=1e-12, atol=0)
+    assert reused.warnings == again.warnings and reused.method == again.method
+    # the kept sensitivities are not those of other parameter values: recomputed there
+    moved = dict(zonwal_fit.params, R_wal=zonwal_fit.params["R_wal"] * 1.01)
+    other = dataclasses.replace(zonwal_fit, params=moved)
+    kpis(other, unc, interval=interval)
+    assert len(calls) == 4

@@ -68,15 +68,17 @@ class RobustCovariance:
         return (not math.isfinite(p) or p >= 0.05) and not self.lag1 > HIGH_LAG1
 
 
-def _errors(result):
-    """(weighted errors e [N, m], weighted sensitivities J [N, m, p]) in time order, 0 where an
-    output is not measured (m: the outputs with a weight)."""
+def _errors(result, uncertainty=None):
+    """(weighted errors e [N, m] in K, weighted sensitivities J [N, m, p] in K per SI unit) in
+    time order, 0 where an output is not measured (m: the outputs with a weight). The
+    sensitivities are those ``uncertainty`` holds when it was computed on this fit, else
+    computed anew."""
     from ..fit import problem_arrays
-    from ._uncertainty import sensitivities
+    from ._uncertainty import optimum_sensitivities
 
     problem = result.problem
-    _, _, y, sqrt_w = problem_arrays(problem, result.data)
-    ysim, J = sensitivities(result)
+    t, u, y, sqrt_w = problem_arrays(problem, result.data)
+    ysim, J = optimum_sensitivities(result, uncertainty, t, u)
     q = np.asarray(problem.weights, dtype=float)
     rows = q > 0
     sq = np.sqrt(q[rows])
@@ -146,7 +148,9 @@ def robust_covariance(result, uncertainty=None, *, max_rho: float = MAX_RHO) -> 
     Args:
         result: a :class:`~jaxbox.fit.FitResult`.
         uncertainty: its :class:`~jaxbox.validate.Uncertainty` (computed when ``None``); its
-            pseudo-inverse ``(JᵀJ)⁺`` is the sandwich's bread.
+            pseudo-inverse ``(JᵀJ)⁺`` is the sandwich's bread, and the exact sensitivities it
+            was computed from are reused (computed again only for an uncertainty of other
+            parameter values or data).
         max_rho: the largest prewhitening AR(1) coefficient.
 
     Returns:
@@ -163,7 +167,7 @@ def robust_covariance(result, uncertainty=None, *, max_rho: float = MAX_RHO) -> 
     if uncertainty is None:
         uncertainty = _uncertainty(result)
     free = tuple(problem.free)
-    e, J = _errors(result)
+    e, J = _errors(result, uncertainty)
     n, p = len(e), len(free)
     s = np.einsum("tm,tmp->tp", e, J)  # scores [N, p]
     ok = np.all(np.isfinite(uncertainty.cov_free), axis=1)

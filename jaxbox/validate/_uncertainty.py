@@ -37,6 +37,7 @@ by the parameter changes that leave the outputs unchanged to first order.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 
 import jax
 import jax.numpy as jnp
@@ -86,6 +87,56 @@ class Combination:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
+class _Optimum:
+    """The exact sensitivities an :class:`Uncertainty` was computed from, kept for
+    :func:`~jaxbox.validate.robust_covariance` (which needs them in time order).
+
+    Attributes:
+        key: what they depend on (:func:`_optimum_key`).
+        ysim: simulated outputs ŷ [N, outputs] in °C.
+        J: sensitivities ∂ŷ/∂θ [N, outputs, free] in °C per SI unit.
+    """
+
+    key: tuple
+    ysim: np.ndarray
+    J: np.ndarray
+
+
+def _digest(*arrays) -> str:
+    """A hash of the float64 contents (and shapes) of ``arrays``."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in arrays:
+        a = np.ascontiguousarray(a, dtype=float)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _optimum_key(problem, theta, t, u) -> tuple:
+    """What the sensitivities of :func:`sensitivities` depend on: the problem's simulation
+    (structure, free/fixed split, simulator), the fixed values, the free values ``theta`` [SI]
+    and the data's times ``t`` [s] and inputs ``u``."""
+    return (problem.simulation_key, problem.fixed, _digest(theta, t, u))
+
+
+def optimum_sensitivities(result, uncertainty, t, u) -> tuple[np.ndarray, np.ndarray]:
+    """``(ŷ, J)`` of :func:`sensitivities` at ``result``'s optimum: those ``uncertainty`` was
+    computed from when it was computed on the same fit (same simulation, parameter values,
+    times ``t`` [s] and inputs ``u`` of the data), else computed anew.
+
+    Returns:
+        (ŷ [N, outputs] in °C, J [N, outputs, free] in °C per SI unit), numpy.
+    """
+    kept = None if uncertainty is None else uncertainty._optimum
+    if kept is not None:
+        problem = result.problem
+        theta = np.asarray([result.params[n] for n in problem.free], dtype=float)
+        if kept.key == _optimum_key(problem, theta, t, u):
+            return kept.ysim, kept.J
+    return sensitivities(result)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
 class Uncertainty:
     """Linearised uncertainty of a fit's parameters (lmfit-style error bars).
 
@@ -111,6 +162,8 @@ class Uncertainty:
         cov_free: covariance of every free parameter, initial states included.
         jacobian: weighted sensitivities ``√q_j ∂ŷ/∂θ`` [N·outputs, len(free)].
         singular_values: of the column-normalised sensitivities, descending.
+        _optimum: the sensitivities in time order it was computed from (private: reused by
+            :func:`~jaxbox.validate.robust_covariance` on the same fit).
     """
 
     names: tuple[str, ...]
@@ -134,6 +187,7 @@ class Uncertainty:
     cov_free: Float[np.ndarray, "free free"]
     jacobian: Float[np.ndarray, "rows free"]
     singular_values: Float[np.ndarray, " free"]
+    _optimum: _Optimum | None = dataclasses.field(default=None, repr=False)
 
     @property
     def flagged(self) -> tuple[str, ...]:
@@ -481,7 +535,7 @@ def uncertainty(
     specs = {s.name: s for s in problem.model.parameters}
     units = tuple(specs[n].unit for n in free)
     theta = np.asarray([result.params[n] for n in free], dtype=float)
-    _, _, y, sqrt_w = problem_arrays(problem, result.data)
+    t, u, y, sqrt_w = problem_arrays(problem, result.data)
     # samples of an output gap (weight 0) are no observations
     seen = np.broadcast_to(np.asarray(sqrt_w) > 0, y.shape) if np.ndim(sqrt_w) == 2 else None
     if not np.all(np.isfinite(theta)):
@@ -618,4 +672,12 @@ def uncertainty(
         cov_free=cov,
         jacobian=Jw,
         singular_values=s,
+        _optimum=_Optimum(_optimum_key(problem, theta, t, u), _frozen(ysim), _frozen(J)),
     )
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a`` as a read-only array (kept in an :class:`Uncertainty`, shared by its users)."""
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a

@@ -14,6 +14,7 @@ from jaxbox.cli._main import main
 from jaxbox.datasets import make_fleet
 from jaxbox.fleet import FleetError, load_config, read_results, run_fleet
 from jaxbox.validate import kpi_values
+from jaxbox.validate._hlc_hac import HAC
 
 N = 6
 CFG = {"models": "ZonWal", "starts": 4, "partition_size": 3}
@@ -97,6 +98,11 @@ def test_rows_hold_params_intervals_kpis_and_timings(inline, fleet):
     doc = json.loads((out / "fits" / f"{first.name}.json").read_text())
     assert doc["status"] == "ok" and doc["model"] == "ZonWal"
     assert doc["kpis"]["hlc"]["value"] == pytest.approx(first["hlc"])
+    # the HAC intervals of the fit document and of select, named in the row
+    assert set(ok["kpi_interval"]) == {HAC}
+    assert doc["kpis"]["hlc"]["method"] == HAC
+    assert doc["kpis"]["hlc"]["ci95"] == pytest.approx([first["hlc_lo"], first["hlc_hi"]])
+    assert pd.isna(rows.set_index("building").loc["x_inf", "kpi_interval"])  # no KPIs
     assert json.loads((out / "fits" / "x_inf.json").read_text())["status"] == "bad_data"
     meta = json.loads((out / "fleet.json").read_text())
     assert meta["status"] == "done" and meta["processed"] == N + 4

@@ -74,6 +74,7 @@ SCHEMA = pa.schema(
         ("tau_std_h", _LIST),
         ("tau_lo_h", _LIST),
         ("tau_hi_h", _LIST),
+        ("kpi_interval", pa.string()),
         ("load_s", _F),
         ("fit_s", _F),
         ("select_s", _F),

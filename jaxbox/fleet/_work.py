@@ -25,6 +25,9 @@ __all__ = ["process_partition", "STATUSES"]
 STATUSES = ("ok", "no_valid_model", "bad_data", "failed")
 #: fewest identification samples a building needs
 MIN_SAMPLES = 24
+#: the parameter covariance of the KPI intervals: HAC (autocorrelated residuals), as the fit
+#: documents, ``select`` and :func:`~jaxbox.validate.fit_report` give them
+KPI_INTERVAL = "hac"
 
 
 def _setup() -> str:
@@ -108,7 +111,8 @@ def _params(result, unc) -> list[dict]:
 
 
 def _kpi_columns(kp) -> dict:
-    """``hlc``/``solar_aperture`` with ``_std``, ``_lo``, ``_hi``; time constants as lists."""
+    """``hlc``/``solar_aperture`` [W/K, m²] with ``_std``, ``_lo``, ``_hi``; time constants [h]
+    as lists; ``kpi_interval``: how the intervals were made (``None`` without KPIs)."""
     out: dict = {}
     for key in ("hlc", "solar_aperture"):
         k = None if kp is None else getattr(kp, key)
@@ -121,6 +125,7 @@ def _kpi_columns(kp) -> dict:
     out["tau_std_h"] = [t.std for t in taus]
     out["tau_lo_h"] = [t.ci95[0] for t in taus]
     out["tau_hi_h"] = [t.ci95[1] for t in taus]
+    out["kpi_interval"] = None if kp is None else kp.method
     return out
 
 
@@ -143,7 +148,7 @@ def _judge(result, valid, *, validation=None, verdict=None, fit_json: bool):
     kp = None
     if unc is not None:
         try:
-            kp = kpis(result, unc)
+            kp = kpis(result, unc, interval=KPI_INTERVAL)
         except (ValueError, np.linalg.LinAlgError):
             kp = None
     t2 = time.perf_counter()

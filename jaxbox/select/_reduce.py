@@ -3,7 +3,8 @@
 A candidate of a structure search is often made invalid only by parameters that sit where their
 component vanishes: a solar aperture or a gain at zero, a fraction at 0 or 1, a resistance at its
 upper bound (the heat path cut), a capacity at its lower bound (the node merged into its
-neighbour), an offset, gain or aperture whose interval spans zero (undetermined). The data then
+neighbour), an offset, gain or aperture whose interval spans zero (undetermined), a heater whose
+lag behind the zone the data do not determine (merged into the zone). The data then
 say "this component is not there"; that is a smaller model, not a wrong one. :func:`reduction`
 finds such parameters, each by one small rule (:data:`RULES`), and says what they are to be fixed
 at; the search identifies the candidate again with them fixed there and judges the reduced
@@ -22,7 +23,8 @@ bounds from the temperatures around it (as the forward selection does), and, pin
 steady start.
 
 A rule is a function ``(case) -> list[Fix]``; :func:`reduction` applies the rules (in tiers:
-a fast capacity is fixed at its estimate only once nothing else is to reduce) and reduces only
+a heater the data do not resolve from the zone is merged, and a fast capacity fixed at its
+estimate, only once nothing else is to reduce) and reduces only
 when every invalidating flag is explained: it names fixed parameters only, or it is an
 interval that a flat direction through them blurs (re-judged on the reduced candidate).
 """
@@ -51,6 +53,8 @@ BLURRED = ("wide_interval", "poorly_identifiable", "not_identifiable")
 _CLEARED = (*BLURRED, "no_intervals")
 #: parameter-name prefixes of gains: apertures, fractions, sensor offsets (vanish at 0)
 _GAINS = ("gA", "fra_", "Q_off")
+#: resistances of a node's lag that, undetermined, merge the node into the zone (the heater's)
+_LAGS = ("R_hea",)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,11 +158,50 @@ def undetermined(case) -> list[Fix]:
     """Gains, apertures and offsets whose interval spans zero (an interval flag: wider than its
     value, or a combination the data do not determine): dropped, fixed at 0."""
     names = {n for kind in BLURRED for n in _severe(case, kind)}
-    return [
+    out = [
         Fix(n, 0.0, "undetermined", f"{n} undetermined (→ 0)")
         for n in sorted(names)
         if n.startswith(_GAINS) and not case.model.parameter(n).is_initial_state
     ]
+    return out
+
+
+def unseen_lags(case) -> list[Fix]:
+    """A heater whose own resistance the data do not determine and whose node they do not
+    resolve from the zone (see :func:`_unseen_lags`): merged into the zone, the structure without
+    ``Hea`` (where the grammar has none, the resistance is fixed at its estimate)."""
+    blurred = {n for kind in BLURRED for n in _severe(case, kind)}
+    return [
+        Fix(n, float(case.result.params[n]), "undetermined", f"{n} undetermined (lag unseen)")
+        for n in _unseen_lags(case, blurred)
+    ]
+
+
+def _unseen_lags(case, blurred: set[str]) -> list[str]:
+    """The blurred heater resistances whose node the data do not resolve from the zone: a node
+    faster than two sampling steps whose capacity is determined (the heater's node holds the
+    zone's mass, coupled tighter than the data resolve), or a slower one whose time constant's
+    interval is wider than :data:`~jaxbox.validate.MAX_REL_CI`. (A fast node whose capacity is
+    blurred, or a lag the data see with R·C split aside, is :func:`settled`.)"""
+    lags = sorted(n for n in blurred if n.startswith(_LAGS) and n in case.result.params)
+    if not lags:
+        return []
+    params = {k: float(v) for k, v in case.result.params.items()}
+    caps = [n.C for n in case.model.network.nodes]
+    tau = own_time_constants(case.model, params)
+    dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
+    out = []
+    for r in lags:
+        c = "C" + r[1:]
+        if c not in caps:
+            continue
+        node = caps.index(c)
+        if tau[node] < 2.0 * dt:
+            if c not in blurred:
+                out.append(r)
+        elif time_constant_intervals(case, params, [node]).get(node, np.inf) > MAX_REL_CI:
+            out.append(r)
+    return out
 
 
 def settled(case) -> list[Fix]:
@@ -218,10 +261,14 @@ def initial_states(case) -> list[Fix]:
     return out
 
 
-#: the rules in tiers: a reduction applies the first tier that names any parameter (a capacity
-#: is settled at its estimate only once what vanishes is gone: the estimate then stands);
-#: within a tier, a parameter named by an earlier rule is not named again
-RULES: tuple[tuple[Callable, ...], ...] = ((vanishing, undetermined, initial_states), (settled,))
+#: the rules in tiers: a reduction applies the first tier that names any parameter (a heater
+#: is merged, and a capacity settled at its estimate, only once what vanishes is gone: the
+#: intervals then stand); within a tier, a parameter named by an earlier rule is not named again
+RULES: tuple[tuple[Callable, ...], ...] = (
+    (vanishing, undetermined, initial_states),
+    (unseen_lags,),
+    (settled,),
+)
 
 
 # ---- the reduction ------------------------------------------------------------------------------
@@ -290,6 +337,8 @@ def _how(fix: Fix) -> str | None:
         return None
     if fix.name.startswith(_GAINS):
         return "gain" if fix.value == 0.0 else None
+    if fix.name.startswith(_LAGS) and fix.kind == "undetermined":
+        return "merged"
     if fix.name.startswith("R_"):
         return "cut"
     if fix.name.startswith("C_"):

@@ -442,11 +442,12 @@ def main(argv=None) -> None:
     zoo = jaxbox.datasets.make_detailed_zoo(args.n, seed=args.seed)
     done: dict[str, dict] = {}
     ablated: dict[str, dict] = {}
-    if path.exists() and not args.rerun:
-        old = json.loads(path.read_text())
-        if old.get("seed") == args.seed:
+    old = json.loads(path.read_text()) if path.exists() else {}
+    if old.get("seed") == args.seed:
+        if not args.rerun:
             _fill(old.get("rows", []), zoo)
             done = {r["building"]: r for r in old.get("rows", [])}
+        if not (args.rerun and args.ablate):  # a rerun keeps the ablation unless it is asked for
             ablated = {r["building"]: r for r in old.get("ablation", [])}
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),

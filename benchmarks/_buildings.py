@@ -2,8 +2,9 @@
 
 * :func:`twinhouse_variant` — a twin house of IEA EBC Annex 58 experiment 1 from the measured
   10-minute tables in ``../shared/data/twinhouse_exp1``: the zone as the mean of the six heated
-  rooms (as shipped) or the living room alone, with or without the supply-air and cellar
-  columns, at 10 minutes or hourly;
+  rooms with their total heating (as shipped), or the living room alone with its own heater and
+  the mean of the five other heated rooms as a measured neighbour ``T_adj``; with or without
+  the supply-air and cellar columns, at 10 minutes or hourly;
 * :func:`darkgreybox_office` — DarkGreyBox's demo office (hourly, boiler-heated), with that
   tool's own split (train to 2020-01-19 23:00, test the last five days);
 * :func:`purdue_house` — the Purdue DC Nanogrid house under its thermostat (hourly, a month).
@@ -40,13 +41,16 @@ def twinhouse_variant(house: str, zone: str = "mean", columns: str = "all", step
     from jaxbox.data import load
 
     sys.path.insert(0, str(ROOT / "tools"))
-    from build_twinhouse import derive_10min, source_file
+    from build_twinhouse import HEATED_ROOMS, derive_10min, source_file
 
     frame = derive_10min(SHARED / "twinhouse_exp1", house)
-    if zone == "living":
+    if zone == "living":  # the living room, its own heater, its heated neighbours measured
         raw = load(source_file(SHARED / "twinhouse_exp1", house), time="datetime_utc+1").frame
         heights = [f"{house}_living_AT_h{h}" for h in ("67cm", "125cm", "187cm")]
         frame["T_zon"] = raw[heights].mean(axis=1).reindex(frame.index)
+        frame["Q_hea"] = raw[f"{house}_heat_elP_living_room"].reindex(frame.index)
+        rooms = [f"{house}_{room}_AT" for room in HEATED_ROOMS]
+        frame["T_adj"] = raw[rooms].mean(axis=1).reindex(frame.index)
     elif zone != "mean":
         raise ValueError(f"zone is 'mean' or 'living', got {zone!r}")
     if columns != "all":

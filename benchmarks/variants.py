@@ -126,6 +126,12 @@ def markdown(doc: dict) -> str:
             f"- {house}, {zone}: {len(v)} variants, HLC {min(v):.1f}–{max(v):.1f} W/K, "
             f"±{100 * (max(v) - min(v)) / (2 * mid):.1f} % of the mid-range"
         )
+    lines += [
+        "",
+        "Search times are wall-clock seconds on a shared 2-core machine, where another benchmark "
+        "often ran beside this one: compare them within a run, not with quiet-machine timings "
+        "(`benchmarks/RESULTS.md`).",
+    ]
     return "\n".join(lines) + "\n"
 
 

@@ -147,7 +147,33 @@ def test_a_heater_whose_lag_is_undetermined_is_merged_into_the_zone(monkeypatch)
     kept = _reduce(name, _wide("R_hea"), _wide("C_hea"), at=fast)
     assert kept.structure.name == name and {f.name for f in kept.fixes} == {"C_hea"}
     # a resistance of another node, undetermined, is no such reason (judged as before)
-    assert _reduce("Zon+Wal+Int+Bou", _wide("R_int")) is None
+    assert _reduce("Zon+Wal+Int+Bou", _wide("R_bou")) is None
+
+
+def test_a_mass_whose_coupling_is_undetermined_is_merged_and_the_zone_takes_its_capacity(
+    monkeypatch,
+):
+    """An internal mass whose resistance to the zone the data do not determine (nor its lag):
+    the structure without ``Int``, its zone starting from both capacities summed and free again
+    where an earlier reduction had settled it."""
+    from jaxbox.select import _reduce as reduce_module
+
+    wide = lambda case, params, nodes: {i: 1.5 for i in nodes}  # noqa: E731
+    monkeypatch.setattr(reduce_module, "time_constant_intervals", wide)
+    name = "Zon+Wal+Int+Inf"
+    case = _judged(name, _wide("R_int"), at={"C_int": 0.5, "R_int": 0.5})
+    case.fixed = {"C_zon": 1e5}  # settled by an earlier reduction
+    cut = reduction(case, parse_structure(name), GRAMMAR)
+    assert cut.structure.name == "Zon+Wal+Inf" and cut.dropped == ("Int",)
+    model, fixed, _ = cut.problem(case, GRAMMAR)
+    assert "C_zon" not in fixed
+    start = cut.start(case, model)
+    total = case.result.params["C_zon"] + case.result.params["C_int"]
+    spec = model.parameter("C_zon")
+    assert start == {"C_zon": pytest.approx(min(total, spec.upper))}
+    # nothing merged: no start, and the zone's earlier fix stays
+    gain = _reduce("Zon+Wal+Ae", _bound("gA_wal"), at={"gA_wal": 0.0})
+    assert gain.start(case, gain.structure.build(GRAMMAR)) == {}
 
 
 def test_a_fraction_at_one_is_fixed_there():

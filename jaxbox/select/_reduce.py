@@ -3,8 +3,8 @@
 A candidate of a structure search is often made invalid only by parameters that sit where their
 component vanishes: a solar aperture or a gain at zero, a fraction at 0 or 1, a resistance at its
 upper bound (the heat path cut), a capacity at its lower bound (the node merged into its
-neighbour), an offset, gain or aperture whose interval spans zero (undetermined), a heater whose
-lag behind the zone the data do not determine (merged into the zone). The data then
+neighbour), an offset, gain or aperture whose interval spans zero (undetermined), a heater or an
+internal mass whose coupling to the zone the data do not determine (merged into it). The data then
 say "this component is not there"; that is a smaller model, not a wrong one. :func:`reduction`
 finds such parameters, each by one small rule (:data:`RULES`), and says what they are to be fixed
 at; the search identifies the candidate again with them fixed there and judges the reduced
@@ -23,7 +23,7 @@ bounds from the temperatures around it (as the forward selection does), and, pin
 steady start.
 
 A rule is a function ``(case) -> list[Fix]``; :func:`reduction` applies the rules (in tiers:
-a heater the data do not resolve from the zone is merged, and a fast capacity fixed at its
+a heater or mass the data do not resolve from the zone is merged, and a fast capacity fixed at its
 estimate, only once nothing else is to reduce) and reduces only
 when every invalidating flag is explained: it names fixed parameters only, or it is an
 interval that a flat direction through them blurs (re-judged on the reduced candidate).
@@ -53,8 +53,9 @@ BLURRED = ("wide_interval", "poorly_identifiable", "not_identifiable")
 _CLEARED = (*BLURRED, "no_intervals")
 #: parameter-name prefixes of gains: apertures, fractions, sensor offsets (vanish at 0)
 _GAINS = ("gA", "fra_", "Q_off")
-#: resistances of a node's lag that, undetermined, merge the node into the zone (the heater's)
-_LAGS = ("R_hea",)
+#: resistances of a node to the zone that, undetermined, merge the node into it (the heater's,
+#: the internal mass's)
+_LAGS = ("R_hea", "R_int")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,12 +108,33 @@ class Reduction:
     def problem(self, case, grammar: Grammar) -> tuple:
         """``(model, fixed, bounds)`` of the reduced candidate of ``case``: the reduced
         structure's model, ``case``'s fixed values and bounds that it still has, and this
-        reduction's."""
+        reduction's (a zone that takes a merged node's capacity is free again, see
+        :meth:`start`)."""
         model = self.structure.build(grammar)
         params = set(model.param_names)
-        fixed = {k: v for k, v in case.fixed.items() if k in params} | self.fixed
+        merged = set(self.start(case, model))
+        fixed = {k: v for k, v in case.fixed.items() if k in params and k not in merged}
+        fixed |= self.fixed
         bounds = {k: v for k, v in case.bounds.items() if k in params and k not in fixed}
         return model, fixed, bounds | self.bounds
+
+    def start(self, case, model) -> dict[str, float]:
+        """Where the reduced candidate's zone capacities start [J/K]: a zone that takes the node
+        of a merged heater or mass (:func:`unseen_lags`) starts from the sum of both capacities
+        at ``case``'s optimum (within its bounds); ``{}`` when nothing was merged."""
+        params = case.result.params
+        out: dict[str, float] = {}
+        for f in self.fixes:
+            if not (f.kind == "undetermined" and f.name.startswith(_LAGS)):
+                continue
+            node = "C" + f.name[1:]
+            zone = "C_zon" + f.name[len(f.name.rstrip("0123456789")) :]
+            if node in model.param_names or zone not in model.param_names or node not in params:
+                continue
+            spec = model.parameter(zone)
+            total = out.get(zone, float(params[zone])) + float(params[node])
+            out[zone] = float(np.clip(total, spec.lower, spec.upper))
+        return out
 
     def text(self, source: str) -> str:
         """``"gA → 0: Zon+Wal+Int+Ae reduced to Zon+Wal+Int+Ae (gA = 0)"``."""
@@ -167,9 +189,10 @@ def undetermined(case) -> list[Fix]:
 
 
 def unseen_lags(case) -> list[Fix]:
-    """A heater whose own resistance the data do not determine and whose node they do not
-    resolve from the zone (see :func:`_unseen_lags`): merged into the zone, the structure without
-    ``Hea`` (where the grammar has none, the resistance is fixed at its estimate)."""
+    """A heater or an internal mass whose resistance to the zone the data do not determine and
+    whose node they do not resolve from it (see :func:`_unseen_lags`): merged into the zone, the
+    structure without ``Hea`` or ``Int`` (where the grammar has none, the resistance is fixed at
+    its estimate)."""
     blurred = {n for kind in BLURRED for n in _severe(case, kind)}
     return [
         Fix(n, float(case.result.params[n]), "undetermined", f"{n} undetermined (lag unseen)")
@@ -178,8 +201,8 @@ def unseen_lags(case) -> list[Fix]:
 
 
 def _unseen_lags(case, blurred: set[str]) -> list[str]:
-    """The blurred heater resistances whose node the data do not resolve from the zone: a node
-    faster than two sampling steps whose capacity is determined (the heater's node holds the
+    """The blurred resistances of :data:`_LAGS` whose node the data do not resolve from the zone:
+    a node faster than two sampling steps whose capacity is determined (the node holds the
     zone's mass, coupled tighter than the data resolve), or a slower one whose time constant's
     interval is wider than :data:`~jaxbox.validate.MAX_REL_CI`. (A fast node whose capacity is
     blurred, or a lag the data see with R·C split aside, is :func:`settled`.)"""
@@ -262,7 +285,7 @@ def initial_states(case) -> list[Fix]:
 
 
 #: the rules in tiers: a reduction applies the first tier that names any parameter (a heater
-#: is merged, and a capacity settled at its estimate, only once what vanishes is gone: the
+#: or a mass is merged, and a capacity settled at its estimate, only once what vanishes is gone: the
 #: intervals then stand); within a tier, a parameter named by an earlier rule is not named again
 RULES: tuple[tuple[Callable, ...], ...] = (
     (vanishing, undetermined, initial_states),

@@ -87,6 +87,7 @@ from ._forward import (
     _fraction,
     check_run,
 )
+from ._guess import parent_guess
 from ._reduce import Reduction, reduction
 
 __all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
@@ -370,8 +371,13 @@ class _Search:
         ``name``, ``fixed``, ``bounds``; ``tree_parent`` where the tree shows another parent)."""
         model = structure.build(self.grammar)
         tree_parent = problem.pop("tree_parent", None if parent is None else parent.name)
+        start = problem.pop("start", None)
         if parent is None:
             case = self.gb.add_case(model, **problem, **self.kw)
+        elif start:  # the parent's optimum, some values moved (a merged node's capacity)
+            moved = {**parent.result.params, **start}
+            guess = parent_guess(model, self.gb.ident, moved, parent.name)
+            case = self.gb.add_case(model, guess=guess, **problem, **self.kw)
         else:
             case = self.gb.add_case(model, guess="parent", parent=parent.name, **problem, **self.kw)
         case.settings.setdefault("postsim", "exact")
@@ -461,7 +467,8 @@ class _Search:
         already: the smaller structure was a candidate of its own)."""
         source = self.nodes[child.name]["structure"]
         text = cut.text(source)
-        _, fixed, bounds = cut.problem(child, self.grammar)
+        model, fixed, bounds = cut.problem(child, self.grammar)
+        start = cut.start(child, model)
         key = cut.structure.name
         if fixed or bounds:
             key += "|" + ",".join(f"{k}={v:.6g}" for k, v in sorted(fixed.items()))
@@ -485,6 +492,7 @@ class _Search:
             fixed=fixed,
             bounds=bounds,
             tree_parent=node["parent"],
+            start=start,
         )
         self.seen.add(source)
         case.notes.append(f"reduced from {child.name}: {text}")

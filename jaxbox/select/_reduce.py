@@ -152,6 +152,16 @@ def _severe(case, kind: str | None = None) -> set[str]:
     return set(case.verdict.flagged(kind))
 
 
+def _blurred(case) -> set[str]:
+    """The parameters an interval flag of the verdict names (:data:`BLURRED`)."""
+    return {n for kind in BLURRED for n in _severe(case, kind)}
+
+
+def _step(case) -> float:
+    """The identification data's sampling step [s] (the median spacing)."""
+    return float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
+
+
 def vanishing(case) -> list[Fix]:
     """Parameters on the bound where their component vanishes: a gain (aperture, fraction,
     offset) at 0, a fraction at 1, a resistance at its upper bound (the path cut), a capacity at
@@ -179,13 +189,11 @@ def vanishing(case) -> list[Fix]:
 def undetermined(case) -> list[Fix]:
     """Gains, apertures and offsets whose interval spans zero (an interval flag: wider than its
     value, or a combination the data do not determine): dropped, fixed at 0."""
-    names = {n for kind in BLURRED for n in _severe(case, kind)}
-    out = [
+    return [
         Fix(n, 0.0, "undetermined", f"{n} undetermined (→ 0)")
-        for n in sorted(names)
+        for n in sorted(_blurred(case))
         if n.startswith(_GAINS) and not case.model.parameter(n).is_initial_state
     ]
-    return out
 
 
 def unseen_lags(case) -> list[Fix]:
@@ -193,10 +201,9 @@ def unseen_lags(case) -> list[Fix]:
     whose node they do not resolve from it (see :func:`_unseen_lags`): merged into the zone, the
     structure without ``Hea`` or ``Int`` (where the grammar has none, the resistance is fixed at
     its estimate)."""
-    blurred = {n for kind in BLURRED for n in _severe(case, kind)}
     return [
         Fix(n, float(case.result.params[n]), "undetermined", f"{n} undetermined (lag unseen)")
-        for n in _unseen_lags(case, blurred)
+        for n in _unseen_lags(case, _blurred(case))
     ]
 
 
@@ -212,7 +219,7 @@ def _unseen_lags(case, blurred: set[str]) -> list[str]:
     params = {k: float(v) for k, v in case.result.params.items()}
     caps = [n.C for n in case.model.network.nodes]
     tau = own_time_constants(case.model, params)
-    dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
+    dt = _step(case)
     out = []
     for r in lags:
         c = "C" + r[1:]
@@ -232,13 +239,13 @@ def settled(case) -> list[Fix]:
     but not the capacity: a fast node (own time constant ``C/ΣG`` under two sampling steps), or
     a node whose time constant is determined (its 95 % interval within
     :data:`~jaxbox.validate.MAX_REL_CI`) while ``C`` is not: fixed at the estimate."""
-    blurred = {n for kind in BLURRED for n in _severe(case, kind)}
+    blurred = _blurred(case)
     caps = sorted(n for n in blurred if n.startswith("C_"))
     if not caps:
         return []
     params = {k: float(v) for k, v in case.result.params.items()}
     tau = own_time_constants(case.model, params)
-    dt = float(np.median(np.diff(np.asarray(case.ident.t, dtype=float))))
+    dt = _step(case)
     nodes = [n.C for n in case.model.network.nodes]
     fast = [c for c in caps if c in nodes and tau[nodes.index(c)] < 2.0 * dt]
     rest = [nodes.index(c) for c in caps if c in nodes and c not in fast]

@@ -10,12 +10,12 @@ validation SE divided by the exhaustive best's (≤ 1 where the search accepted 
 than the exhaustive reference goes).
 
 Buildings: a sample of the zoo (``--zoo N``), the twin houses as shipped (``N2``, ``O5``), the
-twin-house preparations of :data:`_buildings.VARIANTS` (``--variants``), DarkGreyBox's demo
-office and the Purdue house (``../shared/data``).
+twin-house preparations of :data:`_buildings.VARIANTS` (``--variants 1h``: those at that step;
+``1h,10min`` for all), DarkGreyBox's demo office and the Purdue house (``../shared/data``).
 
 Usage::
 
-    python benchmarks/exhaustive.py [--zoo 6] [--components 3] [--only NAME,...]
+    python benchmarks/exhaustive.py [--zoo 6] [--components 3] [--only NAME,...] [--variants 1h]
         [--out benchmarks/EXHAUSTIVE.md] [--json benchmarks/exhaustive.json]
 """
 
@@ -34,7 +34,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _buildings import darkgreybox_office, purdue_house, twinhouse_variant  # noqa: E402
+from _buildings import VARIANTS, darkgreybox_office, purdue_house, twinhouse_variant  # noqa: E402
 
 
 def exhaustive(gb, components: int, starts: int = 8, say=lambda _: None) -> dict:
@@ -115,6 +115,13 @@ def buildings(args) -> list:
         out.append((b.name, lambda b=b: jaxbox.GreyBox(b.data, name=b.name), b.noise))
     for house in ("N2", "O5"):
         out.append((f"{house} shipped", lambda h=house: twinhouse_variant(h), None))
+    for house in ("N2", "O5") if args.variants else ():
+        for zone, columns, step in VARIANTS:
+            if step not in args.variants.split(","):
+                continue
+            label = f"{house} {zone} {'all' if columns == 'all' else 'no-sup-cel'} {step}"
+            make = lambda h=house, z=zone, c=columns, s=step: twinhouse_variant(h, z, c, s)  # noqa: E731
+            out.append((label, make, None))
     out.append(("darkgreybox office", darkgreybox_office, None))
     out.append(("purdue house", purdue_house, None))
     return out
@@ -197,6 +204,11 @@ def main(argv=None) -> int:
     p.add_argument("--components", type=int, default=3)
     p.add_argument("--starts", type=int, default=8)
     p.add_argument("--only", default="", help="comma-separated building names")
+    p.add_argument(
+        "--variants",
+        default="",
+        help="the twin-house preparations of _buildings.VARIANTS at these steps (1h,10min)",
+    )
     p.add_argument("--out", type=Path, default=HERE / "EXHAUSTIVE.md")
     p.add_argument("--json", type=Path, default=HERE / "exhaustive.json")
     args = p.parse_args(argv)

@@ -146,8 +146,9 @@ def test_a_heater_whose_lag_is_undetermined_is_merged_into_the_zone(monkeypatch)
     assert cut.structure.name == "Zon+Int+Bou+WinS+Sol"
     kept = _reduce(name, _wide("R_hea"), _wide("C_hea"), at=fast)
     assert kept.structure.name == name and {f.name for f in kept.fixes} == {"C_hea"}
-    # a resistance of another node, undetermined, is no such reason (judged as before)
-    assert _reduce("Zon+Wal+Int+Bou", _wide("R_bou")) is None
+    # a resistance of another node, undetermined, is no such reason (the envelope's; a
+    # boundary's is cut, see below)
+    assert _reduce("Zon+Wal+Int+Bou", _wide("R_wal")) is None
 
 
 def test_a_mass_whose_coupling_is_undetermined_is_merged_and_the_zone_takes_its_capacity(
@@ -174,6 +175,41 @@ def test_a_mass_whose_coupling_is_undetermined_is_merged_and_the_zone_takes_its_
     # nothing merged: no start, and the zone's earlier fix stays
     gain = _reduce("Zon+Wal+Ae", _bound("gA_wal"), at={"gA_wal": 0.0})
     assert gain.start(case, gain.structure.build(GRAMMAR)) == {}
+
+
+@pytest.mark.parametrize(
+    "name, columns, smaller, fixed",
+    [
+        # a measured boundary whose coupling is undetermined: the structure without it
+        ("Zon+Wal+Bou", COLUMNS, "Zon+Wal", {}),
+        ("Zon+Wal+BouC", COLUMNS, "Zon+Wal", {}),
+        # a held neighbouring zone (no structure without it): the same one, the path cut
+        ("Zon2+Wal2+Int2+Bz1", ["T_zon1", "T_zon2", "T_amb", "Q_hea2"], "Zon2+Wal2+Int2+Bz1", None),
+    ],
+)
+def test_a_boundary_whose_coupling_is_undetermined_is_cut(name, columns, smaller, fixed):
+    """A boundary's resistance whose interval is wider than its value (R_bou ±170 % on a zone
+    fed its neighbour's measured temperature): the boundary's influence is not resolved; the
+    path is cut, and the reduced candidate is judged on its own (it loses where the boundary
+    mattered). An envelope resistance as wide is no such reason."""
+    grammar = Grammar.from_columns(columns)
+    cut = _reduce(name, _wide("R_bou"), grammar=grammar)
+    assert cut is not None and cut.structure.name == smaller
+    if fixed is None:  # the same structure: R_bou at its upper bound
+        hi = parse_structure(name).build(grammar).parameter("R_bou").upper
+        assert cut.fixed == {"R_bou": hi}
+    else:
+        assert cut.fixed == fixed
+    assert "R_bou undetermined (coupling cut" in cut.text(name)
+    # the tier after what vanishes: an aperture at zero goes first, the coupling after
+    gain = next(
+        n for n in ("gA", "R_int2") if n in parse_structure(name).build(grammar).param_names
+    )
+    first = _reduce(
+        name, _wide("R_bou"), _bound(gain), at={gain: float(gain != "gA")}, grammar=grammar
+    )
+    assert first is not None and "R_bou" not in first.fixed and gain in first.text(name)
+    assert _reduce("Zon+Wal+Bou", _wide("R_wal")) is None
 
 
 def test_a_fraction_at_one_is_fixed_there():

@@ -4,7 +4,8 @@ A candidate of a structure search is often made invalid only by parameters that 
 component vanishes: a solar aperture or a gain at zero, a fraction at 0 or 1, a resistance at its
 upper bound (the heat path cut), a capacity at its lower bound (the node merged into its
 neighbour), an offset, gain or aperture whose interval spans zero (undetermined), a heater or an
-internal mass whose coupling to the zone the data do not determine (merged into it). The data then
+internal mass whose coupling to the zone the data do not determine (merged into it), a boundary
+or neighbouring zone whose coupling they do not determine (the path cut). The data then
 say "this component is not there"; that is a smaller model, not a wrong one. :func:`reduction`
 finds such parameters, each by one small rule (:data:`RULES`), and says what they are to be fixed
 at; the search identifies the candidate again with them fixed there and judges the reduced
@@ -23,8 +24,8 @@ bounds from the temperatures around it (as the forward selection does), and, pin
 steady start.
 
 A rule is a function ``(case) -> list[Fix]``; :func:`reduction` applies the rules (in tiers:
-a heater or mass the data do not resolve from the zone is merged, and a fast capacity fixed at its
-estimate, only once nothing else is to reduce) and reduces only
+a heater or mass the data do not resolve from the zone is merged, an undetermined boundary cut,
+and a fast capacity fixed at its estimate, only once nothing else is to reduce) and reduces only
 when every invalidating flag is explained: it names fixed parameters only, or it is an
 interval that a flat direction through them blurs (re-judged on the reduced candidate).
 """
@@ -234,6 +235,39 @@ def _unseen_lags(case, blurred: set[str]) -> list[str]:
     return out
 
 
+def uncoupled(case) -> list[Fix]:
+    """Couplings to a boundary (a measured temperature such as ``T_bou``, a neighbouring zone)
+    whose resistance the data do not determine: the boundary's influence is not resolved, so the
+    path is cut (the resistance at its upper bound): the structure without that boundary, or,
+    where the grammar has none (a held zone ``Bz``), the same structure with the path cut. The
+    reduced candidate is judged on its own: where the boundary did matter, it loses."""
+    names = _coupling_resistances(case.model.name)
+    out = []
+    for n in sorted(_blurred(case) & names):
+        if n not in case.result.params or case.model.parameter(n).is_initial_state:
+            continue
+        hi = float(case.result.bounds[n][1])
+        out.append(Fix(n, hi, "undetermined", f"{n} undetermined (coupling cut → {hi:.4g} K/W)"))
+    return out
+
+
+def _coupling_resistances(name: str) -> set[str]:
+    """The resistances of a structure's boundaries and zone couplings (``R_bou``, ``R_adj2``…);
+    empty for a model that is not a grammar structure."""
+    try:
+        structure = parse_structure(name)
+    except ValueError:
+        return set()
+    out = {"R_bou"} if structure.bound_zones else set()
+    for zone, word in structure.tokens:
+        if word in ("Cpl", "CplC"):
+            out.add("R_bou")
+        elif is_boundary_token(word):
+            base = word[:-1] if word.endswith("C") else word
+            out.add(f"R_{base.lower()}{'' if zone <= 0 else zone}")
+    return out
+
+
 def settled(case) -> list[Fix]:
     """Capacities that only intervals make the case invalid for, of nodes whose lag the data see
     but not the capacity: a fast node (own time constant ``C/ΣG`` under two sampling steps), or
@@ -296,7 +330,7 @@ def initial_states(case) -> list[Fix]:
 #: intervals then stand); within a tier, a parameter named by an earlier rule is not named again
 RULES: tuple[tuple[Callable, ...], ...] = (
     (vanishing, undetermined, initial_states),
-    (unseen_lags,),
+    (unseen_lags, uncoupled),
     (settled,),
 )
 

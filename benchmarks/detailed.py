@@ -16,9 +16,12 @@ of the truth, the 95 % interval covering the truth and no wider than ±25 %, eac
 Usage::
 
     python benchmarks/detailed.py [--n 40] [--seed 0] [--rerun] [--report-only] [--ablate K]
+        [--reveal K]
 
 ``--ablate K`` searches the first K buildings again without their unmeasured occupancy gains
-(``make_detailed_zoo(…, occupancy=False)``), to show how much of the HLC error they cause.
+(``make_detailed_zoo(…, occupancy=False)``), to show how much of the HLC error they cause;
+``--reveal K`` with the gains and the ground's temperature measured (``reveal=("gains",
+"ground")``), to show what the two unmeasured quantities cost.
 
 Each building's row is cached in ``benchmarks/detailed.json`` as soon as it is done, with the
 git commit it was measured at; a second run resumes with the buildings not yet there
@@ -312,7 +315,7 @@ def markdown(doc: dict) -> str:
                 "buildings without a measured cellar; the HLC error correlates with it "
                 f"(Pearson r = {np.corrcoef(g, e)[0, 1]:+.2f}).",
             ]
-    lines += _ablation(doc)
+    lines += _rerun(doc, "ablation") + _rerun(doc, "revealed")
     lines += [
         "",
         "| building | step | heating | heater | states | accepted | RMSE [K] | true HLC [W/K] | "
@@ -344,21 +347,43 @@ def markdown(doc: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _ablation(doc: dict) -> list[str]:
-    """The same buildings without occupancy gains (``--ablate``), against the rows."""
-    abl = doc.get("ablation") or []
-    if not abl:
+#: the reruns of the first buildings with one thing changed: key in the json, option, the words
+#: for the markdown (what changed, the label of the two columns)
+_RERUNS = {
+    "ablation": (
+        "--ablate",
+        "Without the unmeasured occupancy gains (`--ablate {k}`: the first {k} buildings again, "
+        "`make_detailed_zoo(…, occupancy=False)`, the ventilation at its base rate throughout, "
+        "everything else the same):",
+        ("with gains", "without"),
+    ),
+    "revealed": (
+        "--reveal",
+        "With what the data leave unmeasured measured after all (`--reveal {k}`: the first {k} "
+        "buildings again, `make_detailed_zoo(…, reveal=('gains', 'ground'))`: the occupancy gains "
+        "as a column `P_ele` (token `Ele`) and the ground's temperature as `T_gro` (token `Gro`) "
+        "where the floor lies on the ground; the same buildings and data otherwise). What the "
+        "search gains here is what the two unmeasured quantities cost:",
+        ("as measured", "revealed"),
+    ),
+}
+
+
+def _rerun(doc: dict, key: str) -> list[str]:
+    """The first buildings again with one thing changed (``--ablate``, ``--reveal``), against
+    the rows."""
+    again = doc.get(key) or []
+    if not again:
         return []
+    option, intro, (a_, b_) = _RERUNS[key]
     rows = {r["building"]: r for r in doc["rows"]}
-    pairs = [(rows[a["building"]], a) for a in abl if a["building"] in rows]
+    pairs = [(rows[a["building"]], a) for a in again if a["building"] in rows]
     lines = [
         "",
-        f"Without the unmeasured occupancy gains (`--ablate {len(pairs)}`: the first "
-        f"{len(pairs)} buildings again, `make_detailed_zoo(…, occupancy=False)`, the "
-        "ventilation at its base rate throughout, everything else the same):",
+        intro.format(k=len(pairs)),
         "",
-        "| building | heating | accepted with gains | HLC error | accepted without | "
-        "HLC error | covers (with / without) |",
+        f"| building | heating | accepted {a_} | HLC error | accepted {b_} | "
+        f"HLC error | covers ({a_} / {b_}) |",
         "|---|---|---|---:|---|---:|---|",
     ]
 
@@ -371,17 +396,20 @@ def _ablation(doc: dict) -> list[str]:
             f"{a.get('accepted', '–')} | {err(a)} | "
             f"{'yes' if r.get('covers') else 'no'} / {'yes' if a.get('covers') else 'no'} |"
         )
-    with_ = [abs(r["hlc_error"]) for r, _ in pairs if "hlc_error" in r]
-    without = [abs(a["hlc_error"]) for _, a in pairs if "hlc_error" in a]
-    if with_ and without:
+    first = [abs(r["hlc_error"]) for r, _ in pairs if "hlc_error" in r]
+    second = [abs(a["hlc_error"]) for _, a in pairs if "hlc_error" in a]
+    if first and second:
+        signed = [a["hlc_error"] for _, a in pairs if "hlc_error" in a]
+        rmse = [a["rmse_valid"] for _, a in pairs if "rmse_valid" in a]
         lines += [
             "",
-            f"Median |HLC error| {100 * np.median(with_):.1f} % with the gains, "
-            f"{100 * np.median(without):.1f} % without; within ±15 %: "
-            f"{sum(e <= 0.15 for e in with_)}/{len(with_)} with, "
-            f"{sum(e <= 0.15 for e in without)}/{len(without)} without; the interval covers "
-            f"the truth {sum(bool(r.get('covers')) for r, _ in pairs)}/{len(pairs)} with, "
-            f"{sum(bool(a.get('covers')) for _, a in pairs)}/{len(pairs)} without.",
+            f"Median |HLC error| {100 * np.median(first):.1f} % {a_}, "
+            f"{100 * np.median(second):.1f} % {b_} (median signed {100 * np.median(signed):+.1f} "
+            f"%); within ±15 %: {sum(e <= 0.15 for e in first)}/{len(first)} {a_}, "
+            f"{sum(e <= 0.15 for e in second)}/{len(second)} {b_}; the interval covers the "
+            f"truth {sum(bool(r.get('covers')) for r, _ in pairs)}/{len(pairs)} {a_}, "
+            f"{sum(bool(a.get('covers')) for _, a in pairs)}/{len(pairs)} {b_}; validation "
+            f"RMSE ≤ 0.3 K {sum(x <= 0.3 for x in rmse)}/{len(pairs)} {b_}.",
         ]
     return lines
 
@@ -421,6 +449,12 @@ def main(argv=None) -> None:
         default=0,
         help="also search the first K buildings again without occupancy gains",
     )
+    ap.add_argument(
+        "--reveal",
+        type=int,
+        default=0,
+        help="also search the first K buildings again with the gains and ground measured",
+    )
     args = ap.parse_args(argv)
     path = Path(args.json)
     if args.report_only:
@@ -442,6 +476,7 @@ def main(argv=None) -> None:
     zoo = jaxbox.datasets.make_detailed_zoo(args.n, seed=args.seed)
     done: dict[str, dict] = {}
     ablated: dict[str, dict] = {}
+    revealed: dict[str, dict] = {}
     old = json.loads(path.read_text()) if path.exists() else {}
     if old.get("seed") == args.seed:
         if not args.rerun:
@@ -449,6 +484,8 @@ def main(argv=None) -> None:
             done = {r["building"]: r for r in old.get("rows", [])}
         if not (args.rerun and args.ablate):  # a rerun keeps the ablation unless it is asked for
             ablated = {r["building"]: r for r in old.get("ablation", [])}
+        if not (args.rerun and args.reveal):
+            revealed = {r["building"]: r for r in old.get("revealed", [])}
     doc = {
         "date": time.strftime("%Y-%m-%d %H:%M"),
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, one building at a time",
@@ -482,6 +519,20 @@ def main(argv=None) -> None:
             row = run_one(b, settings, doc["commit"])
             jaxbox._compiled.release()
             doc["ablation"].append(row)
+            print(json.dumps(row), flush=True)
+            _write(path, json.dumps(doc, indent=1))
+    if revealed or args.reveal:
+        doc["revealed"] = [revealed[b.name] for b in zoo if b.name in revealed]
+    if args.reveal:
+        known = jaxbox.datasets.make_detailed_zoo(
+            args.n, seed=args.seed, reveal=("gains", "ground")
+        )
+        for b in known[: args.reveal]:
+            if b.name in revealed:
+                continue
+            row = run_one(b, settings, doc["commit"])
+            jaxbox._compiled.release()
+            doc["revealed"].append(row)
             print(json.dumps(row), flush=True)
             _write(path, json.dumps(doc, indent=1))
     _write(path, json.dumps(doc, indent=1))

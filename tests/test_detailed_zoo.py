@@ -187,3 +187,22 @@ def test_without_occupancy_the_same_building(zoo):
         assert a.params["q_occ_peak"] == b.params["q_occ_peak"]
         assert b.kpis["hlc"] <= a.kpis["hlc"]  # the ventilation at its base rate
         assert b.hlc_parts["ventilation"] == pytest.approx(b.params["H_ven_base"])
+
+
+def test_revealed_gains_and_ground_are_the_same_building(zoo):
+    """``reveal`` measures what the data leave out (the occupancy gains as ``P_ele``, the
+    ground's temperature as ``T_gro`` where the floor lies on the ground) without changing the
+    building or its other columns."""
+    known = make_detailed_zoo(2, seed=3, reveal=("gains", "ground"))
+    for a, b in zip(zoo[:2], known, strict=True):
+        assert a.kpis["hlc"] == b.kpis["hlc"] and a.structure == b.structure
+        for col in a.data.columns:
+            np.testing.assert_array_equal(a.data.frame[col], b.data.frame[col])
+        gains = b.data.frame["P_ele"].to_numpy()
+        assert gains.min() >= 0.0 and gains.max() == pytest.approx(b.params["q_occ_peak"], abs=1)
+        assert ("T_gro" in b.data.columns) == ("T_bou" not in a.data.columns)
+        if "T_gro" in b.data.columns:  # a ground at a constant temperature
+            assert 9.0 <= b.data.frame["T_gro"].iloc[0] <= 13.0
+            assert np.ptp(b.data.frame["T_gro"].to_numpy()) == 0.0
+    with pytest.raises(ValueError, match="reveal"):
+        make_detailed_zoo(1, reveal=("weather",))

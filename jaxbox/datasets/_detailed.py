@@ -630,6 +630,11 @@ def _building(k: int, name: str, rng, opts) -> DetailedBuilding:
         measured["T_bou"] = np.round(t_gnd[sl] + rng.normal(0.0, 0.05, len(index)), 2)
     # the heat meter: 1 % noise, 1 W resolution
     measured["Q_hea"] = np.round(U[:, jq] * (1.0 + rng.normal(0.0, 0.01, len(index))), 0)
+    # what a better-instrumented building would add (no random draw: the same building)
+    if "gains" in opts["reveal"]:
+        measured["P_ele"] = np.round(U[:, _INPUTS.index("q_occ")], 0)
+    if "ground" in opts["reveal"] and not layout["cellar"]:
+        measured["T_gro"] = np.round(t_gnd[sl], 2)
     data = Dataset(measured)
     A = A_mean
     tau = np.sort(-1.0 / np.linalg.eigvals(A).real)
@@ -687,6 +692,7 @@ def make_detailed_zoo(
     heating: str | Sequence[str] = HEATING_KINDS,
     facades: float = 0.4,
     occupancy: bool = True,
+    reveal: Sequence[str] = (),
     prefix: str = "d",
 ) -> list[DetailedBuilding]:
     """``n`` detailed synthetic buildings whose truth is outside the component grammar.
@@ -745,14 +751,18 @@ def make_detailed_zoo(
         facades: probability of the facade irradiance columns ``I_s``, ``I_e``, ``I_w``.
         occupancy: ``False`` for the same buildings without occupancy gains and with the
             ventilation at its base rate throughout (to measure what the unmeasured gains do).
+        reveal: what the data leave unmeasured, measured after all, to show what its absence
+            costs (the same buildings otherwise): ``"gains"`` adds the occupancy gains as a
+            column ``P_ele`` [W] (token ``Ele``), ``"ground"`` the ground temperature as
+            ``T_gro`` [°C] (token ``Gro``) where the floor lies on the ground.
         prefix: names are ``prefix`` + a zero-padded number.
 
     Returns:
         One :class:`DetailedBuilding` per building.
 
     Raises:
-        ValueError: ``n < 1``, an unknown step or heating kind, or more days than the weather
-            holds (about 40 with the warm-up).
+        ValueError: ``n < 1``, an unknown step, heating kind or ``reveal`` word, or more days
+            than the weather holds (about 40 with the warm-up).
     """
     n = check_count(n, "n (buildings)")
     seed = check_count(seed, "seed", 0)
@@ -766,7 +776,11 @@ def make_detailed_zoo(
         "heating": tuple(heating) if isinstance(heating, list | tuple) else heating,
         "facades": float(facades),
         "occupancy": bool(occupancy),
+        "reveal": tuple(reveal),
     }
+    unknown = set(opts["reveal"]) - {"gains", "ground"}
+    if unknown:
+        raise ValueError(f"reveal takes 'gains' and 'ground'; got {sorted(unknown)}")
     width = max(3, len(str(int(n) - 1)))
     zoo = []
     for k in range(int(n)):

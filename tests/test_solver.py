@@ -147,7 +147,7 @@ def test_slot_refilling_batch_equals_one_start_at_a_time(building, reference):
 def test_default_slots_fill_a_cpu_in_groups_and_an_accelerator_at_once():
     from jaxbox.fit._fit import default_slots
 
-    assert [default_slots(n, "cpu") for n in (1, 8, 64, 1024, 8192)] == [1, 8, 16, 128, 128]
+    assert [default_slots(n, "cpu") for n in (1, 8, 64, 1024, 8192)] == [1, 8, 8, 8, 8]
     assert [default_slots(n, "gpu") for n in (1, 64, 8192)] == [1, 64, 8192]
     assert default_slots(10**6, "gpu") == 16384  # bounded by memory
     # where a narrow batch runs parallel in time, up to 1024 starts share 256 refilling slots
@@ -157,7 +157,7 @@ def test_default_slots_fill_a_cpu_in_groups_and_an_accelerator_at_once():
         256,
         1025,
     ]
-    assert default_slots(1024, "cpu", parallel=True) == 128  # never on a CPU
+    assert default_slots(1024, "cpu", parallel=True) == 8  # never on a CPU
     assert default_slots(64) == default_slots(64, jax.default_backend())
 
 

@@ -125,6 +125,8 @@ def check_homotopy(gains) -> tuple[float, ...]:
 
 #: most starts iterated together on an accelerator (memory: a slot holds its normal equations)
 _ACCELERATOR_SLOTS = 16384
+#: most starts iterated together in one queue on a CPU (see :func:`default_slots`)
+_CPU_SLOTS = 8
 #: starts iterated together on an accelerator where the fit runs parallel in time
 _ACCELERATOR_NARROW = 256
 
@@ -132,8 +134,13 @@ _ACCELERATOR_NARROW = 256
 def default_slots(n_starts: int, platform: str | None = None, *, parallel: bool = False) -> int:
     """Starts iterated together.
 
-    On a CPU: enough to use the vector units, few enough that a start that has terminated soon
-    hands its slot to the next one instead of idling (16 to 128). On a GPU or TPU the
+    On a CPU: at most :data:`_CPU_SLOTS`. An iteration costs about the same per slot for 4 or
+    64 slots (the vector units work along a start's parameters, not across starts), while the
+    last round of a queue leaves slots idle until its slowest start ends: fewer slots idle less.
+    Measured on the 2-core CPU of ``benchmarks/RESULTS.md`` (two parts side by side), against
+    the earlier 16 to 128 slots: the 14-parameter fit, 1024 starts, 24.2 s instead of 35.3 s
+    (64 slots); a structure search's batch of eight 15–18-parameter variants, 5.4 s instead of
+    6.9 s (16 slots), 93 % of the computed steps of use instead of 86 %. On a GPU or TPU the
     sequential scan over time costs about the same for 1 or 10⁴ slots, so every start runs at
     once, up to 16384 slots; but where the normal equations of :data:`_ACCELERATOR_NARROW`
     members run parallel in time (``parallel``, see
@@ -151,7 +158,7 @@ def default_slots(n_starts: int, platform: str | None = None, *, parallel: bool 
         if parallel and n_starts <= _PARALLEL_BATCH:
             return int(max(1, min(n_starts, _ACCELERATOR_NARROW)))
         return int(max(1, min(n_starts, _ACCELERATOR_SLOTS)))
-    return int(min(n_starts, max(16, min(128, n_starts // 8))))
+    return int(max(1, min(n_starts, _CPU_SLOTS)))
 
 
 #: the solver reads each slot's normal equations from the batch evaluation (see _multistart)
@@ -201,7 +208,8 @@ def _multistart(
     the queue is empty; each start's result does not depend on the batch it ran in. Traceable
     (call it under ``jax.jit``). Returns ``(z [S, p], cost [S], code [S], steps [S])`` of the
     best route of each start (the lowest finite cost); ``steps`` counts every stage of every
-    route, ``code`` is that of the best route's last stage (``MAX_STEPS``: it reached the cap).
+    route, ``code`` is that of the best route's last stage (``MAX_STEPS``: it reached the cap);
+    and the iterations of the loop (each advances every slot by one step).
     """
     n_starts, p = z0.shape
     dtype = z0.dtype
@@ -367,7 +375,7 @@ def _multistart(
     rows = jnp.arange(n_starts)
     pick = lambda a: a.reshape((n_starts, n_routes) + a.shape[1:])[rows, best]  # noqa: E731
     steps = c["out_steps"].reshape(n_starts, n_routes).sum(axis=1)
-    return pick(c["out_z"]), pick(c["out_cost"]), pick(c["out_code"]), steps
+    return pick(c["out_z"]), pick(c["out_cost"]), pick(c["out_code"]), steps, c["it"]
 
 
 # ---- jobs: (problem, starts, data) sharing one compiled solve ------------------------------------
@@ -806,7 +814,9 @@ def solve_jobs(
     [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s] and
     ``memory_bytes``, the compiled solve's arguments, outputs and scratch memory (-1 if the
     backend does not report it); ``slots``, the starts iterated together in each of ``parts``
-    queues that run side by side.
+    queues that run side by side; ``iterations``, each part's iterations (jaxbox's solver: each
+    advances every slot by one step, so ``slots × Σ iterations`` steps are computed for
+    ``Σ steps`` of use).
     """
     if not jobs:
         raise FitError("no job to solve")
@@ -975,10 +985,12 @@ def solve_jobs(
     outs = _run_parts(compiled, calls)
     fit_s = time.perf_counter() - t0
     z, cost, code, steps = (
-        np.empty((n_real, *np.shape(a)[1:]), dtype=np.asarray(a).dtype) for a in outs[0]
+        np.empty((n_real, *np.shape(a)[1:]), dtype=np.asarray(a).dtype) for a in outs[0][:4]
     )
+    # jaxbox's solver: the iterations of each part's loop (each advances every slot by a step)
+    iterations = [int(out[4]) for out in outs if len(out) > 4]
     for rows, out in zip(parts, outs, strict=True):
-        for whole, part in zip((z, cost, code, steps), out, strict=True):
+        for whole, part in zip((z, cost, code, steps), out[:4], strict=True):
             whole[rows] = np.asarray(part)[: len(rows)]
     p_parts, start = [], 0
     width = z.shape[1]
@@ -1005,6 +1017,7 @@ def solve_jobs(
         "memory_bytes": memory,
         "slots": int(sum(slot_counts)),
         "parts": len(parts),
+        "iterations": iterations,
     }
 
 

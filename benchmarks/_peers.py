@@ -26,7 +26,19 @@ import numpy as np
 from jaxbox.fit import problem_arrays
 from jaxbox.fit._transforms import _LIN, _LOG
 
-__all__ = ["casadi_collocation", "scipy_shooting", "exact_cost"]
+__all__ = ["casadi_collocation", "scipy_shooting", "exact_cost", "time_to_best"]
+
+
+def time_to_best(per_start_s: float, hits: int, n: int, level: float = 0.99) -> float:
+    """Expected time to reach the best cost with probability ``level`` by independent starts:
+    ``per_start_s × ln(1 − level) / ln(1 − p)``, ``p = hits / n`` the share of starts that
+    reached it (one start's time where every start did; ``inf`` where none did)."""
+    if n <= 0 or hits <= 0:
+        return float("inf")
+    if hits >= n:
+        return float(per_start_s)
+    p = hits / n
+    return float(per_start_s * np.log(1.0 - level) / np.log(1.0 - p))
 
 
 def exact_cost(problem, data, p_free) -> float:

@@ -9,7 +9,15 @@ second process on the cache the cold one filled. The profile's cumulative times 
 own phases (fits, verdicts, intervals, validation, KPIs, report) overlap the JAX columns (a
 fit's first call includes its compilation); the table says which is which.
 
+With ``--baseline REV`` the same runs are made, alternating, by an *old* code as well: this
+tree with the paths ``--baseline-paths`` (the fit and its compile paths by default) as they are
+at ``REV`` (``git archive``), so that only what those paths changed is measured, and the
+selection (accepted model, cost, SE, HLC) is compared between the two. Each code's figure is the
+minimum over ``--rounds`` rounds (cold: each on an empty cache of its own; warm: a second
+process on it).
+
     python benchmarks/profile_select.py [--data twinhouse_exp1:N2] [--out benchmarks/PROFILE.md]
+        [--baseline HEAD~1] [--rounds 2]
 
 Writes ``benchmarks/PROFILE.md`` (and ``benchmarks/profile.json``), and the same table into
 ``benchmarks/RESULTS.md`` between the lines ``<!-- profile_select -->`` and
@@ -24,8 +32,10 @@ import json
 import os
 import platform
 import pstats
+import shutil
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from collections import defaultdict
@@ -78,16 +88,27 @@ def _child(args) -> None:
         argv += ["--out", str(Path(args.workdir) / "out")]
     prof = cProfile.Profile()
     t0 = time.perf_counter()
-    with open(os.devnull, "w") as sink:
-        stdout = sys.stdout
-        sys.stdout = sink
-        try:
+    import io
+
+    sink = io.StringIO()
+    stdout = sys.stdout
+    sys.stdout = sink
+    try:
+        if args.no_profile:
+            code = cli_main(argv)
+        else:
             prof.enable()
             code = cli_main(argv)
             prof.disable()
-        finally:
-            sys.stdout = stdout
+    finally:
+        sys.stdout = stdout
     wall = time.perf_counter() - t0
+    selection = _selection(sink.getvalue())
+    if args.no_profile:
+        doc = {"exit": code, "import_s": t_import, "wall_s": wall, "selection": selection}
+        doc["jax"] = {k: {"seconds": sums[k], "events": counts[k]} for k in EVENTS.values()}
+        Path(args.result).write_text(json.dumps(doc, indent=1))
+        return
     stats = pstats.Stats(prof)
     phases = {}
     for label, path, name in PHASES:
@@ -113,21 +134,46 @@ def _child(args) -> None:
         "wall_s": wall,
         "jax": {k: {"seconds": sums[k], "events": counts[k]} for k in EVENTS.values()},
         "phases": phases,
+        "selection": selection,
     }
     Path(args.result).write_text(json.dumps(doc, indent=1))
 
 
-def _run(data: str, cache: Path, workdir: Path, report: bool) -> dict:
+def _selection(text: str) -> dict:
+    """What a selection must keep from one code to another: the accepted model, its cost, SE
+    (auto and cross), RMSE and parameters, and the HLC with its interval."""
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        return {}
+    fit = doc.get("fit") or {}
+    hlc = doc.get("hlc") or {}
+    return {
+        "accepted": doc.get("accepted"),
+        "cost": fit.get("cost"),
+        "se_auto": fit.get("se_auto"),
+        "se_cross": fit.get("se_cross"),
+        "rms_error": fit.get("rms_error"),
+        "params": fit.get("params"),
+        "hlc": hlc.get("value"),
+        "hlc_ci95": hlc.get("ci95"),
+    }
+
+
+def _run(
+    data: str, cache: Path, workdir: Path, report: bool, code: Path = ROOT, profile: bool = True
+) -> dict:
     result = workdir / f"result-{time.monotonic_ns()}.json"
     env = {
         **os.environ,
         "JAXBOX_CACHE_DIR": str(cache),
-        "PYTHONPATH": str(ROOT),
+        "PYTHONPATH": str(code),
     }
     env.pop("JAXBOX_CACHE", None)
     t0 = time.perf_counter()
     cmd = [sys.executable, __file__, "--child", "--data", data, "--result", str(result)]
     cmd += ["--workdir", str(workdir)] + (["--report"] if report else [])
+    cmd += [] if profile else ["--no-profile"]
     subprocess.run(cmd, env=env, check=True)
     doc = json.loads(result.read_text())
     doc["process_s"] = time.perf_counter() - t0
@@ -188,7 +234,15 @@ def main(argv=None) -> None:
     ap.add_argument("--data", default="twinhouse_exp1:N2")
     ap.add_argument("--report", action="store_true", help="also --out (the HTML report)")
     ap.add_argument("--out", default=str(HERE / "PROFILE.md"))
+    ap.add_argument("--baseline", default="", help="a commit: measure the old code too")
+    ap.add_argument(
+        "--baseline-paths",
+        default="jaxbox/fit,jaxbox/_compiled.py,jaxbox/_cache.py",
+        help="the paths taken from --baseline (the rest of the tree is this one's)",
+    )
+    ap.add_argument("--rounds", type=int, default=1, help="rounds of old and new (--baseline)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--no-profile", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--result", help=argparse.SUPPRESS)
     ap.add_argument("--workdir", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -203,13 +257,123 @@ def main(argv=None) -> None:
             "cold": _run(args.data, cache, work, args.report),
             "warm": _run(args.data, cache, work, args.report),
         }
+        if args.baseline:
+            runs["versus"] = _versus(args, work)
     load1 = os.getloadavg()[0]
     out = Path(args.out)
     text = _markdown(runs, args, (load0, load1))
+    if args.baseline:
+        text += _versus_markdown(runs["versus"], args)
     out.write_text(text)
     out.with_name("profile.json").write_text(json.dumps(runs, indent=1))
     _into_results(out.with_name("RESULTS.md"), text)
     print(text)
+
+
+def _old_tree(baseline: str, paths: list[str], into: Path) -> Path:
+    """This tree's ``jaxbox`` with ``paths`` as they are at ``baseline``."""
+    shutil.copytree(ROOT / "jaxbox", into / "jaxbox", ignore=shutil.ignore_patterns("__pycache__"))
+    for path in paths:
+        target = into / path
+        if target.is_dir():
+            shutil.rmtree(target)
+        elif target.exists():
+            target.unlink()
+    archive = into / "old.tar"
+    subprocess.run(
+        ["git", "archive", "--format=tar", "-o", str(archive), baseline, *paths],
+        cwd=ROOT,
+        check=True,
+    )
+    with tarfile.open(archive) as tf:
+        tf.extractall(into, filter="data")
+    return into
+
+
+def _versus(args, work: Path) -> dict:
+    """Cold and warm runs of the old and the new code, alternating, without the profiler."""
+    paths = [p for p in args.baseline_paths.split(",") if p]
+    old = _old_tree(args.baseline, paths, work / "old")
+    runs: dict = {"baseline": args.baseline, "paths": paths, "old": [], "new": []}
+    for k in range(args.rounds):
+        for which, code in (("old", old), ("new", ROOT)):
+            cache = work / f"cache-{which}-{k}"
+            cold = _run(args.data, cache, work, args.report, code, profile=False)
+            warm = _run(args.data, cache, work, args.report, code, profile=False)
+            runs[which].append({"cold": cold, "warm": warm})
+            print(
+                f"{which} round {k + 1}: cold {cold['process_s']:.1f} s, warm "
+                f"{warm['process_s']:.1f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+    return runs
+
+
+def _same(a: dict, b: dict, rel: float = 1e-6) -> tuple[bool, float]:
+    """Whether two selections agree (the model by name, the numbers within ``rel``) and the
+    largest relative difference of their numbers."""
+    worst = 0.0
+
+    def walk(x, y) -> bool:
+        nonlocal worst
+        if isinstance(x, dict) and isinstance(y, dict):
+            return x.keys() == y.keys() and all(walk(x[k], y[k]) for k in x)
+        if isinstance(x, list | tuple) and isinstance(y, list | tuple):
+            return len(x) == len(y) and all(walk(p, q) for p, q in zip(x, y, strict=True))
+        if isinstance(x, int | float) and isinstance(y, int | float):
+            d = abs(x - y) / max(abs(x), abs(y), 1e-300)
+            worst = max(worst, d)
+            return d <= rel
+        return x == y
+
+    return walk(a, b), worst
+
+
+def _versus_markdown(v: dict, args) -> str:
+    def best(which: str, phase: str, key: str = "process_s") -> float:
+        return min(r[phase][key] for r in v[which])
+
+    compile_s = {
+        w: {
+            ph: min(
+                sum(r[ph]["jax"][k]["seconds"] for k in ("tracing", "lowering", "XLA compile"))
+                for r in v[w]
+            )
+            for ph in ("cold", "warm")
+        }
+        for w in ("old", "new")
+    }
+    lines = [
+        "",
+        "## Old against new (same run, alternating processes, no profiler)",
+        "",
+        f"*old*: this tree with `{'`, `'.join(v['paths'])}` as at `{v['baseline']}`; *new*: this "
+        f"tree. Each figure the minimum of {len(v['new'])} round(s) (cold: an empty cache of its "
+        "own; warm: a second process on it).",
+        "",
+        "| | old [s] | new [s] | new / old |",
+        "|---|---:|---:|---:|",
+    ]
+    for phase in ("cold", "warm"):
+        for key, label in (("process_s", "process, end to end"), ("wall_s", "the command")):
+            o, n = best("old", phase, key), best("new", phase, key)
+            lines.append(f"| {phase}: {label} | {o:.1f} | {n:.1f} | {n / o:.2f} |")
+        o, n = compile_s["old"][phase], compile_s["new"][phase]
+        lines.append(
+            f"| {phase}: JAX tracing, lowering, compiling | {o:.1f} | {n:.1f} | {n / o:.2f} |"
+        )
+    same, worst = _same(v["old"][0]["cold"]["selection"], v["new"][0]["cold"]["selection"])
+    sel = v["new"][0]["cold"]["selection"]
+    lines += [
+        "",
+        f"Selection: old `{v['old'][0]['cold']['selection'].get('accepted')}`, new "
+        f"`{sel.get('accepted')}`; accepted model, cost, SE, RMSE, parameters and HLC with its "
+        f"interval {'the same' if same else '**not** the same'} within 1e-6 (relative; largest "
+        f"difference {worst:.1e}).",
+        "",
+    ]
+    return "\n".join(lines)
 
 
 def _into_results(path: Path, text: str) -> None:
@@ -217,7 +381,7 @@ def _into_results(path: Path, text: str) -> None:
     if not path.exists():
         return
     start, end = "<!-- profile_select -->", "<!-- /profile_select -->"
-    body = "\n".join(["#" + line if line.startswith("# ") else line for line in text.splitlines()])
+    body = "\n".join(["#" + line if line.startswith("#") else line for line in text.splitlines()])
     block = f"{start}\n{body}\n{end}"
     old = path.read_text()
     if start in old and end in old:

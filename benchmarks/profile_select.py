@@ -32,6 +32,7 @@ import json
 import os
 import platform
 import pstats
+import resource
 import shutil
 import subprocess
 import sys
@@ -171,12 +172,17 @@ def _run(
     }
     env.pop("JAXBOX_CACHE", None)
     t0 = time.perf_counter()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     cmd = [sys.executable, __file__, "--child", "--data", data, "--result", str(result)]
     cmd += ["--workdir", str(workdir)] + (["--report"] if report else [])
     cmd += [] if profile else ["--no-profile"]
     subprocess.run(cmd, env=env, check=True)
     doc = json.loads(result.read_text())
     doc["process_s"] = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    # the processor time of the process (user and system, every thread): on a machine shared
+    # with other work, less disturbed by it than the wall-clock time
+    doc["cpu_s"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return doc
 
 
@@ -302,8 +308,8 @@ def _versus(args, work: Path) -> dict:
             warm = _run(args.data, cache, work, args.report, code, profile=False)
             runs[which].append({"cold": cold, "warm": warm})
             print(
-                f"{which} round {k + 1}: cold {cold['process_s']:.1f} s, warm "
-                f"{warm['process_s']:.1f} s",
+                f"{which} round {k + 1}: cold {cold['process_s']:.1f} s ({cold['cpu_s']:.1f} s "
+                f"CPU), warm {warm['process_s']:.1f} s ({warm['cpu_s']:.1f} s CPU)",
                 file=sys.stderr,
                 flush=True,
             )
@@ -350,13 +356,19 @@ def _versus_markdown(v: dict, args) -> str:
         "",
         f"*old*: this tree with `{'`, `'.join(v['paths'])}` as at `{v['baseline']}`; *new*: this "
         f"tree. Each figure the minimum of {len(v['new'])} round(s) (cold: an empty cache of its "
-        "own; warm: a second process on it).",
+        "own; warm: a second process on it). The machine was shared with other work (load "
+        "average in the heading): the processor time of the process is the steadier measure of "
+        "what each code costs, the wall-clock time what a user waits for on such a machine.",
         "",
         "| | old [s] | new [s] | new / old |",
         "|---|---:|---:|---:|",
     ]
     for phase in ("cold", "warm"):
-        for key, label in (("process_s", "process, end to end"), ("wall_s", "the command")):
+        for key, label in (
+            ("process_s", "process, end to end"),
+            ("wall_s", "the command"),
+            ("cpu_s", "processor time of the process (user + system)"),
+        ):
             o, n = best("old", phase, key), best("new", phase, key)
             lines.append(f"| {phase}: {label} | {o:.1f} | {n:.1f} | {n / o:.2f} |")
         o, n = compile_s["old"][phase], compile_s["new"][phase]

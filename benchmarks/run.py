@@ -818,8 +818,9 @@ def report(res: dict) -> str:
             jsub = float(np.min(costs64[:k]))
             hits = int(np.sum(pc <= best_all * (1 + REL)))
             ttb = _peers.time_to_best(per, hits, k)
+            label = f"{name} (run of {p['kept_from']})" if p.get("kept_from") else name
             w(
-                f"| {name} | {k} | {p['setup_s']:.1f} | {per:.2f} | {pbest:.7g} | "
+                f"| {label} | {k} | {p['setup_s']:.1f} | {per:.2f} | {pbest:.7g} | "
                 f"{hits} | {_fmt_ttb(ttb)} | {ratio(per, jp):.0f} | "
                 f"{_fmt_ratio(ttb, j_ttb)} | {jsub - pbest:+.2e} (same {k} starts) |"
             )
@@ -1116,6 +1117,7 @@ def main(argv=None):
         return
     partial = HERE / "results.partial.json"
     res = {"argv": " ".join(sys.argv[1:]), "date": time.strftime("%Y-%m-%d %H:%M")}
+    kept_peers: dict = {}
     again = [k for k in args.remeasure.split(",") if k]
     unknown = sorted(set(again) - set(_SECTIONS))
     if unknown:
@@ -1124,6 +1126,12 @@ def main(argv=None):
         # the earlier run's sections but these (and the machine, measured now)
         old = _int_keys(json.loads((HERE / "results.json").read_text()))
         res = {k: v for k, v in old.items() if k not in again and k != "machine"}
+        # a peer left out of --peers keeps its earlier result (scipy takes 15 minutes a start)
+        kept_peers = {
+            name: {**v, "kept_from": v.get("kept_from") or old.get("date")}
+            for name, v in old.get("peers", {}).items()
+            if "peers" in again and name not in args.peers.split(",")
+        }
         res.setdefault("remeasured", []).append(
             {"date": time.strftime("%Y-%m-%d %H:%M"), "sections": again}
         )
@@ -1179,6 +1187,9 @@ def main(argv=None):
             args.scipy_starts,
             args.peer_budget,
         )
+        if again and res.get("peers") is not None:
+            for name, v in kept_peers.items():
+                res["peers"].setdefault(name, v)
     if not args.quick:
         section(
             "hierarchy",

@@ -693,7 +693,7 @@ def _build(
             release=(bounded, lambda Z: position_in_bounds(style, Z), anchor) if release else None,
         )
 
-    return jit(solve)
+    return jit(solve, lean=True)
 
 
 def _build_generic(groups, max_steps: int, solver):

@@ -531,3 +531,29 @@ def test_the_search_steps_one_by_one(dark):
     accepted = s.choose()
     assert accepted is winners[0] and s.nodes[accepted.name]["status"] == "accepted"
     assert any("in one batched call" in line for line in lines)
+
+
+def test_a_reduction_back_to_the_parent_structure_is_no_new_candidate():
+    """A reduced candidate whose cut leads back to the structure it was grown from (a boundary
+    cut off ``Zon+Int+Bou``, grown from ``Zon+Int``) is no new candidate: that structure was
+    judged already, and a refit of it with the child's fixes would end the search there as a
+    winner that nothing grows from. A cut to another structure is declared as before."""
+    from jaxbox.select._search import _Judge, _Search
+
+    s = _Search(
+        None, GRAMMAR, _Judge("cv", 0.02, 0.05), beam=1, lookahead=2, max_depth=2,
+        kw={}, say=lambda _: None,
+    )  # fmt: skip
+    s.nodes["Zon+Int"] = dict(case="Zon+Int", structure="Zon+Int", parent=None)
+    s.nodes["Zon+Int+Bou"] = dict(case="Zon+Int+Bou", structure="Zon+Int+Bou", parent="Zon+Int")
+    child = SimpleNamespace(name="Zon+Int+Bou", notes=[])
+    back = _reduce("Zon+Int+Bou", _wide("R_bou"))
+    assert back.structure.name == "Zon+Int"
+    assert s._back_to_parent(child, back)
+    assert "the structure it was grown from" in child.notes[-1]
+    assert "R_bou undetermined" in s.reduced["Zon+Int+Bou"]
+    other = _reduce("Zon+Int+Bou", _bound("gA"), at={"gA": 0.0})
+    assert not s._back_to_parent(SimpleNamespace(name="Zon+Int+Bou", notes=[]), other)
+    s.nodes["Zon+Int"]["parent"] = None
+    root = SimpleNamespace(name="Zon+Int", notes=[])
+    assert not s._back_to_parent(root, _reduce("Zon+Int", _bound("gA"), at={"gA": 0.0}))

@@ -453,6 +453,8 @@ class _Search:
                 continue
             try:  # a reduction that cannot be posed is a note, never the end of the search
                 cut = reduction(child, self.structure(child), self.grammar)
+                if cut is not None and self._back_to_parent(child, cut):
+                    continue
                 case = None if cut is None else self.declare_reduced(child, cut, depth)
             except ValueError as err:  # (FitError, ModelError too)
                 self.say(f"  {child.name}: reduction failed ({err})")
@@ -461,6 +463,16 @@ class _Search:
             if case is not None:
                 out.append((case, ref))
         return out
+
+    def _back_to_parent(self, child: Case, cut: Reduction) -> bool:
+        """Whether ``cut`` leads ``child`` back to the structure it was grown from: judged
+        already (the child adds nothing the data resolve), so no new candidate; a note says so."""
+        parent = self.nodes[child.name]["parent"]
+        if parent is None or cut.structure.name != self.nodes[parent]["structure"]:
+            return False
+        self.reduced[child.name] = cut.text(self.nodes[child.name]["structure"])
+        child.notes.append(f"reduces to {cut.structure.name}, the structure it was grown from")
+        return True
 
     def declare_reduced(self, child: Case, cut: Reduction, depth: int) -> Case | None:
         """Declare the reduced candidate of ``child`` (``None`` when that problem was declared

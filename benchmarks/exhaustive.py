@@ -159,20 +159,23 @@ def markdown(doc: dict) -> str:
         "the reference's (below 1 where the search accepted a structure larger than the "
         "reference goes). Target: ≤ 1.10.",
         "",
-        "| building | search: accepted | SE [K] | time [s] | exhaustive: structures (valid) | "
-        "best | SE [K] | time [s] | regret |",
-        "|---|---|---:|---:|---:|---|---:|---:|---:|",
+        "| building | measured | search: accepted | SE [K] | time [s] | exhaustive: structures "
+        "(valid) | best | SE [K] | time [s] | regret |",
+        "|---|---|---|---:|---:|---:|---|---:|---:|---:|",
     ]
     for r in doc["rows"]:
         if "error" in r:
-            lines.append(f"| {r['building']} | {r['error']} | | | | | | | |")
+            lines.append(
+                f"| {r['building']} | {r.get('date', doc['date'])} | {r['error']} | | | | | | | |"
+            )
             continue
         s, e = r["search"], r["exhaustive"]
         se = "–" if s["se"] is None else f"{s['se']:.3f}"
         be = "–" if e["best_se"] is None else f"{e['best_se']:.3f}"
-        reg = f"{r['regret']:.2f}" if "regret" in r else "–"
+        reg = f"{r['regret']:.3f}" if "regret" in r else "–"
         lines.append(
-            f"| {r['building']} | {s['accepted'] or 'no valid model'} | {se} | "
+            f"| {r['building']} | {r.get('date', doc['date'])} | "
+            f"{s['accepted'] or 'no valid model'} | {se} | "
             f"{s['seconds']:.0f} | {e['identified']} ({e['valid']}), ≤ {r['components']} "
             f"components | {e['best'] or '–'} | {be} | {e['seconds']:.0f} | {reg} |"
         )
@@ -181,9 +184,10 @@ def markdown(doc: dict) -> str:
         lines += [
             "",
             f"Regret ≤ 1.10 on {sum(x <= 1.10 for x in regrets)} of {len(regrets)} buildings; "
-            f"worst {max(regrets):.2f}.",
+            f"worst {max(regrets):.3f}.",
         ]
-    return "\n".join(lines) + "\n"
+    lines += [""] + [str(note) for note in doc.get("notes", ())]
+    return "\n".join(lines).rstrip("\n") + "\n"
 
 
 def _write(path: Path, text: str) -> None:
@@ -227,7 +231,7 @@ def main(argv=None) -> int:
     for name, make, noise in buildings(args):
         if only and name not in only:
             continue
-        row = run(name, make, noise, args.components, args.starts)
+        row = {**run(name, make, noise, args.components, args.starts), "date": doc["date"]}
         print(json.dumps(row, default=str), flush=True)
         doc["rows"].append(row)
         _write(args.json, json.dumps(doc, indent=1, default=str))

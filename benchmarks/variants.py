@@ -91,15 +91,15 @@ def markdown(doc: dict) -> str:
         "temperature with the whole house's heating and no neighbours, which puts the heat of "
         "six rooms into one: 0.49 K on N2, 0.65–0.91 K on O5.",
         "",
-        "| house | zone | columns | step | accepted | valid | RMSE valid [K] | target | HLC "
-        "[W/K] | search [s] |",
-        "|---|---|---|---|---|---|---:|---|---:|---:|",
+        "| house | zone | columns | step | measured | accepted | valid | RMSE valid [K] | target "
+        "| HLC [W/K] | search [s] |",
+        "|---|---|---|---|---|---|---|---:|---|---:|---:|",
     ]
     for r in doc["rows"]:
         if "error" in r:
             lines.append(
-                f"| {r['house']} | {r['zone']} | {r['columns']} | {r['step']} | {r['error']} "
-                "| | | | | |"
+                f"| {r['house']} | {r['zone']} | {r['columns']} | {r['step']} | "
+                f"{r.get('date', doc['date'])} | {r['error']} | | | | | |"
             )
             continue
         ok = r.get("rmse_valid") is not None and r["rmse_valid"] <= TARGETS[r["house"]]
@@ -107,7 +107,8 @@ def markdown(doc: dict) -> str:
         hlc = "–" if r.get("hlc") is None else f"{r['hlc']:.1f}"
         lines.append(
             f"| {r['house']} | {r['zone']} | {r['columns']} | {r['step']} | "
-            f"{r.get('accepted') or 'no valid model'} | {'yes' if r.get('valid') else 'no'} | "
+            f"{r.get('date', doc['date'])} | {r.get('accepted') or 'no valid model'} | "
+            f"{'yes' if r.get('valid') else 'no'} | "
             f"{rmse} | {'met' if ok and r.get('valid') else 'missed'} | {hlc} | "
             f"{r['seconds']:.0f} |"
         )
@@ -132,7 +133,8 @@ def markdown(doc: dict) -> str:
         "often ran beside this one: compare them within a run, not with quiet-machine timings "
         "(`benchmarks/RESULTS.md`).",
     ]
-    return "\n".join(lines) + "\n"
+    lines += [""] + [str(note) for note in doc.get("notes", ())]
+    return "\n".join(lines).rstrip("\n") + "\n"
 
 
 def _write(path: Path, text: str) -> None:
@@ -169,7 +171,7 @@ def main(argv=None) -> int:
         for zone, columns, step in VARIANTS:
             if step not in steps or zone not in args.zones.split(","):
                 continue
-            row = run(house, zone, columns, step, args.starts)
+            row = {**run(house, zone, columns, step, args.starts), "date": doc["date"]}
             print(json.dumps(row), flush=True)
             doc["rows"] = [
                 r for r in doc["rows"] if tuple(r[k] for k in key) != tuple(row[k] for k in key)

@@ -436,6 +436,22 @@ def write_section(path: Path, text: str) -> None:
     _write(path, new)
 
 
+def _rerun_first(doc, key, kept, k, changed, args, settings, path) -> None:
+    """Search the first ``k`` buildings again, made with ``changed`` (``make_detailed_zoo``
+    options), into ``doc[key]`` (those in ``kept`` are not searched again)."""
+    import jaxbox
+
+    again = jaxbox.datasets.make_detailed_zoo(args.n, seed=args.seed, **changed)
+    for b in again[:k]:
+        if b.name in kept:
+            continue
+        row = run_one(b, settings, doc["commit"])
+        jaxbox._compiled.release()
+        doc[key].append(row)
+        print(json.dumps(row), flush=True)
+        _write(path, json.dumps(doc, indent=1))
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=40)
@@ -511,32 +527,15 @@ def main(argv=None) -> None:
         print(json.dumps(row), flush=True)
         _write(path, json.dumps(doc, indent=1))
         write_section(Path(args.out), markdown(doc))
-    if ablated or args.ablate:
-        doc["ablation"] = [ablated[b.name] for b in zoo if b.name in ablated]
-    if args.ablate:
-        quiet = jaxbox.datasets.make_detailed_zoo(args.n, seed=args.seed, occupancy=False)
-        for b in quiet[: args.ablate]:
-            if b.name in ablated:
-                continue
-            row = run_one(b, settings, doc["commit"])
-            jaxbox._compiled.release()
-            doc["ablation"].append(row)
-            print(json.dumps(row), flush=True)
-            _write(path, json.dumps(doc, indent=1))
-    if revealed or args.reveal:
-        doc["revealed"] = [revealed[b.name] for b in zoo if b.name in revealed]
-    if args.reveal:
-        known = jaxbox.datasets.make_detailed_zoo(
-            args.n, seed=args.seed, reveal=("gains", "ground")
-        )
-        for b in known[: args.reveal]:
-            if b.name in revealed:
-                continue
-            row = run_one(b, settings, doc["commit"])
-            jaxbox._compiled.release()
-            doc["revealed"].append(row)
-            print(json.dumps(row), flush=True)
-            _write(path, json.dumps(doc, indent=1))
+    reruns = (
+        ("ablation", ablated, args.ablate, {"occupancy": False}),
+        ("revealed", revealed, args.reveal, {"reveal": ("gains", "ground")}),
+    )
+    for key, kept, k, changed in reruns:
+        if kept or k:
+            doc[key] = [kept[b.name] for b in zoo if b.name in kept]
+        if k:
+            _rerun_first(doc, key, kept, k, changed, args, settings, path)
     _write(path, json.dumps(doc, indent=1))
     write_section(Path(args.out), markdown(doc))
     print(markdown(doc))

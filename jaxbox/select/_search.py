@@ -468,9 +468,10 @@ class _Search:
         """Whether ``cut`` leads ``child`` back to the structure it was grown from: judged
         already (the child adds nothing the data resolve), so no new candidate; a note says so."""
         parent = self.nodes[child.name]["parent"]
-        if parent is None or cut.structure.name != self.nodes[parent]["structure"]:
+        if cut.structure.name != self.nodes.get(parent, {}).get("structure"):
             return False
-        self.reduced[child.name] = cut.text(self.nodes[child.name]["structure"])
+        text = cut.text(self.nodes[child.name]["structure"])
+        self.reduced[child.name] = f"{text}, the structure it was grown from (judged already)"
         child.notes.append(f"reduces to {cut.structure.name}, the structure it was grown from")
         return True
 

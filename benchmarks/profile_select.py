@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import io
 import json
 import os
 import platform
@@ -89,8 +90,6 @@ def _child(args) -> None:
         argv += ["--out", str(Path(args.workdir) / "out")]
     prof = cProfile.Profile()
     t0 = time.perf_counter()
-    import io
-
     sink = io.StringIO()
     stdout = sys.stdout
     sys.stdout = sink
@@ -104,13 +103,20 @@ def _child(args) -> None:
     finally:
         sys.stdout = stdout
     wall = time.perf_counter() - t0
-    selection = _selection(sink.getvalue())
-    if args.no_profile:
-        doc = {"exit": code, "import_s": t_import, "wall_s": wall, "selection": selection}
-        doc["jax"] = {k: {"seconds": sums[k], "events": counts[k]} for k in EVENTS.values()}
-        Path(args.result).write_text(json.dumps(doc, indent=1))
-        return
-    stats = pstats.Stats(prof)
+    doc = {
+        "exit": code,
+        "import_s": t_import,
+        "wall_s": wall,
+        "jax": {k: {"seconds": sums[k], "events": counts[k]} for k in EVENTS.values()},
+        "selection": _selection(sink.getvalue()),
+    }
+    if not args.no_profile:
+        doc.update(_profile_parts(pstats.Stats(prof)))
+    Path(args.result).write_text(json.dumps(doc, indent=1))
+
+
+def _profile_parts(stats: pstats.Stats) -> dict:
+    """jaxbox's phases (:data:`PHASES`) and its 40 functions of most cumulative time."""
     phases = {}
     for label, path, name in PHASES:
         cum = 0.0
@@ -128,16 +134,7 @@ def _child(args) -> None:
         ),
         reverse=True,
     )[:40]
-    doc = {
-        "top": [{"seconds": t, "calls": c, "function": f} for t, c, f in top],
-        "exit": code,
-        "import_s": t_import,
-        "wall_s": wall,
-        "jax": {k: {"seconds": sums[k], "events": counts[k]} for k in EVENTS.values()},
-        "phases": phases,
-        "selection": selection,
-    }
-    Path(args.result).write_text(json.dumps(doc, indent=1))
+    return {"top": [{"seconds": t, "calls": c, "function": f} for t, c, f in top], "phases": phases}
 
 
 def _selection(text: str) -> dict:

@@ -386,13 +386,23 @@ def _versus_markdown(v: dict, args) -> str:
     return "\n".join(lines)
 
 
+#: the markers of the profile's section in RESULTS.md
+MARKERS = ("<!-- profile_select -->", "<!-- /profile_select -->")
+
+
+def results_block(text: str) -> str:
+    """PROFILE.md's ``text`` as RESULTS.md's section: its headings one level down, between
+    :data:`MARKERS` (``benchmarks/run.py`` writes the same block when it rewrites RESULTS.md)."""
+    body = "\n".join("#" + line if line.startswith("#") else line for line in text.splitlines())
+    return f"{MARKERS[0]}\n{body}\n{MARKERS[1]}"
+
+
 def _into_results(path: Path, text: str) -> None:
     """The table as a section of RESULTS.md, between its markers."""
     if not path.exists():
         return
-    start, end = "<!-- profile_select -->", "<!-- /profile_select -->"
-    body = "\n".join(["#" + line if line.startswith("#") else line for line in text.splitlines()])
-    block = f"{start}\n{body}\n{end}"
+    start, end = MARKERS
+    block = results_block(text)
     old = path.read_text()
     if start in old and end in old:
         new = old[: old.index(start)] + block + old[old.index(end) + len(end) :]

@@ -1034,11 +1034,10 @@ def report(res: dict) -> str:
             w(section.read_text())
     profile = HERE / "PROFILE.md"  # benchmarks/profile_select.py, between its markers
     if profile.exists():
-        lines = profile.read_text().splitlines()
+        from profile_select import results_block
+
         w("")
-        w("<!-- profile_select -->")
-        w("\n".join("#" + line if line.startswith("#") else line for line in lines))
-        w("<!-- /profile_select -->")
+        w(results_block(profile.read_text()))
     return "\n".join(L) + "\n"
 
 

@@ -10,6 +10,7 @@ used first out).
 
 from __future__ import annotations
 
+import re
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
@@ -125,12 +126,27 @@ def jit(fun: Callable, *, once: bool = False, lean: bool = False, **kwargs) -> C
     """
     import jax
 
+    return jax.jit(fun, compiler_options=_options(once=once, lean=lean), **kwargs)
+
+
+def _options(*, once: bool = False, lean: bool = False) -> dict[str, Any] | None:
+    """The compiler options of :func:`jit`."""
     options = compiler_options()
     if once and options is not None:
         options = {**options, **_ONCE_OPTIONS}
-    elif lean and options is not None:
+    elif lean and options is not None and _flag_level() is None:
         options = {**options, **_LEAN_OPTIONS}
-    return jax.jit(fun, compiler_options=options, **kwargs)
+    return options
+
+
+def _flag_level() -> int | None:
+    """The backend optimisation level ``XLA_FLAGS`` sets for the whole process (``None``: none
+    set). A program's own options override the flags, so ``lean`` defers to a level set there
+    (the tests set 0 to compile their many small programs fast; level 1 would raise it)."""
+    import os
+
+    m = re.search(r"--xla_backend_optimization_level=(\d+)", os.environ.get("XLA_FLAGS", ""))
+    return None if m is None else int(m.group(1))
 
 
 def clear() -> None:

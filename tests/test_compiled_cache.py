@@ -151,3 +151,18 @@ def test_shrinking_evicts_and_zero_is_refused(result) -> None:
     assert _entries() == 1 and _entries("uncertainty") == 1
     with pytest.raises(ValueError, match="at least one"):
         _compiled.set_max_entries(0)
+
+
+def test_a_level_set_in_xla_flags_is_not_raised_by_the_lean_option(monkeypatch) -> None:
+    """``jit(lean=True)`` asks for level 1 only where ``XLA_FLAGS`` sets none: a program's own
+    options override the flags, and the tests' level 0 must stay 0."""
+    if _compiled.compiler_options() is None:
+        pytest.skip("XLA's defaults on this backend: no options of jaxbox's")
+    monkeypatch.setenv("XLA_FLAGS", "--xla_backend_optimization_level=0")
+    assert "xla_backend_optimization_level" not in _compiled._options(lean=True)
+    assert _compiled._options(once=True)["xla_backend_optimization_level"] == 0
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false")
+    assert _compiled._options(lean=True)["xla_backend_optimization_level"] == 1
+    monkeypatch.delenv("XLA_FLAGS")
+    assert _compiled._options(lean=True)["xla_backend_optimization_level"] == 1
+    assert "xla_backend_optimization_level" not in _compiled._options()

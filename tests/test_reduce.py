@@ -371,7 +371,8 @@ def test_a_forgotten_initial_temperature_is_fixed_at_its_steady_start():
 
 def test_a_remembered_initial_temperature_is_narrowed_then_fixed():
     """A slow envelope whose start the outputs remember: first bounds from the temperatures
-    around it; pinned on those again, its steady start."""
+    around it; pinned on one of those again, fixed on it (the constrained optimum: the start
+    closest to the data's that the neighbouring temperatures allow)."""
     data = synthetic_building(get_model("ZonWal"), TRUTH, n=240, seed=3, noise=0.05)
     gb = GreyBox(data, name="remembered")
     case = gb.add_case("Zon+Wal", starts=2, bounds={"T_wal0": (-3.0, 5.0)})
@@ -380,14 +381,18 @@ def test_a_remembered_initial_temperature_is_narrowed_then_fixed():
     assert fix.kind == "narrowed" and fix.value is None
     lo, hi = fix.bounds
     assert lo > -3.0 and 5.0 < hi < 37.0
-    # on those bounds again: the steady start
-    again = _judged("Zon+Wal", _bound("T_wal0"), at={"T_wal0": 0.0})
-    again.bounds = {"T_wal0": (lo, hi)}
-    again.ident = case.ident
-    again.result.params = {**case.result.params}
-    again.model = case.model
-    (fix,) = initial_states(again)
-    assert fix.kind == "forgotten" and "pinned again" in fix.why
+    # on one of those bounds again: fixed on that bound, whichever it is
+    for edge in (lo, hi):
+        again = _judged("Zon+Wal", _bound("T_wal0"), at={"T_wal0": 0.0})
+        again.bounds = {"T_wal0": (lo, hi)}
+        again.ident = case.ident
+        again.result.params = {**case.result.params, "T_wal0": edge + 1e-9 * (lo - edge)}
+        again.model = case.model
+        (fix,) = initial_states(again)
+        assert fix.kind == "edge" and "pinned again" in fix.why
+        assert fix.value == edge and fix.bounds is None
+        cut = reduction(again, parse_structure("Zon+Wal"), Grammar.from_columns(data.columns))
+        assert cut.fixed == {"T_wal0": edge} and cut.structure.name == "Zon+Wal"
     assert FORGOTTEN_SHARE > 0.02  # wider than the verdict's own warning
 
 

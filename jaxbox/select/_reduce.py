@@ -20,8 +20,8 @@ Initial temperatures are no reason either. An unmeasured state whose initial tem
 a bound while the outputs forget that start within :data:`FORGOTTEN_SHARE` of the
 identification window is fixed at its *steady start* (one linear solve: the unmeasured states in
 equilibrium with the first inputs and the measured zones); one that the outputs remember gets
-bounds from the temperatures around it (as the forward selection does), and, pinned again, its
-steady start.
+bounds from the temperatures around it (as the forward selection does), and, pinned on one of
+those again, is fixed there: the start closest to the data's that its neighbours allow.
 
 A rule is a function ``(case) -> list[Fix]``; :func:`reduction` applies the rules (in tiers:
 a heater or mass the data do not resolve from the zone is merged, an undetermined boundary cut,
@@ -69,8 +69,9 @@ class Fix:
             it stays free within :attr:`bounds`.
         kind: ``"vanishes"`` (its component vanishes there), ``"undetermined"`` (an interval
             spanning zero), ``"settled"`` (a fast node's capacity fixed at its estimate),
-            ``"forgotten"`` (an initial temperature the outputs forget) or ``"narrowed"`` (an
-            initial temperature's bounds taken from the data).
+            ``"forgotten"`` (an initial temperature the outputs forget), ``"narrowed"`` (an
+            initial temperature's bounds taken from the data) or ``"edge"`` (an initial
+            temperature on a bound of those again, fixed there).
         why: in words, e.g. ``"gA → 0"``, ``"R_inf cut (→ 10 K/W)"``.
         bounds: new bounds ``(lo, hi)`` of a ``"narrowed"`` fix.
     """
@@ -294,8 +295,10 @@ def settled(case) -> list[Fix]:
 
 def initial_states(case) -> list[Fix]:
     """Initial temperatures of unmeasured states on a bound: forgotten by the outputs within
-    :data:`FORGOTTEN_SHARE` of the window, or narrowed before: fixed at the steady start;
-    else bounds from the temperatures around the state."""
+    :data:`FORGOTTEN_SHARE` of the window: fixed at the steady start; else bounds from the
+    temperatures around the state; on a bound of those again: fixed on it, the start closest to
+    the data's within what the neighbouring temperatures allow (the constrained optimum, judged
+    without that parameter)."""
     from ..fit._guess import state_ranges
 
     model = case.model
@@ -316,10 +319,13 @@ def initial_states(case) -> list[Fix]:
         node = next((i for i, m in enumerate(model.network.nodes) if m.T0 == n), None)
         narrowed = n in ranges and tuple(case.bounds.get(n, ())) == ranges[n][::2]
         forgets = forgets_its_start(model, params, node, FORGOTTEN_SHARE * span)
-        if (forgets or narrowed) and n in steady:
-            told = "forgotten" if forgets else "pinned again"
-            out.append(Fix(n, steady[n], "forgotten", f"{n} {told} (→ steady {steady[n]:.2f} °C)"))
-        elif n in ranges and not narrowed:
+        if forgets and n in steady:
+            out.append(Fix(n, steady[n], "forgotten", f"{n} forgotten (→ steady {steady[n]:.2f} °C)"))
+        elif narrowed:  # the data's start within what the temperatures around it allow
+            lo, hi = case.bounds[n]
+            edge = lo if abs(params[n] - lo) <= abs(params[n] - hi) else hi
+            out.append(Fix(n, edge, "edge", f"{n} pinned again (→ {edge:.2f} °C, its edge)"))
+        elif n in ranges:
             lo, _, hi = ranges[n]
             out.append(Fix(n, None, "narrowed", f"{n} in [{lo:.2f}, {hi:.2f}] °C", bounds=(lo, hi)))
     return out

@@ -187,5 +187,11 @@ def test_the_select_outputs_carry_the_method(coloured_fits):
     doc = _hlc(sel)
     assert doc["method"].startswith(HAC) and doc["ci95"][0] < doc["value"] < doc["ci95"][1]
     assert doc["method"] in _hlc_text(doc)
+    # no measured boundary but the outdoor air: the outdoor-referenced HLC is the accepted
+    # model's own, with its own HAC interval
+    out = doc["outdoor"]
+    assert out["value"] == pytest.approx(doc["models"][0]["value"], rel=1e-9)
+    assert out["ci95"] == pytest.approx(doc["models"][0]["ci95"], rel=1e-9)
+    assert out["boundaries"] == {} and "referenced to the outdoor air" in _hlc_text(doc)
     html = "".join(_hlc_section(sel))
     assert "Heat-loss coefficient" in html and "near-best" in html

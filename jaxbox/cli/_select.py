@@ -305,6 +305,10 @@ def _hlc_text(hlc: dict) -> str:
         f"heat-loss coefficient {hlc['value']:.4g} W/K, {round(100 * hlc['level'])} % interval "
         f"{shown} ({hlc['method']})"
     ]
+    if hlc.get("outdoor"):
+        from ..validate._hlc import _outdoor_text
+
+        lines.append("  " + _outdoor_text(hlc["outdoor"], round(100 * hlc["level"])))
     return "\n".join(lines + [f"  warning: {w}" for w in hlc["warnings"]])
 
 

@@ -269,6 +269,14 @@ def _hlc_section(selection) -> list[str]:
             for m in hlc.models
         )
         out.append(f"<p class=small>Near-best models: {each}.</p>")
+    if hlc.outdoor is not None and hlc.outdoor.follow:
+        from ..validate._hlc import _outdoor_text
+
+        line = _outdoor_text(hlc.outdoor.to_dict(), round(100 * hlc.level))
+        out.append(
+            f"<p>{_e(line[0].upper() + line[1:])}: the heating per kelvin of zone–outdoor "
+            "difference with the measured boundaries as they behave in the data.</p>"
+        )
     return out + [f"<p class=bad>Warning: {_e(w)}</p>" for w in hlc.warnings]
 
 

@@ -5,6 +5,9 @@ from ._hlc import hlc_interval as hlc_interval
 from ._hlc import near_best as near_best
 from ._hlc_hac import RobustCovariance as RobustCovariance
 from ._hlc_hac import robust_covariance as robust_covariance
+from ._hlc_outdoor import OutdoorHLC as OutdoorHLC
+from ._hlc_outdoor import boundary_follow as boundary_follow
+from ._hlc_outdoor import outdoor_hlc as outdoor_hlc
 from ._kpi import KPI as KPI
 from ._kpi import Kpis as Kpis
 from ._kpi import kpi_values as kpi_values

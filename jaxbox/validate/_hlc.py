@@ -47,6 +47,9 @@ class HlcInterval:
         models: per near-best model (the accepted one first): ``{"model", "value", "ci95",
             "criterion"}``.
         warnings: what the interval cannot vouch for.
+        outdoor: the accepted model's HLC referenced to the outdoor air, its measured boundaries
+            as they behave in the data (:func:`~jaxbox.validate.outdoor_hlc`; ``None`` where it
+            does not apply).
     """
 
     value: float
@@ -55,6 +58,7 @@ class HlcInterval:
     method: str
     models: tuple[dict, ...]
     warnings: tuple[str, ...] = ()
+    outdoor: object = None
 
     def to_dict(self) -> dict:
         fin = all(math.isfinite(v) for v in self.ci95)
@@ -66,6 +70,7 @@ class HlcInterval:
             "method": self.method,
             "models": [dict(m) for m in self.models],
             "warnings": list(self.warnings),
+            "outdoor": None if self.outdoor is None else self.outdoor.to_dict(),
         }
 
     def text(self) -> str:
@@ -76,8 +81,22 @@ class HlcInterval:
         lines = [
             f"heat-loss coefficient {self.value:.4g} W/K, {pct} % interval {ci} ({self.method})"
         ]
+        if self.outdoor is not None:
+            lines.append("  " + _outdoor_text(self.outdoor.to_dict(), pct))
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
+
+
+def _outdoor_text(out: dict, pct: int) -> str:
+    """One line of the outdoor-referenced HLC (a ``to_dict`` of :class:`OutdoorHLC`)."""
+    ci = out["ci95"]
+    shown = "[-]" if None in ci else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
+    how = ", ".join(
+        f"{b} follows the zone by {v['alpha']:.2f}" for b, v in out["boundaries"].items()
+    )
+    return f"referenced to the outdoor air {out['value']:.4g} W/K, {pct} % interval {shown}" + (
+        f" ({how})" if how else ""
+    )
 
 
 def _criterion(selection, case) -> float:
@@ -233,4 +252,21 @@ def hlc_interval(
         method=method,
         models=tuple(models),
         warnings=tuple(warns),
+        outdoor=_outdoor(selection, cases[0], level),
     )
+
+
+def _outdoor(selection, case, level: float):
+    """The accepted case's outdoor-referenced HLC, the boundaries read from the whole record
+    (identification and validation data) where the selection has both."""
+    from ._hlc_outdoor import outdoor_hlc
+
+    data = case.result.data
+    gb = getattr(selection, "greybox", None)
+    whole = getattr(gb, "data", None)
+    if whole is not None and hasattr(whole, "frame"):
+        data = whole
+    try:
+        return outdoor_hlc(case.result, data=data, interval="hac", level=level)
+    except (ValueError, np.linalg.LinAlgError):
+        return None

@@ -562,3 +562,18 @@ def test_a_reduction_back_to_the_parent_structure_is_no_new_candidate():
     s.nodes["Zon+Int"]["parent"] = None
     root = SimpleNamespace(name="Zon+Int", notes=[])
     assert not s._back_to_parent(root, _reduce("Zon+Int", _bound("gA"), at={"gA": 0.0}))
+
+
+def test_a_merged_nodes_fast_mode_is_explained_by_fixing_its_capacity():
+    """The verdict names the capacity on its floor in the fast mode's flag, so the reduction
+    that fixes that capacity explains it; a fast mode that names nothing is not explained."""
+    import types
+
+    from jaxbox.select._reduce import _explained
+    from jaxbox.validate import Flag
+
+    merged = Flag("time_constant", ("C_zon",), "time constant 0.6 s is that of the node of C_zon")
+    floor = Flag("at_bound", ("C_zon",), "C_zon at its lower bound")
+    assert _explained(types.SimpleNamespace(flags=[floor, merged]), {"C_zon"})
+    bare = Flag("time_constant", (), "time constant 0.6 s lies outside 1 s … 10 years")
+    assert not _explained(types.SimpleNamespace(flags=[floor, bare]), {"C_zon"})

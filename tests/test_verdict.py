@@ -469,3 +469,47 @@ def test_check_validity_refuses_another_fits_validation_or_uncertainty(good, fit
     bare = fit_model("Zon", _data(), starts=_start()[:, [0, 1, 3]], fixed={"gA": 2.0})
     with pytest.raises(ValueError, match="uncertainty is of a fit"):
         check_validity(good, uncertainty(bare))
+
+
+def test_a_fast_mode_of_a_capacity_on_its_floor_names_it_and_fixed_there_is_a_note():
+    """A zone node whose capacity sits on its floor (1e4 J/K) and couples tightly to a heater
+    node has a mode of a fraction of a second: the node is merged (massless), not a lag. The
+    flag names the capacity (so a reduction that fixes it explains it); with the capacity
+    fixed on its floor the mode is a note, not a reason. A fast mode of a node whose capacity
+    is not on its floor stays a reason naming nothing."""
+    import types
+
+    from jaxbox.validate._verdict import _check_time_constants
+
+    TAU_RANGE = (1.0, 10 * 365.25 * 86400.0)  # check_validity's default
+
+    model = get_model("ZonWal")
+    specs = {s.name: s for s in model.parameters}
+    lower = specs["C_zon"].lower
+    g = 1.0 / 6.5e-5  # [W/K] the zone node's conductances
+    A = np.array([[-g / lower, 1.0 / lower], [1.0 / 3e7, -2.0 / 3e7]])
+    tau = np.sort(-1.0 / np.linalg.eigvals(A).real)
+    assert tau[0] < TAU_RANGE[0]
+
+    def ctx(free, c_zon, position):
+        result = types.SimpleNamespace(
+            free=free,
+            params={"C_zon": c_zon, "C_wal": 3e7},
+            bound_position=lambda: {n: position for n in free},
+        )
+        return types.SimpleNamespace(
+            tau=tau,
+            tau_range=TAU_RANGE,
+            A=A,
+            result=result,
+            specs=specs,
+            bound_tol=1e-3,
+            model=model,
+        )
+
+    (flag,) = _check_time_constants(ctx(["C_zon", "C_wal"], lower * (1 + 1e-9), 0.0))
+    assert flag.parameters == ("C_zon",) and flag.severe and "merged" in flag.message
+    (flag,) = _check_time_constants(ctx(["C_wal"], lower * (1 + 1e-9), 0.5))
+    assert flag.parameters == ("C_zon",) and not flag.severe
+    (flag,) = _check_time_constants(ctx(["C_zon", "C_wal"], lower * (1 + 1e-9), 0.5))
+    assert flag.parameters == () and flag.severe  # free, inside its bounds: a reason

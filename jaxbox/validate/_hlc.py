@@ -268,5 +268,5 @@ def _outdoor(selection, case, level: float):
         data = whole
     try:
         return outdoor_hlc(case.result, data=data, interval="hac", level=level)
-    except (ValueError, np.linalg.LinAlgError):
+    except (ValueError, KeyError, TypeError, np.linalg.LinAlgError):  # an extra, never the end
         return None

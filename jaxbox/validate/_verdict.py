@@ -486,6 +486,18 @@ def _check_time_constants(ctx: _Judged) -> list[Flag]:
                     "integrating): the parameters are not physical",
                 )
             )
+        elif t < tmin and (floor := _floor_capacity(ctx, t)) is not None:
+            name, fixed = floor
+            flags.append(
+                Flag(
+                    "time_constant",
+                    (name,),
+                    f"time constant {_fmt_time(t)} is that of the node of {name}, whose capacity "
+                    f"is {'fixed ' if fixed else ''}at its floor: the node is merged into its "
+                    "neighbours (massless), and the mode stands for no physical lag",
+                    severe=not fixed,
+                )
+            )
         elif t < tmin or t > tmax:
             flags.append(
                 Flag(
@@ -496,6 +508,34 @@ def _check_time_constants(ctx: _Judged) -> list[Flag]:
                 )
             )
     return flags
+
+
+def _floor_capacity(ctx: _Judged, tau: float) -> tuple[str, bool] | None:
+    """The capacity whose node makes the fast mode ``tau`` [s] (the node's own time constant
+    ``C/ΣG`` within a factor 2 of it) while the capacity sits at its lower bound, free (within
+    ``bound_tol`` in the transform's scale) or fixed there: ``(name, fixed)``, else ``None``."""
+    if ctx.A is None:
+        return None
+    result = ctx.result
+    free = set(result.free)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        pos = result.bound_position()
+    for i, node in enumerate(ctx.model.network.nodes):
+        name = getattr(node, "C", None)
+        if name is None or name not in ctx.specs or getattr(node, "constant", False):
+            continue
+        if i >= ctx.A.shape[0] or not ctx.A[i, i] < 0:
+            continue
+        if not 0.5 <= (-1.0 / ctx.A[i, i]) / tau <= 2.0:
+            continue
+        if name in free:
+            at_floor = pos.get(name, math.nan) < ctx.bound_tol
+        else:
+            lower = ctx.specs[name].lower
+            at_floor = float(result.params[name]) <= lower * (1 + 1e-6)
+        if at_floor:
+            return name, name not in free
+    return None
 
 
 def _check_slowest_mode(ctx: _Judged) -> list[Flag]:

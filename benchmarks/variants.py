@@ -157,7 +157,8 @@ def markdown(doc: dict) -> str:
         "often ran beside this one: compare them within a run, not with quiet-machine timings "
         "(`benchmarks/RESULTS.md`).",
     ]
-    lines += [""] + [str(note) for note in doc.get("notes", ())]
+    for note in doc.get("notes", ()):
+        lines += ["", str(note)]
     return "\n".join(lines).rstrip("\n") + "\n"
 
 

@@ -16,7 +16,9 @@ turn (:data:`_CHECKS`) and collects the reasons:
   resistances and capacities, negative apertures…);
 * ``time_constant`` — a time constant ``τ = −1/Re λ`` of the state matrix outside
   ``tau_range`` (seconds … years), an unstable eigenvalue, or a slowest time constant outside
-  ``slowest_tau_range`` (10 min … 1 year: no building settles faster or slower);
+  ``slowest_tau_range`` (10 min … 1 year: no building settles faster or slower); a too-fast
+  mode that is the own time constant of a node whose capacity sits on its floor names that
+  capacity (the node is merged, massless), and is a note once the capacity is fixed there;
 * ``heat_loss`` — the heat-loss coefficient UA (:func:`heat_loss_coefficients`: steady-state
   heat flow per kelvin of zone temperature, from A, B, C) outside ``ua_range`` (1 W/K … 1e5 W/K).
   A heating power in kW instead of W gives UA and capacities 1000× too small, and this reason;

@@ -320,7 +320,8 @@ def initial_states(case) -> list[Fix]:
         narrowed = n in ranges and tuple(case.bounds.get(n, ())) == ranges[n][::2]
         forgets = forgets_its_start(model, params, node, FORGOTTEN_SHARE * span)
         if forgets and n in steady:
-            out.append(Fix(n, steady[n], "forgotten", f"{n} forgotten (→ steady {steady[n]:.2f} °C)"))
+            why = f"{n} forgotten (→ steady {steady[n]:.2f} °C)"
+            out.append(Fix(n, steady[n], "forgotten", why))
         elif narrowed:  # the data's start within what the temperatures around it allow
             lo, hi = case.bounds[n]
             edge = lo if abs(params[n] - lo) <= abs(params[n] - hi) else hi

@@ -18,10 +18,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._hlc_hac import HAC
+
+if TYPE_CHECKING:
+    from ._hlc_outdoor import OutdoorHLC
 
 __all__ = ["HlcInterval", "hlc_interval", "near_best", "NEAR_BEST"]
 
@@ -58,7 +62,7 @@ class HlcInterval:
     method: str
     models: tuple[dict, ...]
     warnings: tuple[str, ...] = ()
-    outdoor: object = None
+    outdoor: OutdoorHLC | None = None
 
     def to_dict(self) -> dict:
         fin = all(math.isfinite(v) for v in self.ci95)

@@ -125,4 +125,8 @@ def test_without_a_boundary_it_is_the_hlc_and_where_it_does_not_apply_none(half_
     out = outdoor_hlc(zon)
     assert out.follow == {} and out.value == pytest.approx(out.hlc, rel=1e-12)
     with pytest.raises(ValueError, match="interval"):
-        outdoor_hlc(result, interval="sandwich")
+        outdoor_hlc(zon, interval="sandwich")  # refused even where the HLC is the held one
+    with pytest.raises(TypeError):
+        outdoor_hlc("not a fit")
+    with pytest.raises(ValueError, match="level"):
+        outdoor_hlc(result, level=1.5)

@@ -37,7 +37,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._compiled import cached, jit
-from .._x64 import require_x64
 
 __all__ = ["OutdoorHLC", "outdoor_hlc", "boundary_follow", "AMBIENT"]
 
@@ -148,17 +147,13 @@ def outdoor_hlc(
         ``T_amb``, or with a boundary whose behaviour the data do not tell (fewer than
         :data:`MIN_DAYS` days).
     """
-    from scipy import stats
-
+    from ._args import check_fit
     from ._hlc_hac import HAC, WHITE, robust_covariance
-    from ._kpi import kpi_inputs
-    from ._uncertainty import uncertainty as _uncertainty
+    from ._kpi import _prepared, kpi_inputs
 
-    require_x64()
     if interval not in ("white", "hac"):
         raise ValueError(f"interval must be 'white' or 'hac', got {interval!r}")
-    problem = result.problem
-    model = problem.model
+    model = check_fit(result).problem.model
     heat, _ = kpi_inputs(model)
     temps = [u for u in model.inputs if u.startswith("T_")]
     one_zone = len(model.outputs) == 1 and model.outputs[0].startswith("T_")
@@ -168,12 +163,8 @@ def outdoor_hlc(
     follow = boundary_follow(result.data if data is None else data, boundaries)
     if set(follow) != set(boundaries):
         return None
-    if uncertainty is None:
-        uncertainty = _uncertainty(result)
-    free = tuple(problem.free)
-    fixed = tuple(n for n, _ in problem.fixed)
-    p = np.asarray([result.params[n] for n in free], dtype=float)
-    fv = np.asarray([v for _, v in problem.fixed], dtype=float)
+    fit = _prepared(result, uncertainty, level, interval)
+    uncertainty, (free, fixed, p, fv) = fit.uncertainty, fit.arrays
     alpha = np.asarray([follow[b][0] for b in boundaries], dtype=float)
     jq = model.inputs.index(heat[0])
     jb = tuple(model.inputs.index(b) for b in boundaries)
@@ -190,16 +181,13 @@ def outdoor_hlc(
     hlc, shares = float(values[1]), values[2:]
     var += sum((hlc * k * follow[b][1]) ** 2 for k, b in zip(shares, boundaries, strict=True))
     std = math.sqrt(var) if math.isfinite(var) and var >= 0 else math.nan
-    if level is None:
-        level, tq = float(uncertainty.level), float(uncertainty.t_quantile)
-    else:
-        tq = float(stats.t.ppf(0.5 + level / 2, uncertainty.dof))
+    level, tq = fit.level, fit.t_quantile
     v = float(values[0])
     return OutdoorHLC(
         value=v,
         std=std,
         ci95=(v - tq * std, v + tq * std),
-        level=float(level),
+        level=level,
         hlc=hlc,
         follow={
             b: {"share": float(k), "alpha": follow[b][0], "alpha_std": follow[b][1]}

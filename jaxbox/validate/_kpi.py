@@ -299,28 +299,11 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
         print(k.hlc)                         # heat-loss coefficient [W/K] with its 95 % interval
         ```
     """
-    from scipy import stats
-
-    from ._args import check_fit, check_level
     from ._hlc_hac import robust_covariance
-    from ._own import check_own
-    from ._uncertainty import uncertainty as _uncertainty
 
-    require_x64()
-    if interval not in ("white", "hac"):
-        raise ValueError(f"interval must be 'white' or 'hac', got {interval!r}")
-    problem = check_fit(result).problem
-    uncertainty = check_own(result, uncertainty, None)[0]
-    level = None if level is None else check_level(level)
+    fit = _prepared(result, uncertainty, level, interval)
+    problem, uncertainty, free, fixed, p, fv = fit.problem, fit.uncertainty, *fit.arrays
     model = problem.model
-    if uncertainty is None:
-        uncertainty = _uncertainty(result)
-    free = tuple(problem.free)
-    fixed = tuple(n for n, _ in problem.fixed)
-    p = np.asarray([result.params[n] for n in free], dtype=float)
-    fv = np.asarray([v for _, v in problem.fixed], dtype=float)
-    if not np.all(np.isfinite(p)):
-        raise ValueError("the fit has no finite optimum; there are no indicators to compute")
     symmetric = _symmetric(model, result.params)
     values, grad = _compiled(model, free, fixed, symmetric)(jnp.asarray(p), jnp.asarray(fv))
     values, grad = np.asarray(values), np.asarray(grad)
@@ -330,11 +313,7 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
     else:
         cov, method = np.asarray(uncertainty.cov_free, dtype=float), WHITE
     warnings = _warnings(robust, interval)
-    if level is None:
-        level = float(uncertainty.level)
-        tq = float(uncertainty.t_quantile)
-    else:
-        tq = float(stats.t.ppf(0.5 + level / 2, uncertainty.dof))
+    level, tq = fit.level, fit.t_quantile
     std = _delta(grad, cov)
     if interval == "hac":
         # never narrower than the white interval: a HAC estimate below it (residuals that
@@ -388,6 +367,47 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
         },
         warnings=warnings,
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class _Prepared:
+    """A checked fit and what a delta-method indicator reads from it."""
+
+    problem: object
+    uncertainty: object
+    arrays: tuple  # (free names, fixed names, free values [p], fixed values [f])
+    level: float
+    t_quantile: float
+
+
+def _prepared(result, uncertainty, level, interval: str) -> _Prepared:
+    """Check a fit for a delta-method indicator (its kind, a finite optimum, the uncertainty
+    its own, the level and the interval's name), computing its uncertainty where not given."""
+    from scipy import stats
+
+    from ._args import check_fit, check_level
+    from ._own import check_own
+    from ._uncertainty import uncertainty as _uncertainty
+
+    require_x64()
+    if interval not in ("white", "hac"):
+        raise ValueError(f"interval must be 'white' or 'hac', got {interval!r}")
+    problem = check_fit(result).problem
+    uncertainty = check_own(result, uncertainty, None)[0]
+    level = None if level is None else check_level(level)
+    if uncertainty is None:
+        uncertainty = _uncertainty(result)
+    free = tuple(problem.free)
+    fixed = tuple(n for n, _ in problem.fixed)
+    p = np.asarray([result.params[n] for n in free], dtype=float)
+    fv = np.asarray([v for _, v in problem.fixed], dtype=float)
+    if not np.all(np.isfinite(p)):
+        raise ValueError("the fit has no finite optimum; there are no indicators to compute")
+    if level is None:
+        level, tq = float(uncertainty.level), float(uncertainty.t_quantile)
+    else:
+        tq = float(stats.t.ppf(0.5 + level / 2, uncertainty.dof))
+    return _Prepared(problem, uncertainty, (free, fixed, p, fv), float(level), tq)
 
 
 def _delta(grad: np.ndarray, cov: np.ndarray) -> np.ndarray:

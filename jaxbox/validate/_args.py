@@ -17,6 +17,7 @@ __all__ = [
     "check_dataset",
     "check_instance",
     "check_level",
+    "check_interval",
     "check_positive",
     "check_fraction",
     "check_range",
@@ -101,6 +102,13 @@ def check_level(value: Any, what: str = "level") -> float:
     if not 0.0 < level < 1.0:
         raise ValueError(f"{what} must be a confidence level in (0, 1), e.g. 0.95; got {value}")
     return level
+
+
+def check_interval(interval: Any) -> str:
+    """The covariance a delta-method interval rests on: ``"white"`` or ``"hac"``."""
+    if interval not in ("white", "hac"):
+        raise ValueError(f"interval must be 'white' or 'hac', got {interval!r}")
+    return interval
 
 
 def check_positive(value: Any, what: str, unit: str = "", *, allow_inf: bool = False) -> float:

@@ -205,16 +205,18 @@ def hlc_interval(
         :class:`HlcInterval`, or ``None`` without an accepted model or without a heat input.
     """
     from ._kpi import kpis
+    from ._uncertainty import uncertainty
 
     if margin is None:
         margin = float(getattr(selection, "margin", NEAR_BEST))
     cases = near_best(selection, margin)
     models = []
     warns: list[str] = []
-    first_method = None
+    first_method = first_uncertainty = None
     for case in cases:
         try:
-            k = kpis(case.result, interval="hac", level=level)
+            unc = uncertainty(case.result)
+            k = kpis(case.result, unc, interval="hac", level=level)
         except (ValueError, np.linalg.LinAlgError):
             continue
         if k.hlc is None:
@@ -222,7 +224,7 @@ def hlc_interval(
         if first_method is None:
             if case is not cases[0]:
                 break
-            first_method = k.hlc.method
+            first_method, first_uncertainty = k.hlc.method, unc
             warns += list(k.warnings)
         models.append(
             {
@@ -256,13 +258,14 @@ def hlc_interval(
         method=method,
         models=tuple(models),
         warnings=tuple(warns),
-        outdoor=_outdoor(selection, cases[0], level),
+        outdoor=_outdoor(selection, cases[0], level, first_uncertainty),
     )
 
 
-def _outdoor(selection, case, level: float):
-    """The accepted case's outdoor-referenced HLC, the boundaries read from the whole record
-    (identification and validation data) where the selection has both."""
+def _outdoor(selection, case, level: float, unc):
+    """The accepted case's outdoor-referenced HLC (``unc`` its uncertainty, computed once for
+    both HLCs), the boundaries read from the whole record (identification and validation data)
+    where the selection has both."""
     from ._hlc_outdoor import outdoor_hlc
 
     data = case.result.data
@@ -271,6 +274,6 @@ def _outdoor(selection, case, level: float):
     if whole is not None and hasattr(whole, "frame"):
         data = whole
     try:
-        return outdoor_hlc(case.result, data=data, interval="hac", level=level)
+        return outdoor_hlc(case.result, unc, data=data, interval="hac", level=level)
     except (ValueError, KeyError, TypeError, np.linalg.LinAlgError):  # an extra, never the end
         return None

@@ -110,14 +110,13 @@ def boundary_follow(data, boundaries, zone: str = "T_zon") -> dict[str, tuple[fl
 def _function(model, free: tuple[str, ...], fixed: tuple[str, ...], jq: int, jb: tuple[int, ...]):
     """Jitted (p_free, fixed_values, α [len jb]) -> ((HLC_outdoor, HLC, k_b…), gradient in p)."""
 
+    from ._kpi import _steady_state
+
     def build():
         def g(p, fv, alpha):
             theta = {n: p[i] for i, n in enumerate(free)}
             theta.update({n: fv[i] for i, n in enumerate(fixed)})
-            A, B, _, held = model.rc_form(theta)
-            _, _, C, D = model.state_space(theta)
-            dyn = np.asarray([i for i, h in enumerate(held) if not h])
-            gain = C[:, dyn] @ jnp.linalg.solve(-A[np.ix_(dyn, dyn)], B[dyn]) + D
+            gain = _steady_state(model, theta)[0]
             hlc = 1.0 / gain[0, jq]
             k = jnp.stack([gain[0, j] for j in jb]) if jb else jnp.zeros(0)
             return jnp.concatenate([jnp.stack([hlc * (1.0 - k @ alpha), hlc]), k])
@@ -147,12 +146,11 @@ def outdoor_hlc(
         ``T_amb``, or with a boundary whose behaviour the data do not tell (fewer than
         :data:`MIN_DAYS` days).
     """
-    from ._args import check_fit
+    from ._args import check_fit, check_interval
     from ._hlc_hac import HAC, WHITE, robust_covariance
-    from ._kpi import _prepared, kpi_inputs
+    from ._kpi import _delta_std, _prepared, kpi_inputs
 
-    if interval not in ("white", "hac"):
-        raise ValueError(f"interval must be 'white' or 'hac', got {interval!r}")
+    check_interval(interval)
     model = check_fit(result).problem.model
     heat, _ = kpi_inputs(model)
     temps = [u for u in model.inputs if u.startswith("T_")]
@@ -171,13 +169,12 @@ def outdoor_hlc(
     values, grad = _function(model, free, fixed, jq, jb)(
         jnp.asarray(p), jnp.asarray(fv), jnp.asarray(alpha)
     )
-    values, row = np.asarray(values), np.asarray(grad)[0]
+    values, grad = np.asarray(values), np.asarray(grad)
     if interval == "hac":
         cov, method = np.asarray(robust_covariance(result, uncertainty).cov_free, float), HAC
     else:
         cov, method = np.asarray(uncertainty.cov_free, dtype=float), WHITE
-    white = np.asarray(uncertainty.cov_free, dtype=float)
-    var = max(float(row @ cov @ row), float(row @ white @ row))  # never below the white
+    var = float(_delta_std(grad[:1], cov, uncertainty, interval)[0]) ** 2
     hlc, shares = float(values[1]), values[2:]
     var += sum((hlc * k * follow[b][1]) ** 2 for k, b in zip(shares, boundaries, strict=True))
     std = math.sqrt(var) if math.isfinite(var) and var >= 0 else math.nan

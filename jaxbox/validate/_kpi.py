@@ -180,6 +180,17 @@ def _symmetric(model, theta) -> bool:
     return bool(np.allclose(H, H.T, rtol=1e-10, atol=1e-14 * np.max(np.abs(H), initial=1.0)))
 
 
+def _steady_state(model, theta):
+    """``(G = C (−A)⁻¹ B + D, A, caps)`` of ``model`` at ``theta`` (traceable), over the nodes
+    that are not held at a constant temperature: the static gain of the outputs on each input,
+    and the state matrix and capacities of those nodes."""
+    A, B, caps, held = model.rc_form(theta)
+    _, _, C, D = model.state_space(theta)
+    dyn = np.asarray([i for i, h in enumerate(held) if not h])
+    A_ = A[np.ix_(dyn, dyn)]
+    return C[:, dyn] @ jnp.linalg.solve(-A_, B[dyn]) + D, A_, caps[dyn]
+
+
 def _kpi_function(model, symmetric: bool):
     """theta (mapping) -> [HLC, gA_eff per irradiance input, total gA_eff, τ_1 … τ_n [h]]."""
     heat, solar = kpi_inputs(model)
@@ -188,11 +199,7 @@ def _kpi_function(model, symmetric: bool):
     n_out = len(model.outputs)
 
     def g(theta):
-        A, B, caps, held = model.rc_form(theta)
-        _, _, C, D = model.state_space(theta)
-        dyn = np.asarray([i for i, h in enumerate(held) if not h])
-        A_, B_, C_ = A[np.ix_(dyn, dyn)], B[dyn], C[:, dyn]
-        gain = C_ @ jnp.linalg.solve(-A_, B_) + D
+        gain, A_, caps = _steady_state(model, theta)
         out = []
         if jh:
             Gh = gain[:, jh]
@@ -210,8 +217,8 @@ def _kpi_function(model, symmetric: bool):
             if apertures:
                 out.append(sum(apertures))
         if symmetric:
-            H = A_ * caps[dyn][:, None]
-            s = jnp.sqrt(caps[dyn])
+            H = A_ * caps[:, None]
+            s = jnp.sqrt(caps)
             lam = jnp.linalg.eigh(H / s[:, None] / s[None, :])[0]
         else:
             lam = jnp.sort(jnp.real(jnp.linalg.eigvals(A_)))
@@ -314,12 +321,7 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
         cov, method = np.asarray(uncertainty.cov_free, dtype=float), WHITE
     warnings = _warnings(robust, interval)
     level, tq = fit.level, fit.t_quantile
-    std = _delta(grad, cov)
-    if interval == "hac":
-        # never narrower than the white interval: a HAC estimate below it (residuals that
-        # alternate) is mostly the sampling error of the long-run variance of a short record
-        white = _delta(grad, np.asarray(uncertainty.cov_free, dtype=float))
-        std = np.where(np.isfinite(std) & np.isfinite(white), np.maximum(std, white), std)
+    std = _delta_std(grad, cov, uncertainty, interval)
 
     def make(i: int, name: str, unit: str) -> KPI:
         v, s = float(values[i]), float(std[i])
@@ -385,13 +387,12 @@ def _prepared(result, uncertainty, level, interval: str) -> _Prepared:
     its own, the level and the interval's name), computing its uncertainty where not given."""
     from scipy import stats
 
-    from ._args import check_fit, check_level
+    from ._args import check_fit, check_interval, check_level
     from ._own import check_own
     from ._uncertainty import uncertainty as _uncertainty
 
     require_x64()
-    if interval not in ("white", "hac"):
-        raise ValueError(f"interval must be 'white' or 'hac', got {interval!r}")
+    check_interval(interval)
     problem = check_fit(result).problem
     uncertainty = check_own(result, uncertainty, None)[0]
     level = None if level is None else check_level(level)
@@ -408,6 +409,17 @@ def _prepared(result, uncertainty, level, interval: str) -> _Prepared:
     else:
         tq = float(stats.t.ppf(0.5 + level / 2, uncertainty.dof))
     return _Prepared(problem, uncertainty, (free, fixed, p, fv), float(level), tq)
+
+
+def _delta_std(grad: np.ndarray, cov: np.ndarray, uncertainty, interval: str) -> np.ndarray:
+    """:func:`_delta` over ``cov``; for ``"hac"`` never below the white standard error (of
+    ``uncertainty``): a HAC estimate below it (residuals that alternate) is mostly the sampling
+    error of the long-run variance of a short record."""
+    std = _delta(grad, cov)
+    if interval == "hac":
+        white = _delta(grad, np.asarray(uncertainty.cov_free, dtype=float))
+        std = np.where(np.isfinite(std) & np.isfinite(white), np.maximum(std, white), std)
+    return std
 
 
 def _delta(grad: np.ndarray, cov: np.ndarray) -> np.ndarray:

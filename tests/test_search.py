@@ -60,6 +60,15 @@ def test_grammar_without_columns_grows_nothing_they_lack():
     # structure with an internal mass and a heater capacity offers the share in its place
     swap = dict((s.name, what) for what, s in extensions(parse_structure("Zon+Int+Hea"), g))
     assert "Zon+Int+Rad" in swap and "instead of the heater capacity" in swap["Zon+Int+Rad"]
+    # without a mass, the share brings the mass it goes to (a heater's lag and a radiator
+    # heating the room's mass are told apart only by the data)
+    swap = dict((s.name, what) for what, s in extensions(parse_structure("Zon+Wal+Hea"), g))
+    assert swap["Zon+Wal+Int+Rad"].startswith("internal mass with a radiative heating share")
+    assert "Zon+Wal+Int+Hea" in swap and "Zon+Wal+Rad" not in swap
+    # the zoo's structures are drawn without swaps
+    assert "Zon+Int+Rad" not in {
+        s.name for _, s in extensions(parse_structure("Zon+Hea"), g, swaps=False)
+    }
 
 
 def test_reductions_remove_what_nothing_else_needs():

@@ -711,8 +711,13 @@ def _zone_extensions(
         add("heater capacity", "Hea")
     if heat and "Rad" not in tok and _NEEDS["Rad"](tok):
         add("radiative heating share", "Rad")
-    if swaps and heat and "Int" in tok and "Hea" in tok:  # two accounts of a heating's lag
-        add("radiative heating share instead of the heater capacity", "Rad", drop="Hea")
+    if swaps and heat and "Hea" in tok:  # two accounts of a heating's lag
+        if "Int" in tok:
+            add("radiative heating share instead of the heater capacity", "Rad", drop="Hea")
+        else:  # the share needs a mass to go to: the mass comes with it
+            t = (set(s.tokens) - {(z, "Hea")}) | {(z, "Int"), (z, "Rad")}
+            label = "internal mass with a radiative heating share instead of the heater capacity"
+            out.append((label, frozenset(t)))
     if g.facades and s.window(z) is None:
         add("facade windows", "Win" + "".join(FACADES[f] for f in g.facades))
     if solar and "Sol" not in tok and _NEEDS["Sol"](tok):
@@ -732,7 +737,8 @@ def extensions(
     """The one-component extensions of ``structure`` that the data can drive, as
     ``(what was added, new structure)``, in a fixed order. With ``swaps``, also the moves that
     trade one component for another of the same role (a radiative heating share in place of a
-    heater capacity: two accounts of the heating's lag)."""
+    heater capacity: two accounts of the heating's lag; where the share has no internal mass to
+    go to, the mass comes with it)."""
     out = []
     for z in structure.states:
         where = "" if z == 0 else f" (zone {z})"

@@ -224,10 +224,10 @@ def main(argv=None) -> int:
         f"{platform.python_version()}, jax {jax.__version__}",
         "rows": [],
     }
-    if args.json.exists() and only:  # keep the other buildings' rows
-        doc["rows"] = [
-            r for r in json.loads(args.json.read_text())["rows"] if r["building"] not in only
-        ]
+    if args.json.exists() and only:  # keep the other buildings' rows and the notes on them
+        before = json.loads(args.json.read_text())
+        doc["rows"] = [r for r in before["rows"] if r["building"] not in only]
+        doc["notes"] = before.get("notes", [])
     for name, make, noise in buildings(args):
         if only and name not in only:
             continue

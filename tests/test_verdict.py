@@ -513,3 +513,9 @@ def test_a_fast_mode_of_a_capacity_on_its_floor_names_it_and_fixed_there_is_a_no
     assert flag.parameters == ("C_zon",) and not flag.severe
     (flag,) = _check_time_constants(ctx(["C_zon", "C_wal"], lower * (1 + 1e-9), 0.5))
     assert flag.parameters == () and flag.severe  # free, inside its bounds: a reason
+    # a reduction fixes the capacity where the fit left it, a hair above its floor: still on
+    # its floor (within bound_tol on the log scale of its bounds); clearly above it, not
+    (flag,) = _check_time_constants(ctx(["C_wal"], lower * 1.002, 0.5))
+    assert flag.parameters == ("C_zon",) and not flag.severe
+    (flag,) = _check_time_constants(ctx(["C_wal"], lower * 1.2, 0.5))
+    assert flag.parameters == () and flag.severe

@@ -515,7 +515,9 @@ def _check_time_constants(ctx: _Judged) -> list[Flag]:
 def _floor_capacity(ctx: _Judged, tau: float) -> tuple[str, bool] | None:
     """The capacity whose node makes the fast mode ``tau`` [s] (the node's own time constant
     ``C/ΣG`` within a factor 2 of it) while the capacity sits at its lower bound, free (within
-    ``bound_tol`` in the transform's scale) or fixed there: ``(name, fixed)``, else ``None``."""
+    ``bound_tol`` in the transform's scale) or fixed there (a reduction fixes it where it ended:
+    within ``bound_tol`` of the floor on the log scale of its bounds): ``(name, fixed)``, else
+    ``None``."""
     if ctx.A is None:
         return None
     result = ctx.result
@@ -532,9 +534,14 @@ def _floor_capacity(ctx: _Judged, tau: float) -> tuple[str, bool] | None:
             continue
         if name in free:
             at_floor = pos.get(name, math.nan) < ctx.bound_tol
-        else:
-            lower = ctx.specs[name].lower
-            at_floor = float(result.params[name]) <= lower * (1 + 1e-6)
+        else:  # fixed where it ended (a reduction): its position on the log scale
+            lower, upper = ctx.specs[name].lower, ctx.specs[name].upper
+            value = float(result.params[name])
+            if 0 < lower < upper < math.inf and value > 0:
+                x = math.log(value / lower) / math.log(upper / lower)
+                at_floor = x < ctx.bound_tol
+            else:
+                at_floor = value <= lower * (1 + 1e-6)
         if at_floor:
             return name, name not in free
     return None

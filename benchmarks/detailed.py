@@ -449,19 +449,18 @@ def _without_ground(rows: list[dict], revealed: list[dict]) -> list[str]:
         ref = r["hlc_true"] * (1.0 - r["ground_share"])
         lo, hi = r.get("hlc_ci95") or (math.nan, math.nan)
         got.append((r["ground_share"] > 0, r["hlc"] / ref - 1.0, lo <= ref <= hi))
-    ground = [(e, c) for g, e, c in got if g]
-    if len(ground) < 3:
+    eg = np.asarray([e for g, e, _ in got if g])
+    if len(eg) < 3:
         return []
     measured = [r for r in revealed if "T_gro" in r.get("columns", ())]
     n_gro = sum("Gro" in (r.get("accepted") or "") for r in measured)
     whole = [r["hlc_error"] for r in rows if r.get("ground_share") and "hlc_error" in r]
     e = np.asarray([x for _, x, _ in got])
-    eg = np.asarray([x for x, _ in ground])
     return [
         "",
         "Against the truth without the floor's conductance to the ground (the conductance to "
         "the outdoor air and to a measured cellar only): on the "
-        f"{len(ground)} buildings on the ground the median signed error is "
+        f"{len(eg)} buildings on the ground the median signed error is "
         f"{100 * np.median(eg):+.1f} % (against the whole truth "
         f"{100 * np.median(whole):+.1f} %); "
         f"on all {len(got)}, within ±15 % {int(np.sum(np.abs(e) <= 0.15))}, the interval "

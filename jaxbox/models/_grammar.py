@@ -688,11 +688,11 @@ def _zone_extensions(
     solar = g.horizontal or bool(g.facades)
     out = []
 
-    def add(label, new, drop=None):
+    def add(label, *new, drop=None):
         t = set(s.tokens)
         if drop is not None:
             t.discard((z, drop))
-        t.add((z, new))
+        t.update((z, n) for n in new)
         out.append((label, frozenset(t)))
 
     if "Wal" not in tok:
@@ -715,9 +715,8 @@ def _zone_extensions(
         if "Int" in tok:
             add("radiative heating share instead of the heater capacity", "Rad", drop="Hea")
         else:  # the share needs a mass to go to: the mass comes with it
-            t = (set(s.tokens) - {(z, "Hea")}) | {(z, "Int"), (z, "Rad")}
             label = "internal mass with a radiative heating share instead of the heater capacity"
-            out.append((label, frozenset(t)))
+            add(label, "Int", "Rad", drop="Hea")
     if g.facades and s.window(z) is None:
         add("facade windows", "Win" + "".join(FACADES[f] for f in g.facades))
     if solar and "Sol" not in tok and _NEEDS["Sol"](tok):

@@ -48,6 +48,7 @@ import numpy as np
 
 from ..data import DataError, Dataset, Finding, find_implausible, signal_unit
 from ..data._args import check_mapping
+from ..fit._transforms import make_transform
 from ._args import (
     check_fit,
     check_flag,
@@ -516,8 +517,8 @@ def _floor_capacity(ctx: _Judged, tau: float) -> tuple[str, bool] | None:
     """The capacity whose node makes the fast mode ``tau`` [s] (the node's own time constant
     ``C/ΣG`` within a factor 2 of it) while the capacity sits at its lower bound, free (within
     ``bound_tol`` in the transform's scale) or fixed there (a reduction fixes it where it ended:
-    within ``bound_tol`` of the floor on the log scale of its bounds): ``(name, fixed)``, else
-    ``None``."""
+    within ``bound_tol`` of the floor in the scale the fit's transform gives its bounds):
+    ``(name, fixed)``, else ``None``."""
     if ctx.A is None:
         return None
     result = ctx.result
@@ -534,14 +535,10 @@ def _floor_capacity(ctx: _Judged, tau: float) -> tuple[str, bool] | None:
             continue
         if name in free:
             at_floor = pos.get(name, math.nan) < ctx.bound_tol
-        else:  # fixed where it ended (a reduction): its position on the log scale
-            lower, upper = ctx.specs[name].lower, ctx.specs[name].upper
-            value = float(result.params[name])
-            if 0 < lower < upper < math.inf and value > 0:
-                x = math.log(value / lower) / math.log(upper / lower)
-                at_floor = x < ctx.bound_tol
-            else:
-                at_floor = value <= lower * (1 + 1e-6)
+        else:  # fixed where it ended (a reduction): placed as the fit places a free one
+            spec, value = ctx.specs[name], float(result.params[name])
+            place = make_transform([name], [spec.lower], [spec.upper], [value])
+            at_floor = place.relative_position(np.asarray([value]))[0] < ctx.bound_tol
         if at_floor:
             return name, name not in free
     return None

@@ -11,10 +11,10 @@ fit's first call includes its compilation); the table says which is which.
 
 With ``--baseline REV`` the same runs are made, alternating, by an *old* code as well: this
 tree with the paths ``--baseline-paths`` (the fit and its compile paths by default) as they are
-at ``REV`` (``git archive``), so that only what those paths changed is measured, and the
-selection (accepted model, cost, SE, HLC) is compared between the two. Each code's figure is the
-minimum over ``--rounds`` rounds (cold: each on an empty cache of its own; warm: a second
-process on it).
+at ``REV`` (``git archive``; a path written ``PATH@REV2`` as it is at ``REV2``), so that only
+what those paths changed is measured, and the selection (accepted model, cost, SE, HLC) is
+compared between the two. Each code's figure is the minimum over ``--rounds`` rounds (cold:
+each on an empty cache of its own; warm: a second process on it).
 
     python benchmarks/profile_select.py [--data twinhouse_exp1:N2] [--out benchmarks/PROFILE.md]
         [--baseline HEAD~1] [--rounds 2]
@@ -242,7 +242,8 @@ def main(argv=None) -> None:
     ap.add_argument(
         "--baseline-paths",
         default="jaxbox/fit,jaxbox/_compiled.py,jaxbox/_cache.py",
-        help="the paths taken from --baseline (the rest of the tree is this one's)",
+        help="the paths taken from --baseline (the rest of the tree is this one's; PATH@REV: "
+        "that path from REV)",
     )
     ap.add_argument("--rounds", type=int, default=1, help="rounds of old and new (--baseline)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
@@ -275,22 +276,27 @@ def main(argv=None) -> None:
 
 
 def _old_tree(baseline: str, paths: list[str], into: Path) -> Path:
-    """This tree's ``jaxbox`` with ``paths`` as they are at ``baseline``."""
+    """This tree's ``jaxbox`` with ``paths`` as they are at ``baseline`` (a path written
+    ``PATH@REV`` as it is at ``REV``)."""
     shutil.copytree(ROOT / "jaxbox", into / "jaxbox", ignore=shutil.ignore_patterns("__pycache__"))
-    for path in paths:
+    by_rev: dict[str, list[str]] = defaultdict(list)
+    for spec in paths:
+        path, _, rev = spec.partition("@")
+        by_rev[rev or baseline].append(path)
         target = into / path
         if target.is_dir():
             shutil.rmtree(target)
         elif target.exists():
             target.unlink()
-    archive = into / "old.tar"
-    subprocess.run(
-        ["git", "archive", "--format=tar", "-o", str(archive), baseline, *paths],
-        cwd=ROOT,
-        check=True,
-    )
-    with tarfile.open(archive) as tf:
-        tf.extractall(into, filter="data")
+    for k, (rev, revpaths) in enumerate(by_rev.items()):
+        archive = into / f"old-{k}.tar"
+        subprocess.run(
+            ["git", "archive", "--format=tar", "-o", str(archive), rev, *revpaths],
+            cwd=ROOT,
+            check=True,
+        )
+        with tarfile.open(archive) as tf:
+            tf.extractall(into, filter="data")
     return into
 
 
@@ -352,7 +358,8 @@ def _versus_markdown(v: dict, args) -> str:
         "",
         "## Old against new (same run, alternating processes, no profiler)",
         "",
-        f"*old*: this tree with `{'`, `'.join(v['paths'])}` as at `{v['baseline']}`; *new*: this "
+        f"*old*: this tree with `{'`, `'.join(v['paths'])}` as at `{v['baseline']}` (a path "
+        f"`PATH@REV` as at `REV`); *new*: this "
         f"tree. Each figure the minimum of {len(v['new'])} round(s) (cold: an empty cache of its "
         "own; warm: a second process on it). The machine was shared with other work (load "
         "average in the heading): the processor time of the process is the steadier measure of "

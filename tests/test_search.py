@@ -203,6 +203,22 @@ def test_the_steps_of_a_search_share_compiled_fits(search):
     assert 1 <= _FIT_PROGRAMS["search"] < calls
 
 
+def test_a_case_may_skip_the_continuation(building, tmp_path):
+    """``homotopy`` is a setting of a case (and of a search, passed to its cases): ``()`` fits
+    the output error from every start directly, and the fit reports it (and a saved GreyBox
+    keeps it); a bad one is refused by name before anything runs."""
+    gb = GreyBox(building.data, name="direct fits")
+    case = gb.add_case(get_model("ZonWal"), starts=2, homotopy=()).run()
+    assert case.settings["homotopy"] == ()
+    assert tuple(case.result.settings["homotopy"]) == ()
+    assert case.result.cost < 0.01
+    gb.save(tmp_path / "gb")
+    back = jaxbox.select.load_greybox(tmp_path / "gb").cases[case.name]
+    assert tuple(back.settings["homotopy"]) == ()
+    with pytest.raises(ValueError, match="homotopy"):
+        structure_search(building, starts=2, max_depth=1, homotopy=(0.2, 0.5))
+
+
 def test_search_finds_the_true_structure(search):
     s, _ = search
     assert s.accepted == "Zon+Wal"

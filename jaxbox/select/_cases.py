@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..fit import DEFAULT_STARTS
+from ..fit._fit import check_homotopy
 from ..models import RCModel
 from ._guess import Guess, lhs_starts
 
@@ -38,7 +39,16 @@ __all__ = [
 Progress = Callable[[str], None]
 
 #: Solver settings a case passes on to :func:`jaxbox.fit.fit_batch`.
-FIT_SETTINGS = ("max_steps", "rtol", "atol", "concentration", "weights", "simulator", "max_gap")
+FIT_SETTINGS = (
+    "max_steps",
+    "rtol",
+    "atol",
+    "concentration",
+    "weights",
+    "simulator",
+    "max_gap",
+    "homotopy",
+)
 #: Settings of a case: the solver's, and ``postsim``, the post-simulation method of its
 #: validation (``"diffrax"``, adaptive, by default; ``"exact"``, the matrix exponential).
 SETTINGS = (*FIT_SETTINGS, "postsim")
@@ -83,9 +93,9 @@ def _tolerance(value, name: str) -> float:
 
 def check_settings(settings: Mapping) -> dict:
     """The settings of a case (:data:`SETTINGS`), checked before anything is declared or run:
-    unknown names, and ``max_steps``, ``rtol``, ``atol``, ``concentration``, ``simulator`` and
-    ``postsim`` of the wrong type or out of range, name the setting (``weights`` and
-    ``max_gap`` are checked with the estimation problem and the data)."""
+    unknown names, and ``max_steps``, ``rtol``, ``atol``, ``concentration``, ``simulator``,
+    ``postsim`` and ``homotopy`` of the wrong type or out of range, name the setting
+    (``weights`` and ``max_gap`` are checked with the estimation problem and the data)."""
     bad = [str(k) for k in settings if k not in SETTINGS]
     if bad:
         raise TypeError(f"unknown setting(s) {', '.join(bad)}; settings are {', '.join(SETTINGS)}")
@@ -100,6 +110,8 @@ def check_settings(settings: Mapping) -> dict:
             raise ValueError(
                 f"{key} must be one of {', '.join(map(repr, SIMULATORS))}, got {out[key]!r}"
             )
+    if "homotopy" in out:  # a FitError (a ValueError) naming the setting
+        out["homotopy"] = check_homotopy(out["homotopy"])
     return out
 
 
@@ -133,7 +145,7 @@ class Case:
         starts: number of starts (the guess plus Latin-hypercube samples), fitted in one call.
         seed: seed of the Latin hypercube.
         settings: solver settings (``max_steps``, ``rtol``, ``atol``, ``concentration``,
-            ``weights``, ``simulator``).
+            ``weights``, ``simulator``, ``max_gap``, ``homotopy``; ``postsim``).
         parent: name of the case the guess was inherited from.
         notes: what happened on the way (a retry with narrowed bounds, …).
         result: the :class:`~jaxbox.fit.FitResult` once run.

@@ -241,7 +241,9 @@ class GreyBox:
             seed: seed of the Latin hypercube.
             train, valid: periods overriding the GreyBox's (``(start, end)``).
             settings: solver settings for :func:`jaxbox.fit.fit` (``max_steps``, ``rtol``,
-                ``atol``, ``concentration``, ``weights``, ``simulator``).
+                ``atol``, ``concentration``, ``weights``, ``simulator``, ``max_gap``,
+                ``homotopy``; ``()`` fits every start's output error directly, without the
+                continuation route) and ``postsim``, the validation's simulator.
         """
         model = get_model(model)
         name = _case_name(name)

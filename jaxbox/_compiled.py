@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import threading
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Hashable
 from typing import Any
@@ -25,6 +26,7 @@ __all__ = [
     "set_max_entries",
     "compiler_options",
     "jit",
+    "options_of",
 ]
 
 _LOCK = threading.Lock()
@@ -126,7 +128,20 @@ def jit(fun: Callable, *, once: bool = False, lean: bool = False, **kwargs) -> C
     """
     import jax
 
-    return jax.jit(fun, compiler_options=_options(once=once, lean=lean), **kwargs)
+    options = _options(once=once, lean=lean)
+    jitted = jax.jit(fun, compiler_options=options, **kwargs)
+    _OPTIONS_OF[jitted] = options
+    return jitted
+
+
+#: the compiler options each function of :func:`jit` was made with (weakly: they go with it)
+_OPTIONS_OF: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def options_of(jitted: Callable) -> dict[str, Any] | None:
+    """The XLA compiler options a function of :func:`jit` was made with (``None``: XLA's own,
+    or a function not made by :func:`jit`)."""
+    return _OPTIONS_OF.get(jitted)
 
 
 def _options(*, once: bool = False, lean: bool = False) -> dict[str, Any] | None:

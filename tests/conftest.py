@@ -15,6 +15,9 @@ from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ["JAXBOX_CACHE"] = "0"
+# the fit programs are compiled directly, not through kept exports (tests/test_exported.py
+# turns them on in a folder of its own)
+os.environ.setdefault("JAXBOX_EXPORTED", "0")
 if os.environ.get("PYTEST_XDIST_WORKER"):  # a worker per core: one thread each
     os.environ.setdefault("JAXBOX_THREADS", "1")
 

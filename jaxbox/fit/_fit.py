@@ -55,6 +55,7 @@ from jaxtyping import Float
 
 from .. import _compiled
 from .._compiled import jit
+from .._exported import compile_program
 from ..simulate._parallel import _PARALLEL_BATCH, normal_equations_auto, prefer_parallel
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS
 from ._problem import FitError, Problem
@@ -957,24 +958,14 @@ def solve_jobs(
         bool(release),
     )
     t0 = time.perf_counter()
-    compiled, built = _compiled.cached(
-        key,
-        lambda: (
-            _build(
-                groups,
-                slot_counts,
-                max_steps,
-                solver,
-                pads,
-                rc is not None,
-                homotopy,
-                release,
-                split,
-            )
-            .lower(*args)
-            .compile()
-        ),
-    )
+
+    def build():
+        jitted = _build(
+            groups, slot_counts, max_steps, solver, pads, rc is not None, homotopy, release, split
+        )
+        return compile_program("fit", key, jitted, args, _compiled.options_of(jitted))
+
+    compiled, built = _compiled.cached(key, build)
     compile_s = time.perf_counter() - t0 if built else 0.0
     try:
         mem = compiled.memory_analysis()

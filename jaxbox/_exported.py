@@ -60,13 +60,14 @@ def source_digest() -> str:
 
 
 def _digest(name: str, key: Hashable, options: dict | None) -> str | None:
-    """The artifact's name for ``key``; ``None`` where the key's text is not the same in every
-    process (an object shown by its address)."""
+    """The artifact's name for ``key``; ``None`` where the key's text does not name the program
+    (an object shown by its address, which differs from process to process; an array shown
+    abridged, which two programs could share)."""
     import jax
     import jaxlib
 
     text = repr(key)
-    if " at 0x" in text:
+    if " at 0x" in text or "..." in text:
         return None
     h = hashlib.sha256()
     for part in (

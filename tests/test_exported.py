@@ -60,12 +60,14 @@ def test_a_damaged_artifact_is_exported_again(data, tmp_path, monkeypatch):
 
 def test_artifacts_are_named_by_program_source_and_options():
     """Another key, another jaxbox source or other compiler options: another artifact; a key
-    shown by an address is never kept (it differs from process to process)."""
+    shown by an address (it differs from process to process) or holding an array shown
+    abridged (two keys could share it) is never kept."""
     a = _exported._digest("fit", ("fit", 1, (3, 4)), None)
     assert a == _exported._digest("fit", ("fit", 1, (3, 4)), None)
     assert a != _exported._digest("fit", ("fit", 2, (3, 4)), None)
     assert a != _exported._digest("fit", ("fit", 1, (3, 4)), {"xla_backend_optimization_level": 1})
     assert _exported._digest("fit", ("fit", object()), None) is None
+    assert _exported._digest("fit", ("fit", np.arange(5000)), None) is None
     saved = list(_exported._SOURCE)
     try:
         _exported._SOURCE[:] = ["another source"]

@@ -195,3 +195,52 @@ def test_the_select_outputs_carry_the_method(coloured_fits):
     assert out["boundaries"] == {} and "referenced to the outdoor air" in _hlc_text(doc)
     html = "".join(_hlc_section(sel))
     assert "Heat-loss coefficient" in html and "near-best" in html
+
+
+def test_an_offset_beside_an_unused_boundary_is_named():
+    """A zone losing 40 W/K through a heavy floor (5e7 J/K) to a cellar near 12 °C: a model
+    without the cellar (``Zon+Int+Off``, the floor as its mass) puts that loss into a negative
+    offset, and the warning names the cellar's column and the conductance the offset would be
+    (the HLC's missing part, within a fifth); a model with the cellar (``Zon+BouC``) gets no
+    such warning, nor does an offset that points the other way (``Zon+Off``: the cellar's
+    conductance taken as the outdoor air's, the offset positive). Without the cellar's column
+    the loss is named as one to an unmeasured boundary, at the outdoor air's mean."""
+    rng = np.random.default_rng(11)
+    n = 240
+    t = np.arange(n) * STEP
+    day = 2 * np.pi * t / 86400.0
+    u = {
+        "T_amb": 6.0 + 5.0 * np.sin(day - 2.0) + rng.normal(0, 0.5, n),
+        "T_bou": 12.0 + 0.3 * np.sin(day / 7.0),
+        "Q_hea": 2500.0 * (rng.random(n) > 0.4),
+        "I_glo_hor": np.maximum(0.0, 500.0 * np.sin(day - 1.5)),
+    }
+    truth = {"C_zon": 3e6, "C_bou": 5e7, "R_wal": 0.01, "R_bou": 0.025, "gA": 2.0}
+    truth |= {"T_zon0": 20.0, "T_bou0": 16.0}
+    clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
+    y = simulate_model("Zon+BouC", truth, clean).y[:, 0]
+    data = clean.with_columns(T_zon=y + rng.normal(0, 0.05, n))
+    fits = {m: fit_model(m, data, starts=4) for m in ("Zon+Int+Off", "Zon+BouC", "Zon+Off")}
+    assert fits["Zon+Int+Off"].params["Q_off"] < 0 < fits["Zon+Off"].params["Q_off"]
+    (w,) = _offset_warnings(fits["Zon+Int+Off"], data)
+    assert "T_bou" in w and "lost to" in w
+    added = float(w.split("add ")[1].split(" W/K")[0])
+    assert added == pytest.approx(1 / truth["R_bou"], rel=0.2)
+    assert not _offset_warnings(fits["Zon+BouC"], data)
+    assert not _offset_warnings(fits["Zon+Off"], data)
+    # without the cellar's column: a loss to an unmeasured boundary, at the outdoor mean
+    frame = data.frame
+    cols = {c: frame[c].to_numpy() for c in frame.columns if c != "T_bou"}
+    unmeasured = Dataset.from_arrays(t, cols)
+    (w,) = _offset_warnings(fits["Zon+Int+Off"], unmeasured)
+    assert "unmeasured boundary" in w
+    q = fits["Zon+Int+Off"].params["Q_off"]
+    at_outdoor = -q / float((frame["T_zon"] - frame["T_amb"]).mean())
+    assert float(w.split("add about ")[1].split(" W/K")[0]) == pytest.approx(at_outdoor, rel=1e-3)
+    assert not _offset_warnings(fits["Zon+Off"], unmeasured)
+
+
+def _offset_warnings(result, data):
+    sel = _selection([_Case("a", result, 0.1)])
+    sel.greybox.data = data
+    return [w for w in hlc_interval(sel).warnings if "offset" in w]

@@ -11,6 +11,12 @@ either's interval says. :func:`hlc_interval` takes the candidates of a
 :class:`~jaxbox.select.Selection` that are valid, predict the same zones, and come within
 ``margin`` of the accepted model's criterion (:func:`near_best`), and reports the union of
 their HAC intervals around the accepted model's value.
+
+**Offsets.** A constant heat input ``Q_off`` fits the same data as a conductance to a boundary
+whose temperature changes little (a cellar, the ground behind a heavy floor); where the data
+measure such a boundary and the accepted model leaves it out, a warning names it with the
+conductance the offset would be, which the HLC then misses; a loss with no such column, as
+one to an unmeasured boundary such as the ground (:func:`_offset_warnings`).
 """
 
 from __future__ import annotations
@@ -251,6 +257,7 @@ def hlc_interval(
                 f"the near-best models disagree on the HLC by {spread:.3g} W/K "
                 f"({named}); the data do not settle it"
             )
+    warns += _offset_warnings(selection, cases[0])
     return HlcInterval(
         value=float(models[0]["value"]),
         ci95=(float(lo), float(hi)),
@@ -260,6 +267,69 @@ def hlc_interval(
         warnings=tuple(warns),
         outdoor=_outdoor(selection, cases[0], level, first_uncertainty),
     )
+
+
+#: the least mean difference [K] between the zone and a boundary for which an offset is read as
+#: a conductance to it (closer, the conductance is not told by the data)
+OFFSET_MIN_DIFFERENCE = 1.0
+
+
+def _offset_warnings(selection, case) -> list[str]:
+    """An offset may be heat exchanged with a boundary that is measured but not in the model.
+
+    A constant heat input ``Q_off`` and a conductance ``H`` to a boundary whose temperature
+    changes little fit the same data: over the record, ``H (T_b − T_zon)`` is nearly constant
+    too. Where the accepted single-zone model has an offset and the data carry a temperature
+    column it does not use (a cellar, the ground, a neighbour), each such boundary on the side
+    the offset's sign points to (colder for a loss, warmer for a gain, by at least
+    :data:`OFFSET_MIN_DIFFERENCE` on average) is named with the conductance the offset would
+    be, ``|Q_off| / |mean(T_zon − T_b)|``, which the HLC would then miss. A loss with no such
+    column is named as one to an unmeasured boundary (the ground), with the conductance it
+    would be at the outdoor air's mean temperature."""
+    model = case.model
+    offsets = [v for n, v in case.result.params.items() if n.startswith("Q_off")]
+    if not offsets or len(model.outputs) != 1:
+        return []
+    q = float(sum(offsets))
+    gb = getattr(selection, "greybox", None)
+    data = getattr(gb, "data", None)
+    if data is None or not hasattr(data, "frame"):
+        data = case.result.data
+    frame = data.frame
+    zone = model.outputs[0]
+    if zone not in frame.columns or not np.isfinite(q) or q == 0.0:
+        return []
+    out = []
+    for col in frame.columns:
+        if not col.startswith("T_") or col in model.inputs or col in (zone, "T_amb"):
+            continue
+        if col in model.outputs:
+            continue
+        both = frame[[zone, col]].dropna()
+        if len(both) < 2:
+            continue
+        diff = float((both[zone] - both[col]).mean())  # the zone above the boundary [K]
+        if abs(diff) < OFFSET_MIN_DIFFERENCE or (q < 0) != (diff > 0):
+            continue
+        side = "below" if diff > 0 else "above"
+        what = "lost to" if q < 0 else "received from"
+        out.append(
+            f"the offset Q_off = {q:+.0f} W may be heat {what} {col}, measured but not in the "
+            f"model ({abs(diff):.1f} K {side} the zone on average): as a conductance it would "
+            f"add {abs(q / diff):.3g} W/K to the HLC; a model with {col} as a boundary tells "
+            "them apart where the data do"
+        )
+    if not out and q < 0 and "T_amb" in frame.columns:
+        both = frame[[zone, "T_amb"]].dropna()
+        diff = float((both[zone] - both["T_amb"]).mean()) if len(both) > 1 else 0.0
+        if diff >= OFFSET_MIN_DIFFERENCE:
+            out.append(
+                f"the offset Q_off = {q:+.0f} W is a constant loss the model does not explain: "
+                "if it is heat lost to an unmeasured boundary that changes little (the ground), "
+                f"it would add about {-q / diff:.3g} W/K to the HLC with that boundary at the "
+                "outdoor air's mean temperature, more with it warmer"
+            )
+    return out
 
 
 def _outdoor(selection, case, level: float, unc):

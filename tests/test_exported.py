@@ -35,6 +35,8 @@ def test_an_exported_fit_is_read_back_without_tracing(data, tmp_path, monkeypatc
     first = _fit(data)
     files = sorted(tmp_path.glob("fit-*.bin"))
     assert len(files) == 1 and files[0].stat().st_size > 0
+    assert files[0].stat().st_mode & 0o044 == 0o044  # readable by the other users of a cache
+    assert not list(tmp_path.glob("*.tmp"))
 
     def no_export(*a, **k):
         raise AssertionError("exported again instead of read back")

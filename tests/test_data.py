@@ -757,3 +757,19 @@ def test_plot_returns_figure() -> None:
     assert figure.axes[0].get_ylabel() == "temperature [°C]"
     one = Figure().subplots()
     assert ds.plot(["T_zon"], ax=one) is one.figure
+
+
+def test_first_values_skip_a_leading_gap_and_follow_new_columns():
+    """The first finite value per column (a gap at the start skipped; a column missing or
+    without a value left out); a new dataset from ``with_columns`` reads its own columns."""
+    t = np.arange(4) * 3600.0
+    ds = Dataset.from_arrays(
+        t, {"T_zon": [np.nan, 20.5, 21.0, 21.5], "T_amb": [5.0, 6.0, 7.0, 8.0]}, check=False
+    )
+    assert ds.first_values(["T_zon", "T_amb", "T_bou"]) == {"T_zon": 20.5, "T_amb": 5.0}
+    assert ds.first_values("T_zon") == {"T_zon": 20.5}  # read again: the same
+    other = ds.with_columns(T_zon=np.array([19.0, 20.0, 21.0, 22.0]))
+    assert other.first_values(["T_zon"]) == {"T_zon": 19.0}
+    assert ds.first_values(["T_zon"]) == {"T_zon": 20.5}
+    empty = ds.with_columns(T_bou=np.full(4, np.nan))
+    assert empty.first_values(["T_bou"]) == {}

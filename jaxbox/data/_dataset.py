@@ -124,14 +124,16 @@ class Dataset:
     cuts.
     """
 
-    __slots__ = ("_frame", "_step")
+    __slots__ = ("_frame", "_step", "_memo")
     _frame: pd.DataFrame
     _step: float
+    _memo: dict  # values derived from the frame, computed once (see first_values)
 
     def __init__(self, frame: pd.DataFrame, *, check: bool = True) -> None:
         values = validated_frame(frame, check=check)
         object.__setattr__(self, "_frame", values)
         object.__setattr__(self, "_step", median_step(values.index))
+        object.__setattr__(self, "_memo", {})
 
     @classmethod
     def _new(cls, frame: pd.DataFrame, step: float | None = None) -> Dataset:
@@ -141,6 +143,7 @@ class Dataset:
         object.__setattr__(
             self, "_step", median_step(frame.index) if len(frame) > 1 or step is None else step
         )
+        object.__setattr__(self, "_memo", {})
         return self
 
     def __setattr__(self, name: str, value: object) -> None:
@@ -333,6 +336,23 @@ class Dataset:
                 out[:, real] = self._frame[[names[i] for i in real]].to_numpy(dtype=np.float64)
             return out
         return np.array(self._frame[names].to_numpy(dtype=np.float64), dtype=np.float64, order="C")
+
+    def first_values(self, names: str | Iterable[str]) -> dict[str, float]:
+        """The first finite value of each column of ``names`` (a column missing, or without a
+        finite value, is left out), each column read once: a Dataset does not change."""
+        out = {}
+        for name in _names(names):
+            key = ("first", name)
+            if key not in self._memo:
+                value = None
+                if name in self._frame.columns:
+                    values = self._frame[name].to_numpy(dtype=np.float64)
+                    ok = np.flatnonzero(np.isfinite(values))
+                    value = float(values[ok[0]]) if ok.size else None
+                self._memo[key] = value
+            if self._memo[key] is not None:
+                out[name] = self._memo[key]
+        return out
 
     # -- new datasets ---------------------------------------------------------------------------
 

@@ -25,14 +25,8 @@ UNMEASURED_MARGIN = 2.0
 def _first_values(model: RCModel, data) -> dict[str, float]:
     """First measured sample of every temperature the model touches (outputs, T_* inputs);
     a measurement missing at the start (a gap) is taken from its first sample."""
-    out = {}
-    for name in (*model.outputs, *(i for i in model.inputs if i.startswith("T_"))):
-        if name in data.columns:
-            values = data.array([name])[:, 0]
-            ok = np.flatnonzero(np.isfinite(values))
-            if ok.size:
-                out[name] = float(values[ok[0]])
-    return out
+    names = (*model.outputs, *(i for i in model.inputs if i.startswith("T_")))
+    return data.first_values([n for n in names if n in data.columns])
 
 
 def _neighbours(model: RCModel, node: str) -> list[str]:

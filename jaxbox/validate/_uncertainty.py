@@ -45,7 +45,8 @@ import numpy as np
 from jaxtyping import ArrayLike, Bool, Float
 from scipy import stats
 
-from .._compiled import cached, jit
+from .._compiled import cached, jit, options_of
+from .._exported import compile_program
 from .._x64 import require_x64
 from ._args import check_fit
 
@@ -321,12 +322,18 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     segmented = model.segments > 1
     key = ("uncertainty", "rc", segmented, len(t), width, fixed_width, m_pad, *sizes.values())
     key += (len(problem.output_states), model.segments)
-    fn = cached(key, lambda: _build_rc_jacobian(segmented))[0]
     p_pad = jnp.concatenate([p, jnp.ones(width - n_free, dtype=p.dtype)])
     q_pad = jnp.concatenate([fixed_values, jnp.ones(fixed_width - n_fixed, dtype=p.dtype)])
     u_pad = jnp.pad(jnp.asarray(u, dtype=float), ((0, 0), (0, m_pad - m)))
     out_idx = jnp.asarray(problem.output_states)
-    ysim, J = fn(p_pad, q_pad, jnp.asarray(t, dtype=float), u_pad, arrays, out_idx)
+    args = (p_pad, q_pad, jnp.asarray(t, dtype=float), u_pad, arrays, out_idx)
+    key += tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves(args))
+
+    def build():  # compiled for these shapes, kept for later processes (jaxbox._exported)
+        jitted = _build_rc_jacobian(segmented)
+        return compile_program("uncertainty", key, jitted, args, options_of(jitted))
+
+    ysim, J = cached(key, build)[0](*args)
     return ysim, J[..., :n_free]
 
 

@@ -24,7 +24,6 @@ import os
 import tempfile
 from collections.abc import Callable, Hashable
 from pathlib import Path
-from typing import Any
 
 __all__ = ["compile_program", "directory", "source_digest"]
 
@@ -99,27 +98,24 @@ def _write(path: Path, blob: bytes) -> None:
         raise
 
 
-def compile_program(
-    name: str,
-    key: Hashable,
-    jitted: Callable,
-    args: tuple,
-    options: dict[str, Any] | None = None,
-):
+def compile_program(name: str, key: Hashable, jitted: Callable, args: tuple):
     """``jitted.lower(*args).compile()``, through a serialized export kept for later processes.
 
     Args:
         name: the room of the program (``"fit"``), the start of the artifact's name.
         key: the program's key in :mod:`jaxbox._compiled` (what makes it this program).
-        jitted: the ``jax.jit`` function.
+        jitted: the function, made by :func:`jaxbox._compiled.jit` (whose XLA compiler
+            options the program keeps).
         args: its arguments (arrays or ``jax.ShapeDtypeStruct``).
-        options: the XLA compiler options ``jitted`` was made with.
 
     Returns:
         The compiled program, called as ``jitted`` would be.
     """
     import jax
 
+    from ._compiled import options_of
+
+    options = options_of(jitted)
     folder = directory()
     file = None if folder is None else _digest(name, key, options)
     if file is None or file in _FAILED:

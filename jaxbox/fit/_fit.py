@@ -963,7 +963,7 @@ def solve_jobs(
         jitted = _build(
             groups, slot_counts, max_steps, solver, pads, rc is not None, homotopy, release, split
         )
-        return compile_program("fit", key, jitted, args, _compiled.options_of(jitted))
+        return compile_program("fit", key, jitted, args)
 
     compiled, built = _compiled.cached(key, build)
     compile_s = time.perf_counter() - t0 if built else 0.0

@@ -25,8 +25,7 @@ UNMEASURED_MARGIN = 2.0
 def _first_values(model: RCModel, data) -> dict[str, float]:
     """First measured sample of every temperature the model touches (outputs, T_* inputs);
     a measurement missing at the start (a gap) is taken from its first sample."""
-    names = (*model.outputs, *(i for i in model.inputs if i.startswith("T_")))
-    return data.first_values([n for n in names if n in data.columns])
+    return data.first_values([*model.outputs, *(i for i in model.inputs if i.startswith("T_"))])
 
 
 def _neighbours(model: RCModel, node: str) -> list[str]:

@@ -291,11 +291,7 @@ def _offset_warnings(selection, case) -> list[str]:
     if not offsets or len(model.outputs) != 1:
         return []
     q = float(sum(offsets))
-    gb = getattr(selection, "greybox", None)
-    data = getattr(gb, "data", None)
-    if data is None or not hasattr(data, "frame"):
-        data = case.result.data
-    frame = data.frame
+    frame = _whole_record(selection, case).frame
     zone = model.outputs[0]
     if zone not in frame.columns or not np.isfinite(q) or q == 0.0:
         return []
@@ -303,13 +299,8 @@ def _offset_warnings(selection, case) -> list[str]:
     for col in frame.columns:
         if not col.startswith("T_") or col in model.inputs or col in (zone, "T_amb"):
             continue
-        if col in model.outputs:
-            continue
-        both = frame[[zone, col]].dropna()
-        if len(both) < 2:
-            continue
-        diff = float((both[zone] - both[col]).mean())  # the zone above the boundary [K]
-        if abs(diff) < OFFSET_MIN_DIFFERENCE or (q < 0) != (diff > 0):
+        diff = _mean_difference(frame, zone, col)
+        if diff is None or abs(diff) < OFFSET_MIN_DIFFERENCE or (q < 0) != (diff > 0):
             continue
         side = "below" if diff > 0 else "above"
         what = "lost to" if q < 0 else "received from"
@@ -320,9 +311,8 @@ def _offset_warnings(selection, case) -> list[str]:
             "them apart where the data do"
         )
     if not out and q < 0 and "T_amb" in frame.columns:
-        both = frame[[zone, "T_amb"]].dropna()
-        diff = float((both[zone] - both["T_amb"]).mean()) if len(both) > 1 else 0.0
-        if diff >= OFFSET_MIN_DIFFERENCE:
+        diff = _mean_difference(frame, zone, "T_amb")
+        if diff is not None and diff >= OFFSET_MIN_DIFFERENCE:
             out.append(
                 f"the offset Q_off = {q:+.0f} W is a constant loss the model does not explain: "
                 "if it is heat lost to an unmeasured boundary that changes little (the ground), "
@@ -332,17 +322,27 @@ def _offset_warnings(selection, case) -> list[str]:
     return out
 
 
+def _mean_difference(frame, zone: str, col: str) -> float | None:
+    """How far the zone sits above column ``col`` on average over the rows that have both
+    [K] (``None`` with fewer than two such rows)."""
+    both = frame[[zone, col]].dropna()
+    return float((both[zone] - both[col]).mean()) if len(both) > 1 else None
+
+
+def _whole_record(selection, case):
+    """The selection's whole record (identification and validation data) where it has one,
+    else the data the case was fitted to."""
+    whole = getattr(getattr(selection, "greybox", None), "data", None)
+    return whole if whole is not None and hasattr(whole, "frame") else case.result.data
+
+
 def _outdoor(selection, case, level: float, unc):
     """The accepted case's outdoor-referenced HLC (``unc`` its uncertainty, computed once for
     both HLCs), the boundaries read from the whole record (identification and validation data)
     where the selection has both."""
     from ._hlc_outdoor import outdoor_hlc
 
-    data = case.result.data
-    gb = getattr(selection, "greybox", None)
-    whole = getattr(gb, "data", None)
-    if whole is not None and hasattr(whole, "frame"):
-        data = whole
+    data = _whole_record(selection, case)
     try:
         return outdoor_hlc(case.result, unc, data=data, interval="hac", level=level)
     except (ValueError, KeyError, TypeError, np.linalg.LinAlgError):  # an extra, never the end

@@ -45,7 +45,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Bool, Float
 from scipy import stats
 
-from .._compiled import cached, jit, options_of
+from .._compiled import cached, jit
 from .._exported import compile_program
 from .._x64 import require_x64
 from ._args import check_fit
@@ -330,8 +330,7 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     key += tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves(args))
 
     def build():  # compiled for these shapes, kept for later processes (jaxbox._exported)
-        jitted = _build_rc_jacobian(segmented)
-        return compile_program("uncertainty", key, jitted, args, options_of(jitted))
+        return compile_program("uncertainty", key, _build_rc_jacobian(segmented), args)
 
     ysim, J = cached(key, build)[0](*args)
     return ysim, J[..., :n_free]

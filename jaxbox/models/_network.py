@@ -589,13 +589,12 @@ class RCModel:
         return dataclasses.replace(self, parameters=tuple(base + extra), segments=segments)
 
     def initial_states(self, theta: Mapping):
-        """Initial node temperatures of every segment [°C], shape [segments, n]."""
-        return jnp.stack(
-            [
-                jnp.stack([jnp.asarray(theta[n], dtype=float) for n in self.segment_names(k)])
-                for k in range(1, self.segments + 1)
-            ]
-        )
+        """Initial node temperatures of every segment [°C], shape [segments, n] (a numpy array
+        where every value is a host number, so that no device program is compiled for it)."""
+        rows = [[theta[n] for n in self.segment_names(k)] for k in range(1, self.segments + 1)]
+        if all(isinstance(v, (int, float, np.ndarray, np.generic)) for r in rows for v in r):
+            return np.asarray(rows, dtype=float)
+        return jnp.stack([jnp.stack([jnp.asarray(v, dtype=float) for v in r]) for r in rows])
 
     def renamed(self, name: str, description: str | None = None) -> RCModel:
         return dataclasses.replace(

@@ -167,7 +167,7 @@ def outdoor_hlc(
     jq = model.inputs.index(heat[0])
     jb = tuple(model.inputs.index(b) for b in boundaries)
     values, grad = _function(model, free, fixed, jq, jb)(
-        jnp.asarray(p), jnp.asarray(fv), jnp.asarray(alpha)
+        np.asarray(p, dtype=float), np.asarray(fv, dtype=float), alpha
     )
     values, grad = np.asarray(values), np.asarray(grad)
     if interval == "hac":

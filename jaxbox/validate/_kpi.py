@@ -258,7 +258,7 @@ def kpi_values(model, params: Mapping[str, float]) -> dict[str, float | list[flo
     names = tuple(model.param_names)
     theta = {n: float(params[n]) for n in names}
     fn = _compiled(model, names, (), _symmetric(model, theta))
-    values, _ = fn(jnp.asarray([theta[n] for n in names]), jnp.zeros(0))
+    values, _ = fn(np.asarray([theta[n] for n in names], dtype=float), np.zeros(0))
     return _unpack(model, np.asarray(values))
 
 
@@ -312,7 +312,9 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
     problem, uncertainty, free, fixed, p, fv = fit.problem, fit.uncertainty, *fit.arrays
     model = problem.model
     symmetric = _symmetric(model, result.params)
-    values, grad = _compiled(model, free, fixed, symmetric)(jnp.asarray(p), jnp.asarray(fv))
+    values, grad = _compiled(model, free, fixed, symmetric)(
+        np.asarray(p, dtype=float), np.asarray(fv, dtype=float)
+    )
     values, grad = np.asarray(values), np.asarray(grad)
     robust = robust_covariance(result, uncertainty)
     if interval == "hac":

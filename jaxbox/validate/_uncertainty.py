@@ -318,22 +318,24 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
         arrays = model.rc_arrays([*slots, "1", "0"], inputs=inputs, **sizes)
     except ModelError:
         return None
-    arrays = tuple(jnp.asarray(arrays[k]) for k in _RC_KEYS)
+    # host arrays throughout: an eager jnp operation on them compiles a program of its own for
+    # every shape, in every process (tens of ms each)
+    arrays = tuple(np.asarray(arrays[k]) for k in _RC_KEYS)
     segmented = model.segments > 1
     key = ("uncertainty", "rc", segmented, len(t), width, fixed_width, m_pad, *sizes.values())
     key += (len(problem.output_states), model.segments)
-    p_pad = jnp.concatenate([p, jnp.ones(width - n_free, dtype=p.dtype)])
-    q_pad = jnp.concatenate([fixed_values, jnp.ones(fixed_width - n_fixed, dtype=p.dtype)])
-    u_pad = jnp.pad(jnp.asarray(u, dtype=float), ((0, 0), (0, m_pad - m)))
-    out_idx = jnp.asarray(problem.output_states)
-    args = (p_pad, q_pad, jnp.asarray(t, dtype=float), u_pad, arrays, out_idx)
+    p_pad = np.concatenate([np.asarray(p, dtype=float), np.ones(width - n_free)])
+    q_pad = np.concatenate([np.asarray(fixed_values, dtype=float), np.ones(fixed_width - n_fixed)])
+    u_pad = np.pad(np.asarray(u, dtype=float), ((0, 0), (0, m_pad - m)))
+    out_idx = np.asarray(problem.output_states)
+    args = (p_pad, q_pad, np.asarray(t, dtype=float), u_pad, arrays, out_idx)
     key += tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves(args))
 
     def build():  # compiled for these shapes, kept for later processes (jaxbox._exported)
         return compile_program("uncertainty", key, _build_rc_jacobian(segmented), args)
 
     ysim, J = cached(key, build)[0](*args)
-    return ysim, J[..., :n_free]
+    return np.asarray(ysim), np.asarray(J)[..., :n_free]
 
 
 def _build_rc_jacobian(segmented: bool):
@@ -397,12 +399,14 @@ def sensitivities(
     if params is None:
         params = [result.params[n] for n in problem.free]
     p = _free_values(params, problem.free)
-    fixed_values = jnp.asarray([v for _, v in problem.fixed], dtype=float)
+    fixed_values = np.asarray([v for _, v in problem.fixed], dtype=float)
     shared = _rc_jacobian(problem, t, u, p, fixed_values)
     if shared is not None:
         ysim, J = shared
     else:
-        ysim, J = _jacobian_fn(problem, len(t))(p, fixed_values, jnp.asarray(t), jnp.asarray(u))
+        ysim, J = _jacobian_fn(problem, len(t))(
+            p, fixed_values, np.asarray(t, dtype=float), np.asarray(u, dtype=float)
+        )
     return np.asarray(ysim), np.asarray(J)
 
 
@@ -410,7 +414,7 @@ _SENSITIVITY_NEEDS = {True: ("problem", "data", "params"), False: ("problem", "d
 """What :func:`sensitivities` reads of its result: without ``params``, the optimum too."""
 
 
-def _free_values(params, free) -> jnp.ndarray:
+def _free_values(params, free) -> np.ndarray:
     """``params`` as one finite value [SI] per free parameter, in ``free`` order."""
     try:
         p = np.asarray(params, dtype=float)
@@ -427,7 +431,7 @@ def _free_values(params, free) -> jnp.ndarray:
     bad = [n for n, v in zip(free, p, strict=True) if not np.isfinite(v)]
     if bad:
         raise ValueError(f"params of {', '.join(bad)} are not finite; give finite values [SI]")
-    return jnp.asarray(p)
+    return p
 
 
 def _is_temperature(unit: str) -> bool:

@@ -190,8 +190,10 @@ def main(argv=None) -> int:
         "rows": [],
     }
     key = ("house", "zone", "columns", "step")
-    if args.json.exists():  # a rerun of some variants keeps the others' rows
-        doc["rows"] = json.loads(args.json.read_text())["rows"]
+    if args.json.exists():  # a rerun of some variants keeps the others' rows and the notes
+        before = json.loads(args.json.read_text())
+        doc["rows"] = before["rows"]
+        doc["notes"] = before.get("notes", [])
     for house in args.houses.split(","):
         for zone, columns, step in VARIANTS:
             if step not in steps or zone not in args.zones.split(","):

@@ -30,12 +30,15 @@ def default_cache_dir() -> Path:
 def enable_compilation_cache(path: str | os.PathLike | None = None) -> Path:
     """Store compiled executables in ``path`` (default :func:`default_cache_dir`) and reuse them.
 
-    Every compilation that takes longer than 0.5 s is cached (the batched fits, not the many
-    small helpers). Safe to call more than once. Returns the directory.
+    Every compilation that takes longer than 0.1 s is cached: the batched fits, and the
+    KPI programs that a structure search compiles once per process (a warm N2 search's JAX
+    tracing, lowering and compiling 2.0 s → 1.5 s with 0.1 s instead of 0.5 s: each such
+    program loads in tens of milliseconds instead of compiling in hundreds). Safe to call more than once.
+    Returns the directory.
     """
     directory = Path(path).expanduser() if path is not None else default_cache_dir()
     directory.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(directory))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.1)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     return directory

@@ -23,14 +23,17 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+from typing import TYPE_CHECKING
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
+
+if TYPE_CHECKING:  # imported where it integrates: the exact route never loads it (0.2 s)
+    import diffrax
 
 __all__ = [
     "ADAPTIVE_ATOL",
@@ -126,6 +129,8 @@ def integrate_diffrax(
     Returns:
         x [N, n] at the sample times.
     """
+    import diffrax
+
     n_samples = t.shape[0]
     interp = diffrax.LinearInterpolation(ts=t, ys=u)
 

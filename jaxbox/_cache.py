@@ -33,8 +33,8 @@ def enable_compilation_cache(path: str | os.PathLike | None = None) -> Path:
     Every compilation that takes longer than 0.1 s is cached: the batched fits, and the
     KPI programs that a structure search compiles once per process (a warm N2 search's JAX
     tracing, lowering and compiling 2.0 s → 1.5 s with 0.1 s instead of 0.5 s: each such
-    program loads in tens of milliseconds instead of compiling in hundreds). Safe to call more than once.
-    Returns the directory.
+    program loads in tens of milliseconds instead of compiling in hundreds). Safe to call more
+    than once. Returns the directory.
     """
     directory = Path(path).expanduser() if path is not None else default_cache_dir()
     directory.mkdir(parents=True, exist_ok=True)

@@ -26,6 +26,7 @@ from jaxbox.data import (
     load,
     plausible_range,
 )
+from jaxbox.validate import check_validity
 
 N = 240  # ten days, hourly
 
@@ -496,6 +497,29 @@ def test_a_greybox_keeps_its_stuck_sensor_tolerance(base, tmp_path):
     for bad, error in ((0, DataError), (-3.0, DataError), ("24", TypeError), (True, TypeError)):
         with pytest.raises(error, match="stuck_hours"):
             jaxbox.GreyBox(Dataset(frame), stuck_hours=bad)
+
+
+def _stuck_reasons(verdict) -> list[str]:
+    return [r for r in (*verdict.reasons, *verdict.warnings) if "stays exactly" in r]
+
+
+def test_the_verdict_takes_the_greybox_stuck_sensor_tolerance(base, tmp_path):
+    """Data a GreyBox took with its ``stuck_hours`` are not refused again by the verdict of its
+    cases (the data check of :func:`~jaxbox.validate.check_validity`), nor when it is read back;
+    ``check_validity`` alone keeps the default and takes the option."""
+    frame = base.copy()
+    _at(frame, "T_bou", slice(20, 80), 21.5)  # 60 h without a change, in the first half
+    gb = jaxbox.GreyBox(Dataset(frame), stuck_hours=None)
+    case = gb.identify("Zon+Bou", starts=2)
+    assert case.data_checks["stuck_hours"] is None
+    assert _stuck_reasons(case.verdict) == []
+    assert _stuck_reasons(check_validity(case.result, validation=case.validation))  # default 24
+    assert _stuck_reasons(check_validity(case.result, stuck_hours=72)) == []
+    with pytest.raises(ValueError, match="stuck_hours"):
+        check_validity(case.result, stuck_hours=0)
+    gb.save(tmp_path / "gb")
+    back = jaxbox.GreyBox.load(tmp_path / "gb")
+    assert _stuck_reasons(back.cases[case.name].verdict) == []
 
 
 @pytest.mark.filterwarnings("ignore::jaxbox.data.DataWarning")  # the gaps made on purpose

@@ -160,7 +160,13 @@ def _accepted_section(case, selection) -> list[str]:
         unc = uncertainty(r)
     except ValueError:
         unc = None
-    doc = fit_report(r, case.valid, validation=v, uncertainty=unc)
+    doc = fit_report(
+        r,
+        case.valid,
+        validation=v,
+        uncertainty=unc,
+        verdict_options=getattr(case, "data_checks", None) or None,
+    )
     out.append(
         "<table><tr><th class=l>parameter</th><th>value</th><th class=l>unit</th>"
         "<th>std</th><th>95 % interval</th><th>±%</th><th>bounds</th><th class=l>note</th></tr>"

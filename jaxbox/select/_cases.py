@@ -115,16 +115,20 @@ def check_settings(settings: Mapping) -> dict:
     return out
 
 
-def verdict_of(result, validation):
+def verdict_of(result, validation, **data_checks):
     """The validity verdict of a fit with its intervals (σ²(JᵀJ)⁻¹; the interval checks are
-    left out where they cannot be computed) and its post-simulation."""
+    left out where they cannot be computed) and its post-simulation; ``data_checks``: the
+    options of its data check (``data_overrides``, ``stuck_hours``; a case's
+    :attr:`Case.data_checks`)."""
     from ..validate import check_validity, uncertainty
 
     try:
         unc = uncertainty(result)
     except ValueError:
         unc = None
-    return check_validity(result, unc, check_intervals=unc is not None, validation=validation)
+    return check_validity(
+        result, unc, check_intervals=unc is not None, validation=validation, **data_checks
+    )
 
 
 def quiet(msg: str) -> None:
@@ -152,6 +156,9 @@ class Case:
         validation: its :class:`~jaxbox.validate.Validation` (auto and cross).
         verdict: its :class:`~jaxbox.validate.Verdict`.
         timing: ``fit_s``, ``validate_s``, ``verdict_s`` [s] of the run.
+        data_checks: how the verdict checks the case's data, the GreyBox's plausibility options
+            (``data_overrides``: its ``ranges``; ``stuck_hours``), so that data the GreyBox
+            accepted are not refused again in the verdict.
     """
 
     name: str
@@ -171,6 +178,7 @@ class Case:
     validation: Any = None
     verdict: Any = None
     timing: dict = dataclasses.field(default_factory=dict)
+    data_checks: dict = dataclasses.field(default_factory=dict)
 
     # -- running ---------------------------------------------------------------------------------
 
@@ -254,7 +262,7 @@ class Case:
         """Intervals (σ²(JᵀJ)⁻¹) and the validity verdict of a fitted, post-simulated case."""
         self._require_run()
         t2 = time.perf_counter()
-        self.verdict = verdict_of(self.result, self.validation)
+        self.verdict = verdict_of(self.result, self.validation, **self.data_checks)
         self.timing["verdict_s"] = time.perf_counter() - t2
         return self
 
@@ -263,7 +271,9 @@ class Case:
         from ..validate import check_validity
 
         self._require_run()
-        self.verdict = check_validity(self.result, **{"validation": self.validation, **options})
+        self.verdict = check_validity(
+            self.result, **{"validation": self.validation, **self.data_checks, **options}
+        )
         return self
 
     def _require_run(self) -> None:

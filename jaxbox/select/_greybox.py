@@ -166,6 +166,12 @@ class GreyBox:
     # -- data ------------------------------------------------------------------------------------
 
     @property
+    def data_checks(self) -> dict:
+        """The plausibility options of this GreyBox as the verdict of its cases takes them
+        (``data_overrides``: :attr:`ranges`; ``stuck_hours``)."""
+        return {"data_overrides": dict(self.ranges) or None, "stuck_hours": self.stuck_hours}
+
+    @property
     def ident(self):
         """The identification slice of the data."""
         return self.data.slice(*self.train)
@@ -308,6 +314,7 @@ class GreyBox:
             seed=seed,
             settings=settings,
             parent=parent if g.source == "parent" else g.parent,
+            data_checks=self.data_checks,
         )
         self.cases[case.name] = case
         return case

@@ -774,22 +774,38 @@ def read_greybox(path, *, models: dict | None = None) -> Saved:
         data = Dataset(frame)
     except (DataError, ValueError, KeyError) as err:
         raise PersistError(f"{index}: the saved data cannot be read back ({err})") from None
-    cases = [_case(i, cd, data, arrays, models, index) for i, cd in enumerate(doc["cases"])]
+    ranges = {k: tuple(v) for k, v in doc.get("ranges", {}).items()}
+    stuck_hours = doc.get("stuck_hours", STUCK_HOURS)
+    checks = _saved_checks(ranges, stuck_hours)
+    cases = [_case(i, cd, data, arrays, models, index, checks) for i, cd in enumerate(doc["cases"])]
     return Saved(
         name=doc["name"],
         data=data,
         train=tuple(doc["train"]),
         valid=False if doc["valid"] is None else tuple(doc["valid"]),
         cases=cases,
-        ranges={k: tuple(v) for k, v in doc.get("ranges", {}).items()},
-        stuck_hours=doc.get("stuck_hours", STUCK_HOURS),
+        ranges=ranges,
+        stuck_hours=stuck_hours,
         max_gap=doc.get("max_gap"),
         index=index,
     )
 
 
-def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
-    """One saved case, its fit rebuilt from the stored values and validated again."""
+def _saved_checks(ranges: dict, stuck_hours) -> dict:
+    """The saved GreyBox's data checks for its cases' verdicts (:attr:`Case.data_checks`) where
+    they are well formed; else none here (the GreyBox made from the index names the field)."""
+
+    def number(v) -> bool:
+        return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+    pairs = all(len(v) == 2 and all(map(number, v)) and v[0] < v[1] for v in ranges.values())
+    hours = stuck_hours is None or (number(stuck_hours) and stuck_hours > 0)
+    return {"data_overrides": ranges or None, "stuck_hours": stuck_hours} if pairs and hours else {}
+
+
+def _case(i: int, cd: dict, data, arrays: dict, models, index: Path, checks: dict) -> Case:
+    """One saved case, its fit rebuilt from the stored values and validated again (``checks``:
+    the saved GreyBox's data checks, :attr:`Case.data_checks`)."""
     from ..data import DataWarning
     from ..data._gaps import DEFAULT_MAX_GAP
     from ..fit import FitError, FitResult, StartReport, make_problem
@@ -830,6 +846,7 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
         parent=cd["parent"],
         notes=list(cd["notes"]),
         timing=dict(cd.get("timing") or {}),
+        data_checks=dict(checks),
     )
     rd = cd["result"]
     if rd is None:
@@ -876,7 +893,7 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path) -> Case:
     )
     case.validation = validate(case.result, valid, method=case.postsim)
     if rd.get("verdict") is not None:
-        case.verdict = verdict_of(case.result, case.validation)
+        case.verdict = verdict_of(case.result, case.validation, **checks)
     return case
 
 

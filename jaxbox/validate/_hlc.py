@@ -185,7 +185,11 @@ def _judge(case) -> bool:
         unc = None
     try:
         verdict = check_validity(
-            case.result, unc, check_intervals=unc is not None, validation=case.validation
+            case.result,
+            unc,
+            check_intervals=unc is not None,
+            validation=case.validation,
+            **getattr(case, "data_checks", {}),
         )
     except (ValueError, np.linalg.LinAlgError):
         return False

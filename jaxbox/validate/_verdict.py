@@ -48,6 +48,7 @@ import numpy as np
 
 from ..data import DataError, Dataset, Finding, find_implausible, signal_unit
 from ..data._args import check_mapping
+from ..data._plausible import STUCK_HOURS
 from ..fit._transforms import make_transform
 from ._args import (
     check_fit,
@@ -336,6 +337,7 @@ class _Judged:
     slowest_tau_range: tuple[float, float] | None
     check_data: bool
     data_overrides: Mapping[str, tuple[float, float]] | None
+    stuck_hours: float | None
 
     @property
     def model(self):
@@ -693,6 +695,7 @@ def _check_data(ctx: _Judged) -> list[Flag]:
                 data,
                 columns=[c for c in columns if c in data],
                 overrides=ctx.data_overrides,
+                stuck_hours=ctx.stuck_hours,
             )
         except DataError as err:
             found = [Finding("", "data", str(err))]
@@ -863,6 +866,7 @@ def check_validity(
     slowest_tau_range: tuple[float, float] | None = SLOWEST_TAU_RANGE,
     check_data: bool = True,
     data_overrides: Mapping[str, tuple[float, float]] | None = None,
+    stuck_hours: float | None = STUCK_HOURS,
     plant=None,
 ) -> Verdict:
     """The validity verdict of a fit, with reasons.
@@ -899,6 +903,9 @@ def check_validity(
         check_data: check the model's columns of the identification data (and of the
             validation data, with ``validation``) with :func:`jaxbox.data.find_implausible`.
         data_overrides: plausible ranges per column for that check (``{"T_zon": (lo, hi)}``).
+        stuck_hours: for that check, a temperature that does not change for this many hours is
+            a stuck sensor (default 24; ``None`` turns it off), as in
+            :func:`jaxbox.data.check_plausibility`.
         plant: the true building, where it is at hand (a one-zone
             :class:`~jaxbox.datasets.ZooBuilding` whose data ``result`` was fitted on): the
             verdict gains a closed-loop line, :func:`jaxbox.control.closed_loop_check` (an MPC
@@ -945,6 +952,9 @@ def check_validity(
         check_data=check_flag(check_data, "check_data"),
         data_overrides=check_mapping(data_overrides, "data_overrides", "{'T_zon': (-10, 90)}")
         or None,
+        stuck_hours=None
+        if stuck_hours is None
+        else check_positive(stuck_hours, "stuck_hours", "h", allow_inf=True),
     )
     flags = [flag for check in _CHECKS for flag in check(ctx)]
     loop = None

@@ -813,3 +813,20 @@ def test_forward_selection_many_takes_a_list(dataset):
         forward_selection_many(GreyBox(dataset), ["Zon"])
     with pytest.raises(TypeError, match="list"):
         forward_selection_many("data.csv", ["Zon"])
+
+
+def test_a_sensor_taken_with_stuck_hours_is_not_refused_by_the_verdict(
+    tmp_path, monkeypatch, capsys
+):
+    """``--stuck-hours none`` takes a steady column; the fit's verdict in the JSON then checks
+    the data as they were loaded, instead of refusing the column again."""
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    data = stuck(tmp_path)
+    code = main(["fit", str(data), "--model", "Zon", "--stuck-hours", "none", "--json"])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    doc = json.loads(out.out)
+    said = [*doc["reasons"], *doc["warnings"]]
+    assert said and not [r for r in said if "stays exactly" in r], said

@@ -190,6 +190,10 @@ def fit_command(args) -> int:
                     timing=timing,
                     data_info=data_info(spec, ident, valid),
                     valid=valid,
+                    data_checks={
+                        "data_overrides": dict(opts.ranges) or None,
+                        "stuck_hours": opts.stuck_hours,
+                    },
                 )
                 if staged is not None:
                     sub = Path(slug(spec, opts.specs)) if len(sets) > 1 else Path()

@@ -464,15 +464,17 @@ def progress(args) -> Callable[[str], None]:
     return say
 
 
-def fit_json(result, validation, *, timing, data_info, valid=None) -> dict:
+def fit_json(result, validation, *, timing, data_info, valid=None, data_checks=None) -> dict:
     """The JSON document of one fit (schema in the README).
 
     The estimate with its uncertainty, residual analysis and validity verdict come from
-    :func:`jaxbox.validate.fit_report`; this adds the multistart counts, timings and data.
+    :func:`jaxbox.validate.fit_report` (its data check with ``data_checks``: the ``--range``
+    and ``--stuck-hours`` the data were loaded with); this adds the multistart counts, timings
+    and data.
     """
     from ..validate import fit_report
 
-    doc = fit_report(result, valid, validation=validation)
+    doc = fit_report(result, valid, validation=validation, verdict_options=data_checks or None)
     starts = result.starts
     status = list(starts.status)
     doc.update(

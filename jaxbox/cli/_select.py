@@ -235,6 +235,7 @@ def _document(gb, sel, spec, ident, valid) -> dict:
             timing={**c.result.timing, **c.timing},
             data_info=data_info(spec, ident, valid),
             valid=c.valid,
+            data_checks=c.data_checks,
         )
     return doc
 

@@ -824,7 +824,8 @@ def test_a_sensor_taken_with_stuck_hours_is_not_refused_by_the_verdict(
 
     monkeypatch.chdir(tmp_path)
     data = stuck(tmp_path)
-    code = main(["fit", str(data), "--model", "Zon", "--stuck-hours", "none", "--json"])
+    argv = ["fit", str(data), "--model", "Zon", "--starts", "2", "--stuck-hours", "none"]
+    code = main([*argv, "--json"])
     out = capsys.readouterr()
     assert code == 0, out.err
     doc = json.loads(out.out)

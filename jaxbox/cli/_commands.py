@@ -117,6 +117,7 @@ def fit_command(args) -> int:
     from ..fit import fit_batch
     from ..fit._batch import fit_data
     from ..models import get_model
+    from ..select._cases import data_checks
     from ..validate import validate
 
     if getattr(args, "method", "oe") == "ml":
@@ -190,10 +191,7 @@ def fit_command(args) -> int:
                     timing=timing,
                     data_info=data_info(spec, ident, valid),
                     valid=valid,
-                    data_checks={
-                        "data_overrides": dict(opts.ranges) or None,
-                        "stuck_hours": opts.stuck_hours,
-                    },
+                    data_checks=data_checks(opts.ranges, opts.stuck_hours),
                 )
                 if staged is not None:
                     sub = Path(slug(spec, opts.specs)) if len(sets) > 1 else Path()

@@ -115,6 +115,13 @@ def check_settings(settings: Mapping) -> dict:
     return out
 
 
+def data_checks(ranges, stuck_hours) -> dict:
+    """The options of a verdict's data check (:func:`~jaxbox.validate.check_validity`'s
+    ``data_overrides`` and ``stuck_hours``) from the plausibility options the data were taken
+    with: ``ranges`` per column (empty: the defaults) and ``stuck_hours``."""
+    return {"data_overrides": dict(ranges) or None, "stuck_hours": stuck_hours}
+
+
 def verdict_of(result, validation, **data_checks):
     """The validity verdict of a fit with its intervals (σ²(JᵀJ)⁻¹; the interval checks are
     left out where they cannot be computed) and its post-simulation; ``data_checks``: the

@@ -21,7 +21,15 @@ from ..fit import DEFAULT_STARTS, FitError
 from ..fit._batch import fit_data
 from ..fit._problem import make_problem, number
 from ..models import RCModel, get_model
-from ._cases import Case, Progress, check_seed, check_settings, check_starts, fmt_se
+from ._cases import (
+    Case,
+    Progress,
+    check_seed,
+    check_settings,
+    check_starts,
+    data_checks,
+    fmt_se,
+)
 from ._guess import Guess, manual_guess, naming_guess, parent_guess
 from ._persist import PersistError, read_greybox, save_greybox
 
@@ -169,7 +177,7 @@ class GreyBox:
     def data_checks(self) -> dict:
         """The plausibility options of this GreyBox as the verdict of its cases takes them
         (``data_overrides``: :attr:`ranges`; ``stuck_hours``)."""
-        return {"data_overrides": dict(self.ranges) or None, "stuck_hours": self.stuck_hours}
+        return data_checks(self.ranges, self.stuck_hours)
 
     @property
     def ident(self):

@@ -49,7 +49,7 @@ from ..data import DataError, Dataset
 from ..data._checks import offset_text
 from ..data._plausible import STUCK_HOURS
 from ..models import ModelError, Parameter, RCModel, RCNetwork, get_model
-from ._cases import Case, check_seed, check_settings, check_starts, verdict_of
+from ._cases import Case, check_seed, check_settings, check_starts, data_checks, verdict_of
 from ._guess import Guess
 
 __all__ = ["FORMAT", "PersistError", "Saved", "read_greybox", "save_greybox"]
@@ -800,7 +800,7 @@ def _saved_checks(ranges: dict, stuck_hours) -> dict:
 
     pairs = all(len(v) == 2 and all(map(number, v)) and v[0] < v[1] for v in ranges.values())
     hours = stuck_hours is None or (number(stuck_hours) and stuck_hours > 0)
-    return {"data_overrides": ranges or None, "stuck_hours": stuck_hours} if pairs and hours else {}
+    return data_checks(ranges, stuck_hours) if pairs and hours else {}
 
 
 def _case(i: int, cd: dict, data, arrays: dict, models, index: Path, checks: dict) -> Case:

@@ -450,8 +450,8 @@ def covariance(result):
 @functools.cache
 def _recoveries() -> dict:
     """Every library model fitted to its own noise-free and noisy synthetic data, all in one
-    :func:`~jaxbox.fit.fit_batch` call (one compilation per shape: models with as many free
-    parameters, states and inputs share one); a model whose fit failed maps to its error."""
+    :func:`~jaxbox.fit.fit_batch` call, bucketed (models of neighbouring sizes share one compiled
+    program, as a structure search's do); a model whose fit failed maps to its error."""
     requests, keys = [], []
     for name in ALL:
         model = get_model(name)
@@ -467,7 +467,7 @@ def _recoveries() -> dict:
                 {"model": model, "data": data, "fixed": held, "starts": x0, "max_steps": 500}
             )
             keys.append((name, kind))
-    return dict(zip(keys, fit_batch(requests, errors="return"), strict=True))
+    return dict(zip(keys, fit_batch(requests, errors="return", bucket=True), strict=True))
 
 
 def recovered(name):

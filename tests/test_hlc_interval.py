@@ -204,7 +204,8 @@ def test_an_offset_beside_an_unused_boundary_is_named():
     (the HLC's missing part, within a fifth); a model with the cellar (``Zon+BouC``) gets no
     such warning, nor does an offset that points the other way (``Zon+Off``: the cellar's
     conductance taken as the outdoor air's, the offset positive). Without the cellar's column
-    the loss is named as one to an unmeasured boundary, at the outdoor air's mean."""
+    the loss is named as one to an unmeasured boundary, at the outdoor air's mean. Either way
+    the HLC's interval reaches up by that conductance."""
     rng = np.random.default_rng(11)
     n = 240
     t = np.arange(n) * STEP
@@ -238,9 +239,31 @@ def test_an_offset_beside_an_unused_boundary_is_named():
     at_outdoor = -q / float((frame["T_zon"] - frame["T_amb"]).mean())
     assert float(w.split("add about ")[1].split(" W/K")[0]) == pytest.approx(at_outdoor, rel=1e-3)
     assert not _offset_warnings(fits["Zon+Off"], unmeasured)
+    # the interval carries that reading: the model's own interval moved up by the conductance
+    # joins it, and only there. With the cellar measured it holds the truth (140 W/K; the
+    # model's own interval, about 100 W/K, misses it); with the loss read at the outdoor air's
+    # mean (6 °C, the cellar near 12 °C) it reaches up by less: a lower bound of that loss
+    own = kpis(fits["Zon+Int+Off"], interval="hac").hlc
+    true_hlc = 1 / truth["R_wal"] + 1 / truth["R_bou"]
+    for d, h in ((data, added), (unmeasured, at_outdoor)):
+        got = _interval(fits["Zon+Int+Off"], d)
+        assert got.value == pytest.approx(own.value, rel=1e-9)
+        assert got.ci95[0] == pytest.approx(own.ci95[0], rel=1e-9)
+        assert got.ci95[1] == pytest.approx(own.ci95[1] + h, rel=1e-3)
+        assert "offset read as a conductance" in got.method and got.method in got.text()
+    assert own.ci95[1] < true_hlc <= _interval(fits["Zon+Int+Off"], data).ci95[1]
+    assert own.ci95[1] + 10.0 < _interval(fits["Zon+Int+Off"], unmeasured).ci95[1] < true_hlc
+    for name in ("Zon+BouC", "Zon+Off"):
+        own = kpis(fits[name], interval="hac").hlc
+        got = _interval(fits[name], data)
+        assert got.ci95 == pytest.approx(own.ci95, rel=1e-9) and "offset" not in got.method
+
+
+def _interval(result, data):
+    sel = _selection([_Case("a", result, 0.1)])
+    sel.greybox.data = data
+    return hlc_interval(sel)
 
 
 def _offset_warnings(result, data):
-    sel = _selection([_Case("a", result, 0.1)])
-    sel.greybox.data = data
-    return [w for w in hlc_interval(sel).warnings if "offset" in w]
+    return [w for w in _interval(result, data).warnings if "offset" in w]

@@ -16,7 +16,9 @@ their HAC intervals around the accepted model's value.
 whose temperature changes little (a cellar, the ground behind a heavy floor); where the data
 measure such a boundary and the accepted model leaves it out, a warning names it with the
 conductance the offset would be, which the HLC then misses; a loss with no such column, as
-one to an unmeasured boundary such as the ground (:func:`_offset_warnings`).
+one to an unmeasured boundary such as the ground, at the outdoor air's mean temperature (a
+lower bound of that conductance: see :func:`_offset_readings`). The interval reaches up to the
+accepted model's own moved up by that conductance: both readings of the offset fit the data.
 """
 
 from __future__ import annotations
@@ -203,7 +205,10 @@ def hlc_interval(
 
     Each near-best model (:func:`near_best`) gets its HAC delta-method interval
     (:func:`~jaxbox.validate.kpis` with ``interval="hac"``); the reported interval is their
-    union, around the accepted model's value.
+    union, around the accepted model's value, and where the accepted model's offset may be a
+    conductance it leaves out (:func:`_offset_readings`: a loss, or a gain from a warmer
+    measured column), the accepted model's interval moved up by the largest such conductance
+    joins it (named in ``method``, and a warning).
 
     Args:
         selection: a :class:`~jaxbox.select.Selection` (or :class:`~jaxbox.select.Search`).
@@ -261,7 +266,14 @@ def hlc_interval(
                 f"the near-best models disagree on the HLC by {spread:.3g} W/K "
                 f"({named}); the data do not settle it"
             )
-    warns += _offset_warnings(selection, cases[0])
+    # the offset read as a conductance the model leaves out: the accepted model's interval
+    # moved up by it is as consistent with the data as the interval itself
+    readings = _offset_readings(selection, cases[0])
+    warns += [text for _, text in readings]
+    if readings:
+        extra = max(h for h, _ in readings)
+        hi = max(hi, models[0]["ci95"][1] + extra)
+        method += f" + the offset read as a conductance the model leaves out (+{extra:.3g} W/K)"
     return HlcInterval(
         value=float(models[0]["value"]),
         ci95=(float(lo), float(hi)),
@@ -279,6 +291,11 @@ OFFSET_MIN_DIFFERENCE = 1.0
 
 
 def _offset_warnings(selection, case) -> list[str]:
+    """The warnings of :func:`_offset_readings`."""
+    return [text for _, text in _offset_readings(selection, case)]
+
+
+def _offset_readings(selection, case) -> list[tuple[float, str]]:
     """An offset may be heat exchanged with a boundary that is measured but not in the model.
 
     A constant heat input ``Q_off`` and a conductance ``H`` to a boundary whose temperature
@@ -289,7 +306,11 @@ def _offset_warnings(selection, case) -> list[str]:
     :data:`OFFSET_MIN_DIFFERENCE` on average) is named with the conductance the offset would
     be, ``|Q_off| / |mean(T_zon − T_b)|``, which the HLC would then miss. A loss with no such
     column is named as one to an unmeasured boundary (the ground), with the conductance it
-    would be at the outdoor air's mean temperature."""
+    would be at the outdoor air's mean temperature: unmeasured gains are never negative, so a
+    net loss is at least that much heat lost to something the model leaves out, and a boundary
+    between the outdoor air and the zone takes at least that conductance to lose it.
+
+    Returns ``(conductance [W/K], warning)`` per reading."""
     model = case.model
     offsets = [v for n, v in case.result.params.items() if n.startswith("Q_off")]
     if not offsets or len(model.outputs) != 1:
@@ -309,19 +330,25 @@ def _offset_warnings(selection, case) -> list[str]:
         side = "below" if diff > 0 else "above"
         what = "lost to" if q < 0 else "received from"
         out.append(
-            f"the offset Q_off = {q:+.0f} W may be heat {what} {col}, measured but not in the "
-            f"model ({abs(diff):.1f} K {side} the zone on average): as a conductance it would "
-            f"add {abs(q / diff):.3g} W/K to the HLC; a model with {col} as a boundary tells "
-            "them apart where the data do"
+            (
+                abs(q / diff),
+                f"the offset Q_off = {q:+.0f} W may be heat {what} {col}, measured but not in "
+                f"the model ({abs(diff):.1f} K {side} the zone on average): as a conductance it "
+                f"would add {abs(q / diff):.3g} W/K to the HLC; a model with {col} as a boundary "
+                "tells them apart where the data do",
+            )
         )
     if not out and q < 0 and "T_amb" in frame.columns:
         diff = _mean_difference(frame, zone, "T_amb")
         if diff is not None and diff >= OFFSET_MIN_DIFFERENCE:
             out.append(
-                f"the offset Q_off = {q:+.0f} W is a constant loss the model does not explain: "
-                "if it is heat lost to an unmeasured boundary that changes little (the ground), "
-                f"it would add about {-q / diff:.3g} W/K to the HLC with that boundary at the "
-                "outdoor air's mean temperature, more with it warmer"
+                (
+                    -q / diff,
+                    f"the offset Q_off = {q:+.0f} W is a constant loss the model does not "
+                    "explain: if it is heat lost to an unmeasured boundary that changes little "
+                    f"(the ground), it would add about {-q / diff:.3g} W/K to the HLC with that "
+                    "boundary at the outdoor air's mean temperature, more with it warmer",
+                )
             )
     return out
 

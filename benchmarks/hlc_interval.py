@@ -6,8 +6,9 @@ run, and the accepted model's heat-loss coefficient is given three intervals (95
 * **white**: the delta method on ``σ̂² (JᵀJ)⁻¹`` (white residuals assumed; the old report);
 * **HAC**: the delta method on the prewhitened Newey–West covariance
   (:func:`jaxbox.validate.robust_covariance`);
-* **new**: HAC, widened to the union of the intervals of the near-best valid structures
-  (:func:`jaxbox.validate.hlc_interval`; what ``select`` reports now).
+* **new**: HAC, widened to the union of the intervals of the near-best valid structures and
+  up by the conductance an offset may be (:func:`jaxbox.validate.hlc_interval`; what
+  ``select`` reports now).
 
 Buildings:
 
@@ -163,7 +164,8 @@ def markdown(doc: dict) -> str:
         "accepted model's HLC with 95 % intervals: *white* (delta method on σ̂²(JᵀJ)⁻¹, "
         "the old report), *HAC* (delta method on the prewhitened Newey–West covariance) and "
         "*new* (HAC, widened to the union over the valid structures of the search within its "
-        "margin, 2 %, of the accepted one's criterion: what `select` reports); for comparison "
+        "margin, 2 %, of the accepted one's criterion, and up by the conductance an offset may "
+        "be where the accepted model's is a loss: what `select` reports); for comparison "
         f"the same union within {100 * WIDE:.0f} %. Coverage: the share of buildings whose "
         "interval holds the reference; half-width: median, % of the value.",
         "",

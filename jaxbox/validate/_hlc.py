@@ -53,7 +53,8 @@ class HlcInterval:
 
     Attributes:
         value: the accepted model's HLC [W/K].
-        ci95: (lower, upper) [W/K] at ``level``: the union of the near-best models' intervals.
+        ci95: (lower, upper) [W/K] at ``level``: the union of the near-best models' intervals,
+            and of the accepted model's moved up by the conductance its offset may be.
         level: confidence level.
         method: how the interval was made, in words.
         models: per near-best model (the accepted one first): ``{"model", "value", "ci95",

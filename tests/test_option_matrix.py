@@ -18,7 +18,9 @@ Never an internal error, never a traceback. The values keep the compiled program
 lengths, one start, the base ``--starts``/``--max-steps`` given again), so the whole matrix stays
 cheap: a few valid values that compile or draw much (:data:`COSTLY`) are run in one row each
 instead of with every other option, and ``demo`` runs only its invalid rows (its valid ones
-would identify the bundled twin house).
+would identify the bundled twin house). The valid rows of ``fit`` and ``select``
+(:data:`SLOW_VALID`), which identify models with every option combination, are in the long
+tier (``-m slow``, CI's second step).
 """
 
 from __future__ import annotations
@@ -273,14 +275,25 @@ def argv(command: str, row: tuple[int, ...]) -> list[str]:
     return [*args, *first, *options]
 
 
+#: commands whose valid rows identify models end to end (a fit, a structure search) with every
+#: option combination: the long tier (``-m slow``, the second step of CI); their invalid rows,
+#: refused before anything is fitted, stay in the first
+SLOW_VALID = ("fit", "select")
+
+
 def _cases():
     for command in _subparsers():
         for phase in ("valid", "invalid"):
             if phase == "valid" and command in INVALID_ONLY:
                 continue
+            slow = phase == "valid" and command in SLOW_VALID
             for k, row in enumerate(rows(command, phase)):
                 yield pytest.param(
-                    command, phase, row, id=f"{command.replace(' ', '-')}-{phase}-{k}"
+                    command,
+                    phase,
+                    row,
+                    id=f"{command.replace(' ', '-')}-{phase}-{k}",
+                    marks=(pytest.mark.slow,) if slow else (),
                 )
 
 

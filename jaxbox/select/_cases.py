@@ -122,22 +122,6 @@ def data_checks(ranges, stuck_hours) -> dict:
     return {"data_overrides": dict(ranges) or None, "stuck_hours": stuck_hours}
 
 
-def verdict_of(result, validation, **data_checks):
-    """The validity verdict of a fit with its intervals (σ²(JᵀJ)⁻¹; the interval checks are
-    left out where they cannot be computed) and its post-simulation; ``data_checks``: the
-    options of its data check (``data_overrides``, ``stuck_hours``; a case's
-    :attr:`Case.data_checks`)."""
-    from ..validate import check_validity, uncertainty
-
-    try:
-        unc = uncertainty(result)
-    except ValueError:
-        unc = None
-    return check_validity(
-        result, unc, check_intervals=unc is not None, validation=validation, **data_checks
-    )
-
-
 def quiet(msg: str) -> None:
     """A progress callback that says nothing."""
 
@@ -267,6 +251,8 @@ class Case:
 
     def assess(self) -> Case:
         """Intervals (σ²(JᵀJ)⁻¹) and the validity verdict of a fitted, post-simulated case."""
+        from ..validate._verdict import verdict_of
+
         self._require_run()
         t2 = time.perf_counter()
         self.verdict = verdict_of(self.result, self.validation, **self.data_checks)

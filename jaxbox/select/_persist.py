@@ -49,7 +49,7 @@ from ..data import DataError, Dataset
 from ..data._checks import offset_text
 from ..data._plausible import STUCK_HOURS
 from ..models import ModelError, Parameter, RCModel, RCNetwork, get_model
-from ._cases import Case, check_seed, check_settings, check_starts, data_checks, verdict_of
+from ._cases import Case, check_seed, check_settings, check_starts, data_checks
 from ._guess import Guess
 
 __all__ = ["FORMAT", "PersistError", "Saved", "read_greybox", "save_greybox"]
@@ -811,6 +811,7 @@ def _case(i: int, cd: dict, data, arrays: dict, models, index: Path, checks: dic
     from ..fit import FitError, FitResult, StartReport, make_problem
     from ..fit._batch import fit_data
     from ..validate import validate
+    from ..validate._verdict import verdict_of
 
     where = f"cases[{i}]"
     model = _case_model(cd, models, where, index)

@@ -179,21 +179,10 @@ def _valid(case) -> bool:
 
 
 def _judge(case) -> bool:
-    from ._uncertainty import uncertainty
-    from ._verdict import check_validity
+    from ._verdict import verdict_of
 
     try:
-        unc = uncertainty(case.result)
-    except ValueError:
-        unc = None
-    try:
-        verdict = check_validity(
-            case.result,
-            unc,
-            check_intervals=unc is not None,
-            validation=case.validation,
-            **getattr(case, "data_checks", {}),
-        )
+        verdict = verdict_of(case.result, case.validation, **getattr(case, "data_checks", {}))
     except (ValueError, np.linalg.LinAlgError):
         return False
     return bool(verdict.valid)
@@ -289,11 +278,6 @@ def hlc_interval(
 #: the least mean difference [K] between the zone and a boundary for which an offset is read as
 #: a conductance to it (closer, the conductance is not told by the data)
 OFFSET_MIN_DIFFERENCE = 1.0
-
-
-def _offset_warnings(selection, case) -> list[str]:
-    """The warnings of :func:`_offset_readings`."""
-    return [text for _, text in _offset_readings(selection, case)]
 
 
 def _offset_readings(selection, case) -> list[tuple[float, str]]:

@@ -974,3 +974,19 @@ def check_validity(
         time_constants=ctx.tau,
         closed_loop=loop,
     )
+
+
+def verdict_of(result, validation, **data_checks) -> Verdict:
+    """The validity verdict of a fit with its intervals (σ²(JᵀJ)⁻¹; the interval checks are
+    left out where they cannot be computed) and its post-simulation; ``data_checks``: the
+    options of its data check (``data_overrides``, ``stuck_hours``; a case's
+    :attr:`~jaxbox.select.Case.data_checks`). The verdict a structure search gives each case."""
+    from ._uncertainty import uncertainty
+
+    try:
+        unc = uncertainty(result)
+    except ValueError:
+        unc = None
+    return check_validity(
+        result, unc, check_intervals=unc is not None, validation=validation, **data_checks
+    )

@@ -85,3 +85,65 @@ def test_the_folder_is_in_the_persistent_cache_unless_turned_off(monkeypatch):
     assert _exported.directory() == expected
     monkeypatch.setenv("JAXBOX_EXPORTED", "0")
     assert _exported.directory() is None
+
+
+def _read_back(tmp_path, monkeypatch, pattern, run, same):
+    """``run()`` with exports off, then writing its artifacts, then reading them back (the
+    in-process cache emptied before each): the same results each time, and the last run
+    exports nothing."""
+    monkeypatch.setattr(_exported, "directory", lambda: None)
+    _compiled.clear()
+    direct = run()
+    monkeypatch.setattr(_exported, "directory", lambda: tmp_path)
+    _compiled.clear()
+    first = run()
+    files = sorted(tmp_path.glob(pattern))
+    assert files and all(f.stat().st_size > 0 for f in files)
+
+    def no_export(*a, **k):
+        raise AssertionError("exported again instead of read back")
+
+    monkeypatch.setattr(jax.export, "export", no_export)
+    _compiled.clear()
+    again = run()
+    assert sorted(tmp_path.glob(pattern)) == files
+    same(first, direct)
+    same(again, direct)
+
+
+def test_the_adaptive_post_simulation_is_read_back(tmp_path, monkeypatch):
+    """The diffrax post-simulation of a validation (the most of a later ``jaxbox fit``'s
+    tracing) goes through an export too, and runs to the last digit as compiled directly."""
+    from jaxbox.simulate._diffrax import diffrax_runs_numpy
+
+    A = np.array([[-1e-4, 5e-5], [2e-5, -3e-5]])
+    B = np.array([[5e-5, 1e-6], [1e-5, 0.0]])
+    t = np.arange(24) * 3600.0
+    u = np.stack([np.stack([5 + np.sin(t / 4e4), 300 * np.cos(t / 2e4) ** 2], 1)] * 2)
+    x0 = np.array([[20.0, 18.0], [21.0, 17.0]])
+
+    def same(a, b):
+        np.testing.assert_array_equal(a, b)
+
+    def run():
+        return diffrax_runs_numpy(A, B, t, u, x0)
+
+    _read_back(tmp_path, monkeypatch, "diffrax-runs-*.bin", run, same)
+
+
+def test_a_maximum_likelihood_fit_is_read_back(data, tmp_path, monkeypatch):
+    """The stochastic fit's solve and its Hessian at the optimum (most of a later ``jaxbox
+    fit --method ml``'s tracing) go through exports too, with the same results."""
+    from jaxbox.stochastic import fit_ml
+
+    def run():
+        return fit_ml("Zon", data, starts=2, max_steps=40)
+
+    def same(a, b):
+        assert a.objective == b.objective
+        np.testing.assert_array_equal(a.starts.params, b.starts.params)
+        np.testing.assert_array_equal(a.hessian, b.hessian)
+
+    _read_back(tmp_path, monkeypatch, "stochastic*.bin", run, same)
+    names = {f.name.split("-")[0] for f in tmp_path.glob("stochastic*.bin")}
+    assert names == {"stochastic"} and len(list(tmp_path.glob("stochastic-hessian-*.bin"))) == 1

@@ -33,6 +33,7 @@ from jaxtyping import Array
 
 from .. import _compiled
 from .._compiled import jit
+from .._exported import compile_program
 from .._x64 import require_x64
 from ..fit._problem import FitError
 from ..fit._result import StartReport
@@ -298,7 +299,11 @@ def _compile_and_run(key, build, args) -> tuple:
     """The compiled solve of ``key`` (built on a miss) run on ``args``: its outputs and
     ``(compile_s, fit_s)``."""
     t0 = time.perf_counter()
-    compiled, built = _compiled.cached(key, lambda: build().lower(*args).compile())
+    # through a serialized export: a later process skips the tracing and lowering (most of a
+    # warm ``jaxbox fit --method ml``), and XLA's persistent cache finds the executable
+    compiled, built = _compiled.cached(
+        key, lambda: compile_program("stochastic", key, build(), tuple(args))
+    )
     compile_s = time.perf_counter() - t0 if built else 0.0
     t0 = time.perf_counter()
     out = jax.block_until_ready(compiled(*args))
@@ -402,7 +407,8 @@ def _hessian(sp: StochasticProblem, vec: np.ndarray, dt: float, u, y):
 
         return jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)), once=True)
 
-    fn = _compiled.cached(("stochastic", "hessian-arrays", hold, shapes), build)[0]
+    key = ("stochastic", "hessian-arrays", hold, shapes)
+    fn = _compiled.cached(key, lambda: compile_program("stochastic-hessian", key, build(), args))[0]
     nll, grad, H = fn(*args)
     k = len(vec)
     return nll, np.asarray(grad)[:k], np.asarray(H)[:k, :k]

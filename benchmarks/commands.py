@@ -45,7 +45,10 @@ COMMANDS = {
         "`fit --method ml` of `ZonWal` (Kalman filter, exact Hessian)",
         ["fit", "twinhouse_exp1:N2", "-m", "ZonWal", "--method", "ml", "--json"],
     ),
-    "select": ("the default `select` (structure search)", ["select", "twinhouse_exp1:N2", "--json"]),
+    "select": (
+        "the default `select` (structure search)",
+        ["select", "twinhouse_exp1:N2", "--json"],
+    ),
     "demo": ("`demo` (the README's first command)", ["demo", "--json", "--out", "{out}"]),
 }
 

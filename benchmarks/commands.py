@@ -77,7 +77,11 @@ def _run(argv: list[str], code: Path, cache: Path, work: Path) -> dict:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, "-m", "jaxbox", *argv], env=env, capture_output=True, text=True
+        [sys.executable, "-m", "jaxbox", *argv],
+        env=env,
+        cwd=work,  # not this tree: ``python -m`` puts the working folder first on the path
+        capture_output=True,
+        text=True,
     )
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -130,6 +134,18 @@ def main() -> None:
     names = [n for n in args.only.split(",") if n]
     work = Path(tempfile.mkdtemp(prefix="jaxbox-commands-"))
     codes = {"old": _code(args.baseline, work), "new": ROOT}
+    for c, path in codes.items():  # each code is the one its processes import
+        env = {**os.environ, "PYTHONPATH": str(path)}
+        got = subprocess.run(
+            [sys.executable, "-c", "import jaxbox; print(jaxbox.__file__)"],
+            env=env,
+            cwd=work,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        if not Path(got).is_relative_to(path):
+            raise SystemExit(f"the {c} code is not the one imported: {got}")
     load0 = os.getloadavg()[0]
     runs: dict = {n: {c: {"cold": [], "warm": []} for c in codes} for n in names}
     docs: dict = {n: {} for n in names}

@@ -374,3 +374,37 @@ def test_the_command_line_allows_a_refusal_by_name(extra, code, words, tmp_path,
     for word in words:
         assert word in err, err
     assert "allow={" not in err  # in command-line terms
+
+
+@pytest.mark.parametrize("heat", [0.0, 500.0], ids=["heating off", "heating constant"])
+def test_no_valid_model_names_a_heat_input_that_is_zero_first(heat, tmp_path, capsys, monkeypatch):
+    """With the heating off throughout the identification data, the scale of every model is
+    undetermined (capacities × k, resistances / k, apertures × k: the same temperatures):
+    the verdict and the command's last line say so first. A constant heat input that is not
+    zero sets the scale (the mean temperature it holds): nothing to say then."""
+    from test_hostile import frame as tiny
+
+    import jaxbox
+    from jaxbox.cli._main import main
+    from jaxbox.select import _cases
+
+    data = tiny(72)
+    data["Q_hea"] = heat
+    path = tmp_path / "house.csv"
+    data.to_csv(path, index=False)
+    monkeypatch.setattr(_cases.Case, "is_valid", property(lambda self: False))
+    argv = ["select", str(path), "--models", "Zon", "--starts", "1", "--max-steps", "5"]
+    assert main(argv) == 1
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    said: list[str] = []
+    gb = jaxbox.GreyBox(path)
+    jaxbox.forward_selection(gb, ["Zon"], starts=1, max_steps=5, progress=said.append)
+    (verdict,) = [m for m in said if m.startswith("accepted: ")]
+    hint = "'Q_hea' is 0 W throughout the identification data"
+    assert last.startswith("no valid model: ") and verdict.startswith("accepted: none (no valid")
+    if heat == 0.0:
+        assert last.startswith(f"no valid model: {hint}"), last
+        assert f"none (no valid model; {hint}" in verdict, verdict
+        assert "not the heat-loss coefficient or the capacities" in last
+    else:
+        assert "0 W throughout" not in last and "0 W throughout" not in verdict

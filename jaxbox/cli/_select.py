@@ -436,11 +436,15 @@ def _no_valid_model(outcomes) -> int:
     )
     # an input's unit in doubt where its gain sits on a bound is named first: it is the likelier
     # cause, and the one line read last
-    from ..select._cases import unit_doubts
+    from ..select._cases import idle_heat_inputs, unit_doubts
 
+    # a heat input that never varies in the identification data leaves the scale of every
+    # model undetermined: the likeliest cause of all, named first
     doubts: list[str] = []
     for gb in none:
-        doubts += [d for d in unit_doubts(list(gb.cases.values())) if d not in doubts]
+        judged = [c for c in gb.cases.values() if c.done]
+        found = idle_heat_inputs(judged) + unit_doubts(list(gb.cases.values()))
+        doubts += [d for d in found if d not in doubts]
     first = f"{doubts[0]}; " if doubts else ""
     print(
         cli_message(

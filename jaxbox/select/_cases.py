@@ -33,6 +33,7 @@ __all__ = [
     "check_whole",
     "run_cases",
     "unit_doubts",
+    "idle_heat_inputs",
     "verdict_text",
 ]
 
@@ -409,7 +410,8 @@ def verdict_text(cases: Mapping[str, Case], names, accepted: Case | None) -> str
     if accepted is not None:
         return accepted.name
     if any(cases[n].done for n in names):
-        doubts = unit_doubts([cases[n] for n in names])
+        judged = [cases[n] for n in names]
+        doubts = idle_heat_inputs(judged) + unit_doubts(judged)
         return f"none (no valid model{''.join(f'; {d}' for d in doubts[:1])})"
     return "none (no model could be identified)"
 
@@ -445,6 +447,33 @@ def unit_doubts(cases: Sequence[Case]) -> list[str]:
         if out:
             break
     return out
+
+
+def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
+    """One sentence when every heat input of ``cases``' models is zero throughout their
+    identification data (each power input [W] they take, e.g. ``Q_hea``: the heating was
+    off), else none. With no heat input, the data fix the time constants and the ratios of
+    the parameters but not their scale: scaling every capacity and solar aperture by k and
+    every resistance by 1/k leaves the temperatures unchanged, so neither the heat-loss
+    coefficient nor the capacities are identifiable, whatever the structure. (A constant
+    heat input that is not zero does set the scale, through the mean temperature it holds.)"""
+    from ..data import signal_unit
+
+    powers: dict[str, np.ndarray] = {}
+    for case in cases:
+        for name in case.model.inputs:
+            if signal_unit(name) == "W" and name in case.ident.columns and name not in powers:
+                x = np.asarray(case.ident[name], dtype=float)
+                powers[name] = x[np.isfinite(x)]
+    if not powers or any(len(x) == 0 or np.any(x != 0.0) for x in powers.values()):
+        return []
+    names = " and ".join(f"'{n}'" for n in powers)
+    return [
+        f"{names} {'is' if len(powers) == 1 else 'are'} 0 W throughout the identification "
+        "data: with no heat input, the data fix the time constants but not the heat-loss "
+        "coefficient or the capacities (only their ratios); identify on a period with "
+        "heating, or fix a capacity"
+    ]
 
 
 def _gain_inputs(model: RCModel, params: Mapping[str, float], name: str) -> tuple[str, ...]:

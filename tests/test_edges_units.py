@@ -5,6 +5,7 @@ plausibility checks can be allowed by name."""
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -389,7 +390,8 @@ def test_no_valid_model_names_a_heat_input_that_is_zero_first(heat, tmp_path, ca
     from jaxbox.select import _cases
 
     data = tiny(72)
-    data["Q_hea"] = heat
+    # heat == 0: the heating off over the identification half (the first), on in the other
+    data.loc[: 35 if heat == 0.0 else None, "Q_hea"] = heat
     path = tmp_path / "house.csv"
     data.to_csv(path, index=False)
     monkeypatch.setattr(_cases.Case, "is_valid", property(lambda self: False))
@@ -406,5 +408,11 @@ def test_no_valid_model_names_a_heat_input_that_is_zero_first(heat, tmp_path, ca
         assert last.startswith(f"no valid model: {hint}"), last
         assert f"none (no valid model; {hint}" in verdict, verdict
         assert "not the heat-loss coefficient or the capacities" in last
+        # where the heating runs: the validation half, and the options that identify on it
+        (options,) = re.findall(r"identify on it, (--train '[^']+' --validate none)\)", last)
+        train = re.search(r"--train '([^']+)'", options)[1]
+        assert train == f"{gb.valid_period[0]}..{gb.valid_period[1]}"
+        monkeypatch.undo()
+        assert main([*argv, "--train", train, "--validate", "none", "--json"]) in (0, 1)
     else:
         assert "0 W throughout" not in last and "0 W throughout" not in verdict

@@ -412,6 +412,31 @@ def _ml_select(args) -> int:
 SHORT_IDENT_HOURS = 72.0
 
 
+def _heated_elsewhere(gb) -> str:
+    """Where the heating of ``gb``'s data runs in its validation period, the options that
+    identify on that period instead (validation data must follow the identification data, so
+    without them); else nothing."""
+    import numpy as np
+
+    from ..data import signal_unit
+
+    valid = gb.valid
+    if valid is None:
+        return ""
+    heated = [
+        c
+        for c in valid.columns
+        if signal_unit(c) == "W" and np.any(np.nan_to_num(np.asarray(valid[c], float)) != 0.0)
+    ]
+    if not heated:
+        return ""
+    c, d = gb.valid_period
+    return (
+        f" (the validation period has '{heated[0]}': identify on it, "
+        f"--train '{c}..{d}' --validate none)"
+    )
+
+
 def _no_valid_model(outcomes) -> int:
     """0 when every building has an accepted model; else 1, with one line on stderr."""
     import sys
@@ -443,7 +468,10 @@ def _no_valid_model(outcomes) -> int:
     doubts: list[str] = []
     for gb in none:
         judged = [c for c in gb.cases.values() if c.done]
-        found = idle_heat_inputs(judged) + unit_doubts(list(gb.cases.values()))
+        idle = idle_heat_inputs(judged)
+        if idle and len(none) == 1:
+            idle = [idle[0] + _heated_elsewhere(gb)]
+        found = idle + unit_doubts(list(gb.cases.values()))
         doubts += [d for d in found if d not in doubts]
     first = f"{doubts[0]}; " if doubts else ""
     print(

@@ -4,6 +4,7 @@ plausibility checks can be allowed by name."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import warnings
@@ -412,6 +413,10 @@ def test_no_valid_model_names_a_heat_input_that_is_zero_first(heat, tmp_path, ca
         (options,) = re.findall(r"identify on it, (--train '[^']+' --validate none)\)", last)
         train = re.search(r"--train '([^']+)'", options)[1]
         assert train == f"{gb.valid_period[0]}..{gb.valid_period[1]}"
+        assert main([*argv, "--json"]) == 1
+        assert json.loads(capsys.readouterr().out)["verdict"].startswith(
+            f"none (no valid model; {hint}"
+        )
         monkeypatch.undo()
         assert main([*argv, "--train", train, "--validate", "none", "--json"]) in (0, 1)
     else:

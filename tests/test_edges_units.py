@@ -421,3 +421,21 @@ def test_no_valid_model_names_a_heat_input_that_is_zero_first(heat, tmp_path, ca
         assert main([*argv, "--train", train, "--validate", "none", "--json"]) in (0, 1)
     else:
         assert "0 W throughout" not in last and "0 W throughout" not in verdict
+
+
+def test_no_heat_input_measured_is_named(tmp_path, monkeypatch):
+    """Data with no heat input at all (a free-floating building, no 'Q_hea'): the same
+    scale left undetermined, and the verdict says so."""
+    from test_hostile import frame as tiny
+
+    import jaxbox
+    from jaxbox.select import _cases, structure_search
+
+    path = tmp_path / "free.csv"
+    tiny(72).drop(columns=["Q_hea"]).to_csv(path, index=False)
+    monkeypatch.setattr(_cases.Case, "is_valid", property(lambda self: False))
+    said: list[str] = []
+    gb = jaxbox.GreyBox(path)
+    structure_search(gb, starts=1, max_steps=5, max_depth=0, lookahead=0, progress=said.append)
+    (verdict,) = [m for m in said if m.startswith("accepted: ")]
+    assert verdict.startswith("accepted: none (no valid model; no heat input is measured"), verdict

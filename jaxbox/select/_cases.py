@@ -452,20 +452,31 @@ def unit_doubts(cases: Sequence[Case]) -> list[str]:
 def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
     """One sentence when every heat input of ``cases``' models is zero throughout their
     identification data (each power input [W] they take, e.g. ``Q_hea``: the heating was
-    off), else none. With no heat input, the data fix the time constants and the ratios of
-    the parameters but not their scale: scaling every capacity and solar aperture by k and
-    every resistance by 1/k leaves the temperatures unchanged, so neither the heat-loss
-    coefficient nor the capacities are identifiable, whatever the structure. (A constant
-    heat input that is not zero does set the scale, through the mean temperature it holds.)"""
+    off) or when they take none (no heat input measured); else none. With no heat input the
+    data fix the time constants and the ratios of the parameters but not their scale:
+    scaling every capacity and solar aperture by k and every resistance by 1/k leaves the
+    temperatures unchanged, so neither the heat-loss coefficient nor the capacities are
+    identifiable, whatever the structure. (A constant heat input that is not zero does set
+    the scale, through the mean temperature it holds; a heat demand as the output too.)"""
     from ..data import signal_unit
 
     powers: dict[str, np.ndarray] = {}
     for case in cases:
+        if any(signal_unit(name) == "W" for name in case.model.outputs):
+            return []  # a heat demand as the output: its scale is measured
         for name in case.model.inputs:
             if signal_unit(name) == "W" and name in case.ident.columns and name not in powers:
                 x = np.asarray(case.ident[name], dtype=float)
                 powers[name] = x[np.isfinite(x)]
-    if not powers or any(len(x) == 0 or np.any(x != 0.0) for x in powers.values()):
+    if not cases:
+        return []
+    if not powers:
+        return [
+            "no heat input is measured (no column such as 'Q_hea'): the data fix the time "
+            "constants but not the heat-loss coefficient or the capacities (only their "
+            "ratios); add the heating power, or fix a capacity"
+        ]
+    if any(len(x) == 0 or np.any(x != 0.0) for x in powers.values()):
         return []
     names = " and ".join(f"'{n}'" for n in powers)
     return [

@@ -464,12 +464,11 @@ def _no_valid_model(outcomes) -> int:
         if short
         else ""
     )
-    # an input's unit in doubt where its gain sits on a bound is named first: it is the likelier
-    # cause, and the one line read last
+    # the likelier causes are named first, in the one line read last: no heat input in the
+    # identification data (the scale of every model undetermined), then an input's unit in
+    # doubt where its gain sits on a bound
     from ..select._cases import idle_heat_inputs, unit_doubts
 
-    # a heat input that never varies in the identification data leaves the scale of every
-    # model undetermined: the likeliest cause of all, named first
     doubts: list[str] = []
     for gb in none:
         judged = [c for c in gb.cases.values() if c.done]

@@ -439,3 +439,37 @@ def test_no_heat_input_measured_is_named(tmp_path, monkeypatch):
     structure_search(gb, starts=1, max_steps=5, max_depth=0, lookahead=0, progress=said.append)
     (verdict,) = [m for m in said if m.startswith("accepted: ")]
     assert verdict.startswith("accepted: none (no valid model; no heat input is measured"), verdict
+
+
+@pytest.mark.parametrize(
+    "columns, inputs, outputs, said",
+    [
+        ({"Q_hea": 0.0}, ("T_amb", "Q_hea"), ("T_zon",), "'Q_hea' is 0 W throughout"),
+        ({"Q_hea": 0.0, "P_ele": 0.0}, ("Q_hea", "P_ele"), ("T_zon",), "'Q_hea' and 'P_ele' are"),
+        ({"Q_hea": 0.0, "P_ele": 80.0}, ("Q_hea", "P_ele"), ("T_zon",), None),
+        ({"Q_hea": 500.0}, ("T_amb", "Q_hea"), ("T_zon",), None),
+        ({}, ("T_amb",), ("T_zon",), "no heat input is measured"),
+        ({"Q_hea": 300.0}, ("T_amb",), ("T_zon",), "none of the models takes a heat input"),
+        ({"Q_hea": 0.0}, ("T_amb", "T_zon"), ("Q_hea",), None),  # the heat demand form
+    ],
+)
+def test_which_heat_inputs_leave_the_scale_undetermined(columns, inputs, outputs, said):
+    import types
+
+    from jaxbox.select._cases import idle_heat_inputs
+
+    n = 24
+    frame = pd.DataFrame(
+        {"T_zon": np.full(n, 20.0), "T_amb": np.linspace(0, 5, n)}
+        | {k: np.full(n, v) for k, v in columns.items()}
+    )
+    frame.iloc[3] = np.nan  # a gap: left out, never read as a heat input
+    case = types.SimpleNamespace(
+        model=types.SimpleNamespace(inputs=inputs, outputs=outputs), ident=frame
+    )
+    got = idle_heat_inputs([case])
+    if said is None:
+        assert got == []
+    else:
+        (text,) = got
+        assert said in text and "not the heat-loss coefficient or the capacities" in text

@@ -471,10 +471,15 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
     if not cases:
         return []
     if not powers:
+        unused = [c for c in cases[0].ident.columns if signal_unit(c) == "W"]
+        what = (
+            f"none of the models takes a heat input ('{unused[0]}' is in the data)"
+            if unused
+            else "no heat input is measured (no column such as 'Q_hea')"
+        )
         return [
-            "no heat input is measured (no column such as 'Q_hea'): the data fix the time "
-            "constants but not the heat-loss coefficient or the capacities (only their "
-            "ratios); add the heating power, or fix a capacity"
+            f"{what}: the data fix the time constants but not the heat-loss coefficient or "
+            "the capacities (only their ratios); add the heating power, or fix a capacity"
         ]
     if any(len(x) == 0 or np.any(x != 0.0) for x in powers.values()):
         return []

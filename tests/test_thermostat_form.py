@@ -118,6 +118,8 @@ def test_heat_demand_form_recovers_the_hlc_and_the_search_says_so():
     assert best.relative < 0.5
     d = search.to_dict()
     assert d["form"] == "heat demand" and d["form_model"]["hlc"] == best.hlc
+    # the verdict in words names the form accepted, not "no valid model"
+    assert d["verdict"] == search.verdict and search.verdict.startswith("the heat demand form")
     assert d["form_model"]["structure"] == best.structure
     assert "form accepted: heat demand" in search.tree_text()
     from jaxbox.report import greybox_report

@@ -225,12 +225,7 @@ def _document(gb, sel, spec, ident, valid) -> dict:
                 if not k.startswith("rmse_auto_") and not k.startswith("rmse_cross_")
             }
         )
-    from ..select._cases import verdict_text
-
     doc = {"dataset": spec, "table": table, **sel.to_dict(), "fit": None, "hlc": None}
-    # what was accepted in words: the accepted case's name, or why none was (the likeliest
-    # cause first, as the last line on stderr)
-    doc["verdict"] = verdict_text(gb.cases, sel.order, sel.case)
     if sel.case is not None:
         doc["hlc"] = _hlc(sel)
         c = sel.case

@@ -460,6 +460,8 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
     the scale, through the mean temperature it holds; a heat demand as the output too.)"""
     from ..data import signal_unit
 
+    if not cases:
+        return []
     powers: dict[str, np.ndarray] = {}
     for case in cases:
         if any(signal_unit(name) == "W" for name in case.model.outputs):
@@ -468,8 +470,6 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
             if signal_unit(name) == "W" and name in case.ident.columns and name not in powers:
                 x = np.asarray(case.ident[name], dtype=float)
                 powers[name] = x[np.isfinite(x)]
-    if not cases:
-        return []
     if not powers:
         unused = [c for c in cases[0].ident.columns if signal_unit(c) == "W"]
         what = (

@@ -51,6 +51,8 @@ class Selection:
         stopped: why the selection stopped, in words.
         skipped: candidate models never identified (after the stop).
         elapsed_s: wall-clock time of the selection [s].
+        verdict: what was accepted, in words: the accepted model, or why none was (the
+            likeliest cause first); the ``accepted: …`` line of the progress.
     """
 
     greybox: GreyBox
@@ -59,6 +61,7 @@ class Selection:
     stopped: str
     skipped: tuple[str, ...]
     elapsed_s: float
+    verdict: str = ""
 
     @property
     def case(self) -> Case | None:
@@ -77,6 +80,7 @@ class Selection:
             "stopped": self.stopped,
             "skipped": list(self.skipped),
             "elapsed_s": self.elapsed_s,
+            "verdict": self.verdict,
         }
 
 
@@ -282,6 +286,7 @@ class _Climb:
             stopped=self.stopped,
             skipped=self.skipped,
             elapsed_s=elapsed,
+            verdict=verdict,
         )
 
 

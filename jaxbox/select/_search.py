@@ -722,6 +722,7 @@ def structure_search(
         stopped=stopped,
         skipped=(),
         elapsed_s=elapsed,
+        verdict=verdict,
         criterion=criterion,
         tree=tuple(SearchNode(**nodes[n]) for n in nodes),
         margin=float(margin),

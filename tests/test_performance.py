@@ -86,6 +86,50 @@ def test_datasets_batched_together_match_separate_fits(two_datasets):
         np.testing.assert_allclose(together["cost"][sl], alone["cost"], rtol=1e-9)
 
 
+def test_records_of_different_lengths_batch_together_and_share_a_program():
+    """Buildings whose records differ in length (193 and 200 samples, one bucket of 208) go in
+    one batched call, each padded at its end with samples of weight 0: each result is the one
+    of its fit alone, to rounding; a later batch of other lengths in the same bucket (197, 205)
+    runs the same compiled program, and lengths in another bucket (100) a batch of their own."""
+    from jaxbox.fit import fit_batch
+    from jaxbox.fit._fit import _pad_samples, bucket_samples
+
+    assert [bucket_samples(n) for n in (193, 200, 208, 209, 492, 1250)] == [
+        208,
+        208,
+        208,
+        224,
+        496,
+        1280,
+    ]
+    truths = (TRUTH, TRUTH | {"R_wal": 0.02})
+    datas = [_synthetic(n, seed=5 + k, truth=truths[k % 2]) for k, n in enumerate((193, 200))]
+    requests = [{"model": "ZonWal", "data": d, "starts": 2, "seed": 1} for d in datas]
+    together = fit_batch(requests)
+    assert [r.timing["batch"] for r in together] == [2, 2]
+    for req, r in zip(requests, together, strict=True):
+        alone = fit_model(req["model"], req["data"], starts=2, seed=1)
+        assert alone.timing.get("batch", 1) == 1
+        assert r.n_samples == alone.n_samples == len(req["data"])
+        assert r.cost == pytest.approx(alone.cost, rel=1e-9)
+        for name, value in alone.params.items():
+            assert r.params[name] == pytest.approx(value, rel=1e-6), name
+    before = compile_cache_info()
+    others = [_synthetic(n, seed=9 + k) for k, n in enumerate((197, 205))]
+    again = fit_batch([{"model": "ZonWal", "data": d, "starts": 2, "seed": 1} for d in others])
+    assert compile_cache_info()["compiles"] == before["compiles"]
+    assert [r.timing["compile_s"] for r in again] == [0.0, 0.0]
+    short = _synthetic(100, seed=11)
+    apart = fit_batch([{"model": "ZonWal", "data": d, "starts": 2} for d in (short, datas[0])])
+    assert [r.timing["batch"] for r in apart] == [1, 1]
+    # the padding: times on at the step, inputs and outputs held, weights 0
+    t, u, y, w = (np.arange(3.0) * 60.0, np.ones((3, 2)), np.ones((3, 1)), np.ones((3, 1)))
+    tp, up, yp, wp = _pad_samples((t, u, y, w), 5)
+    np.testing.assert_array_equal(tp, [0.0, 60.0, 120.0, 180.0, 240.0])
+    assert up.shape == (5, 2) and yp.shape == (5, 1)
+    np.testing.assert_array_equal(wp[:, 0], [1.0, 1.0, 1.0, 0.0, 0.0])
+
+
 def test_long_series_memory_is_bounded():
     """20,000 samples (a scaled-down year of 10-minute data): the solve's memory stays a few bytes
     per sample, no Jacobian or reverse-mode tape of the series is kept."""

@@ -21,7 +21,15 @@ from ..data import DataError, Dataset, concat_periods, prepare_window
 from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
 from ..models import get_model
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
-from ._fit import _problem_key, check_homotopy, make_starts, result_from, solve_jobs, solver_key
+from ._fit import (
+    _problem_key,
+    bucket_samples,
+    check_homotopy,
+    make_starts,
+    result_from,
+    solve_jobs,
+    solver_key,
+)
 from ._problem import FitError, make_problem, problem_arrays
 from ._problem import number as problem_number
 from ._result import FitResult
@@ -330,7 +338,8 @@ def fit_batch(
     of free parameters, data of the same shape and the same solver settings are solved in one
     batch (with the exact simulator even when their model structures, numbers of states,
     parameters and inputs differ, provided they measure the same states: the smaller ones are
-    padded; with diffrax only for the same structure); the others in batches of their own.
+    padded, and so are records of neighbouring lengths, see :func:`~jaxbox.fit.solve_jobs`;
+    with diffrax only for the same structure and length); the others in batches of their own.
     Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request.
 
     Args:
@@ -392,9 +401,15 @@ def fit_batch(
         )
         fused = solver[3] is None or isinstance(solver[3], LevenbergMarquardt)
         structure = None if problem.simulator == "exact" and fused else _problem_key(problem)
-        if structure is None:  # variants of any size share a compiled solve (padded)
+        if structure is None:  # variants of any size share a compiled solve (padded), and
+            # records of neighbouring lengths (padded with samples of weight 0, see solve_jobs)
             t, _, y, _ = arrays
-            shape = (problem.model.segments, tuple(problem.output_states), *map(np.shape, (t, y)))
+            shape = (
+                problem.model.segments,
+                tuple(problem.output_states),
+                bucket_samples(len(t)),
+                np.shape(y)[1:],
+            )
         key = (*solver[:3], solver_key(solver[3]), *solver[4:])
         groups.setdefault((key, shape, problem.simulator, structure), []).append(item)
     for members in groups.values():

@@ -445,6 +445,36 @@ def _bucket_starts(n: int) -> int:
     return max(BUCKETS["starts"], 1 << max(0, int(n) - 1).bit_length())
 
 
+def bucket_samples(n: int) -> int:
+    """Samples of a batch whose data are padded (:func:`solve_jobs`): ``n`` rounded up to a
+    sixteenth of an octave (at most 6.25 % more above 256 samples; a multiple of 16 below), so
+    that records of neighbouring lengths share one compiled solve."""
+    n = int(n)
+    if n <= 256:
+        return _round_up(n, 16)
+    return _round_up(n, 1 << (n.bit_length() - 5))
+
+
+def _pad_samples(data, n: int):
+    """``(t, u, y, w)`` [N, …] extended to ``n`` samples: the times go on at the data's step,
+    the inputs and outputs hold their last values, the weights are 0. The cost, ``Jᵀr`` and
+    ``JᵀJ`` are those of the data to rounding (a sample of weight 0 adds zeros, though the sums
+    run in other blocks, and the observer of the continuation does not pull where the weight
+    is 0); the padded steps come after the last sample, so no state before it depends on
+    them."""
+    t, u, y, w = data
+    k = int(n) - len(t)
+    if k <= 0:
+        return data
+    step = t[1] - t[0]
+
+    def hold(a):
+        return np.concatenate([a, np.repeat(a[-1:], k, axis=0)], axis=0)
+
+    t = np.concatenate([t, t[-1] + step * np.arange(1, k + 1)])
+    return t, hold(u), hold(y), np.concatenate([w, np.zeros((k, *w.shape[1:]))], axis=0)
+
+
 def _input_layout(problems, datas, bucket: bool = False, least: int = 0):
     """One input layout for variants with different inputs: the union of their inputs by name
     when they share the data (``t``, ``y``, ``w`` and every input of the same name), else each
@@ -795,6 +825,9 @@ def solve_jobs(
     :func:`~jaxbox.fit.problem_arrays`. Every job must have the same number of free parameters,
     samples, states, inputs and outputs; jobs may differ in data (buildings, windows), bounds,
     fixed values and, with the exact simulator, in model structure (variants of the same shape).
+    With jaxbox's solver on the exact simulator, records of different lengths batch together:
+    each is padded at its end with samples of weight 0 to :func:`bucket_samples` of the longest,
+    which changes the results only to rounding (see :func:`_pad_samples`).
     A single job shares its data across its starts. With jaxbox's solver each start is solved
     along two routes, the output-error problem directly and, on the exact simulator, the
     continuation ``homotopy`` (observer gains, see :func:`check_homotopy`; ``()``: none), and a
@@ -852,6 +885,12 @@ def solve_jobs(
     paddable = _paddable(problems, solver)
     least = dict(bucket) if isinstance(bucket, Mapping) else {}
     bucket = bool(bucket) and paddable and _array_form(problems)
+    lengths = {len(d[0]) for d in datas}
+    if paddable and len(lengths) > 1:
+        # records of different lengths in one batch: padded at the end to the bucket of the
+        # longest, so that batches of neighbouring lengths share a compiled solve (a record
+        # that is padded sums its residuals in other blocks: its result changes to rounding)
+        datas = [_pad_samples(d, bucket_samples(max(lengths))) for d in datas]
     if (variants or bucket) and paddable:
         layout, datas = _input_layout(problems, datas, bucket, least.get("inputs", 0))
         n_states = max(len(p.model.states) for p in problems)

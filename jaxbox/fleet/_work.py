@@ -195,8 +195,10 @@ def _doc(name: str, row: dict, report: dict | None, timing: dict) -> dict:
 
 
 def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: dict) -> None:
-    """Fit one model to every checked building (one batched call per data shape)."""
+    """Fit one model to every checked building (one batched call per data shape: records of
+    neighbouring lengths are padded to one, see :func:`~jaxbox.fit.solve_jobs`)."""
     from ..fit import FitError, fit_batch
+    from ..fit._fit import bucket_samples
 
     names = list(checked)
     extra = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
@@ -212,7 +214,8 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
 
     shapes: dict[tuple, list[str]] = {}
     for n in names:
-        shapes.setdefault((len(checked[n][0]), round(checked[n][0].step, 6)), []).append(n)
+        length = bucket_samples(len(checked[n][0]))
+        shapes.setdefault((length, round(checked[n][0].step, 6)), []).append(n)
     fitted: dict[str, object] = {}
     for members in shapes.values():
         # a partition's batches are padded to its size (repeating a building; the copies are

@@ -131,7 +131,9 @@ def main() -> None:
         "max_rel_hlc_truth": rel(new["hlc"], new["hlc_true"]),
         "runs": runs,
     }
-    (HERE / "lengths.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    from jaxbox._io import atomic_write_json
+
+    atomic_write_json(HERE / "lengths.json", out, indent=1)
     print(json.dumps({k: v for k, v in out.items() if k != "runs"}, indent=1))
 
 

@@ -601,8 +601,14 @@ def test_fit_many_fits_same_shaped_datasets_in_one_call():
         assert alone.params[p] == pytest.approx(results["B"].params[p], rel=1e-6), p
     as_list = fit_many(model, list(data.values()), starts=x0, max_steps=500)
     assert [r.params for r in as_list] == [r.params for r in results.values()]
+    # a record of a neighbouring length is padded into the batch; one far shorter goes alone
+    near = data["B"].slice(end=data["B"].index[len(data["B"]) - 6])
     short = data["A"].slice(end=data["A"].index[100])
-    with pytest.raises(FitError, match="same length"):
-        fit_many(model, [data["A"], short])
+    mixed = fit_many(model, [data["A"], near, short], starts=x0, max_steps=500)
+    assert [r.timing["batch"] for r in mixed] == [2, 2, 1]
+    assert [r.n_samples for r in mixed] == [len(data["A"]), len(near), len(short)]
+    assert mixed[0].cost == pytest.approx(results["A"].cost, rel=1e-9)
+    with pytest.raises(FitError, match="same step"):
+        fit_many(model, [data["A"], data["A"].resample("2h")])
     with pytest.raises(FitError, match="at least one dataset"):
         fit_many(model, [])

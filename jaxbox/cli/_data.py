@@ -53,7 +53,8 @@ def add_data_arguments(p) -> None:
         "data",
         metavar="DATA",
         nargs="+",
-        help=DATA_HELP + "; several DATA of the same length are fitted together in one batch",
+        help=DATA_HELP
+        + "; several DATA of the same or neighbouring lengths are fitted together in one batch",
     )
     p.add_argument(
         "--map",

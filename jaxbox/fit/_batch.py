@@ -253,7 +253,12 @@ def fit_many(
     max_gap: float | str = DEFAULT_MAX_GAP,
     slots: int | None = None,
 ) -> list[FitResult] | dict[str, FitResult]:
-    """Fit ``model`` to each of several datasets of the same length in one batched call.
+    """Fit ``model`` to each of several datasets of the same step in one batched call.
+
+    Datasets of different lengths are padded at their end with samples of weight 0 (results
+    the same to rounding, see :func:`~jaxbox.fit.solve_jobs`) as long as their lengths are
+    neighbours (:func:`~jaxbox.fit._fit.bucket_samples`: within a sixteenth of an octave);
+    lengths further apart go in calls of their own.
 
     Takes the arguments of :func:`~jaxbox.fit.fit_model`; they apply to every dataset. Initial
     states are guessed from each dataset's own first samples, and each dataset gets ``starts``
@@ -265,7 +270,7 @@ def fit_many(
     Args:
         model: an :class:`~jaxbox.models.RCModel` or a library model name.
         datasets: a sequence of :class:`~jaxbox.data.Dataset`, or a mapping ``name -> Dataset``;
-            all with the same number of samples and the same step.
+            all with the same step.
 
     Returns:
         One :class:`~jaxbox.fit.FitResult` per dataset: a list, or a dict with the same keys.
@@ -273,8 +278,8 @@ def fit_many(
         ``slots``, the starts iterated together in each of ``parts`` queues).
 
     Raises:
-        FitError: no dataset, datasets of different lengths or steps, a problem that differs
-            in its free/fixed split between datasets, or every start of one dataset failed.
+        FitError: no dataset, datasets of different steps, a problem that differs in its
+            free/fixed split between datasets, or every start of one dataset failed.
     """
     require_x64()
     model = get_model(model)
@@ -282,14 +287,14 @@ def fit_many(
     items = [datasets[k] for k in keys] if keys is not None else list(datasets)
     if not items:
         raise FitError("fit_many needs at least one dataset")
-    n, step = len(items[0]), items[0].step
+    step = items[0].step
     for i, data in enumerate(items):
         label = keys[i] if keys is not None else i
-        if len(data) != n or abs(data.step - step) > 1e-9 * step:
+        if abs(data.step - step) > 1e-9 * step:
             raise FitError(
-                f"dataset {label!r} has {len(data)} samples every {data.step:g} s but the first "
-                f"has {n} every {step:g} s; batched datasets need the same length and step "
-                "(slice or resample them), or fit them one by one"
+                f"dataset {label!r} has a sample every {data.step:g} s but the first every "
+                f"{step:g} s; batched datasets need the same step (resample them), or fit them "
+                "one by one"
             )
     common = {
         "free": free,

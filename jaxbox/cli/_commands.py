@@ -116,6 +116,7 @@ def fit_command(args) -> int:
     """``jaxbox fit DATA… --model NAME``: fit, cross-validate, print (``--json``: one document)."""
     from ..fit import fit_batch
     from ..fit._batch import fit_data
+    from ..fit._fit import bucket_samples
     from ..models import get_model
     from ..select._cases import data_checks
     from ..validate import validate
@@ -148,9 +149,15 @@ def fit_command(args) -> int:
             f"from {args.starts} starts …"
         )
     if len(sets) > 1 and len(lengths) > 1:
+        # neighbouring lengths are padded into one batch on the exact route (see solve_jobs)
+        batches = {bucket_samples(n) for n in lengths} if args.simulator == "exact" else lengths
         say(
-            "identification periods of different lengths: each length is fitted in a batch "
-            "of its own"
+            "identification periods of different lengths: "
+            + (
+                "padded at their ends into one batch"
+                if len(batches) == 1
+                else f"fitted in {len(batches)} batches (neighbouring lengths padded into one)"
+            )
         )
     request = {
         "model": model,

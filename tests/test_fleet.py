@@ -108,6 +108,26 @@ def test_rows_hold_params_intervals_kpis_and_timings(inline, fleet):
     assert meta["status"] == "done" and meta["processed"] == N + 4
 
 
+def test_buildings_of_neighbouring_lengths_share_one_batched_fit(tmp_path):
+    """Three buildings whose records end 0, 3 and 5 hours apart: one batched fit (the shorter
+    padded at their ends), where each length used to compile and run a batch of its own."""
+    from jaxbox import _compiled
+    from jaxbox.fit import clear_compile_cache
+
+    folder = tmp_path / "in"
+    _, truth = make_fleet(3, folder, days=7, seed=8)
+    for name, cut in (("b1", 3), ("b2", 5)):
+        f = pd.read_csv(folder / f"{name}.csv")
+        f.iloc[: len(f) - cut].to_csv(folder / f"{name}.csv", index=False)
+    clear_compile_cache()
+    run_fleet(folder, tmp_path / "out", load_config(**CFG), workers=0)
+    assert len(_compiled.entries("fit")) == 1
+    rows = read_results(tmp_path / "out").set_index("building")
+    assert list(rows["status"]) == ["ok"] * 3
+    assert rows["n_train"].nunique() == 3
+    assert np.allclose(rows["hlc"], truth.loc[rows.index, "hlc"], rtol=0.05)
+
+
 def test_long_format_parquet_and_csv_give_the_same_rows(inline, fleet, tmp_path):
     folder, _ = fleet
     frames = [pd.read_csv(folder / f"b{k}.csv").assign(building=f"b{k}") for k in (0, 4)]

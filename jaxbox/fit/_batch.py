@@ -345,7 +345,8 @@ def fit_batch(
     parameters and inputs differ, provided they measure the same states: the smaller ones are
     padded, and so are records of neighbouring lengths, see :func:`~jaxbox.fit.solve_jobs`;
     with diffrax only for the same structure and length); the others in batches of their own.
-    Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request.
+    Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request (to
+    rounding, where its record was padded or batched with others).
 
     Args:
         requests: the problems, in order.

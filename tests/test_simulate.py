@@ -290,3 +290,43 @@ def test_diffrax_post_simulation_shares_one_program_and_keeps_its_tolerance(inpu
         err[count] = np.abs(xs[:, :2] - xe[0]).max()
     # an RMS over 32 states, 30 of them zero, is a quarter of the RMS over the 2 real ones
     assert err[2.0] < 3.5e-4 and err[32.0] > 3 * err[2.0], err
+
+
+def test_diffrax_post_simulation_of_neighbouring_lengths_shares_one_program(inputs):
+    """Records of neighbouring lengths run in one compiled diffrax program: the record is
+    extended to its run length (the times at the last step, the inputs held) and the extra
+    samples dropped; the states at the real samples are those of the program compiled for the
+    record's own length, to rounding, and those of the exact route to the tolerance."""
+    import functools
+
+    from jaxbox import _compiled
+    from jaxbox.simulate import diffrax_runs_numpy
+    from jaxbox.simulate._diffrax import _runs, run_length
+    from jaxbox.validate._postsim import exact_runs_numpy
+
+    lengths = (1, 24, 33, 150, 200, 256, 257, 1024)
+    assert [run_length(n) for n in lengths] == [32, 32, 64, 256, 256, 256, 512, 1024]
+    # above 1024 samples an eighth of an octave: at most 12.5 % more
+    for n in (1025, 1500, 5000, 52560):
+        assert n <= run_length(n) <= 1.125 * n and run_length(run_length(n)) == run_length(n)
+    t, u = inputs
+    m = get_model("ZonWal")
+    th = m.defaults() | {"T_zon0": 24.0}
+    A, B, C, D = m.state_space_numpy(th)
+    U = _u(m, u)[None]
+    x0 = np.asarray(m.initial_state(th))[None]
+    compiles = []
+    for n in (130, 200, 161):  # all in the bucket of 256 samples
+        xs = diffrax_runs_numpy(A, B, t[:n], U[:, :n], x0)
+        compiles.append(_compiled.info()["compiles"])
+        assert xs.shape == (1, n, 2)
+        _, xe = exact_runs_numpy(A, B, C, D, DT, U[:, :n], x0)
+        np.testing.assert_allclose(xs, xe, rtol=0, atol=2e-3)
+    # the first may compile (or find the program another test compiled); the others reuse it
+    assert compiles[0] == compiles[1] == compiles[2], compiles
+    # the last against the program of its own length, unpadded in time
+    Ap, Bp, Up, X0 = np.zeros((4, 4)), np.zeros((4, 4)), np.zeros((1, n, 4)), np.zeros((1, 4))
+    Ap[:2, :2], Bp[:2, :3], Up[..., :3], X0[:, :2] = A, B, U[:, :n], x0
+    own = jax.jit(functools.partial(_runs, atol=1e-6, rtol=1e-6))
+    alone = np.asarray(own(Ap, Bp, t[:n], Up, X0, np.float64(2)))[..., :2]
+    np.testing.assert_allclose(xs, alone, rtol=0, atol=1e-12)

@@ -184,6 +184,20 @@ def _padded(size: int) -> int:
     return max(PAD, -(-size // PAD) * PAD)
 
 
+def run_length(n: int) -> int:
+    """Samples of :func:`diffrax_runs_numpy`'s compiled program for a record of ``n``: the next
+    power of two up to 1024 (at least 32), above that ``n`` rounded up to an eighth of an octave
+    (at most 12.5 % more). Records of neighbouring lengths (a fleet's buildings, the periods
+    of a selection, a user's slices) share one program; the samples beyond ``n`` are
+    integrated and dropped, a few milliseconds on the short records where the rounding is
+    coarse."""
+    n = int(n)
+    if n <= 1024:
+        return max(32, 1 << max(0, n - 1).bit_length())
+    step = 1 << (n.bit_length() - 4)
+    return step * -(-n // step)
+
+
 def diffrax_runs_numpy(
     A: np.ndarray,
     B: np.ndarray,
@@ -200,10 +214,10 @@ def diffrax_runs_numpy(
 
     The matrices are padded with zeros to multiples of :data:`PAD` states and inputs, and one
     compiled program (kept in the bounded cache of compiled functions) serves every system of a
-    padded size, run count, length and tolerances: the models of a selection share it instead
-    of compiling one each. The padded states stay zero, and the step control's norm runs over
-    the real states only (:class:`RMSOver`), so the steps and the tolerance are those of the
-    unpadded system.
+    padded size, run count, run length (:func:`run_length`) and tolerances: the models of a
+    selection, and records of neighbouring lengths, share it instead of compiling one each.
+    The padded states stay zero, and the step control's norm runs over the real states only
+    (:class:`RMSOver`), so the steps and the tolerance are those of the unpadded system.
     """
     from .._compiled import cached, jit
     from .._exported import compile_program
@@ -219,9 +233,19 @@ def diffrax_runs_numpy(
     Up[..., :m] = u
     X0 = np.zeros((len(x0), n_pad))
     X0[:, :n] = np.asarray(x0, float)
+    # the record extended to its run length: the times go on at the last step, the inputs hold
+    # their last values (the interpolation up to the last real sample is unchanged, and so
+    # are the steps, clipped at every sample, and the states there)
+    t = np.asarray(t, float)
+    n_samples = len(t)
+    n_run = run_length(n_samples)
+    if n_run > n_samples:
+        dt = t[-1] - t[-2] if n_samples > 1 else 1.0
+        t = np.concatenate([t, t[-1] + dt * np.arange(1, n_run - n_samples + 1)])
+        Up = np.concatenate([Up, np.repeat(Up[:, -1:], n_run - n_samples, axis=1)], axis=1)
     options = (("atol", float(atol)), ("rtol", float(rtol)))
     key = ("diffrax-runs", n_pad, m_pad, Up.shape[0], Up.shape[1], options)
-    args = (Ap, Bp, np.asarray(t, float), Up, X0, np.float64(n))
+    args = (Ap, Bp, t, Up, X0, np.float64(n))
     # through a serialized export: a later process skips the tracing (about 4 s on a 2-core
     # CPU, most of a warm ``jaxbox fit``), and XLA's persistent cache finds the executable
     fn = cached(
@@ -230,7 +254,7 @@ def diffrax_runs_numpy(
             "diffrax-runs", key, jit(functools.partial(_runs, **dict(options))), args
         ),
     )[0]
-    return np.asarray(fn(*args))[..., :n]
+    return np.asarray(fn(*args))[:, :n_samples, :n]
 
 
 def _runs(A, B, t, U, X0, count, **options):

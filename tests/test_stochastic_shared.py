@@ -154,6 +154,38 @@ def test_jobs_of_different_structures_in_one_solve_equal_separate_solves(short_n
         )
 
 
+def test_records_of_different_lengths_in_one_solve_equal_separate_solves(short_n2):
+    """Records of 80 and 67 samples in one maximum-likelihood solve: the shorter is padded with
+    missing samples to the longer's bucket, which add nothing to its likelihood; each record's
+    estimates and objective are its solve alone's (the first alone has the shape of the solves
+    above: already compiled). A record's Hessian is padded to its bucket of samples too; held
+    against second differences of the unpadded likelihood in test_stochastic_ml."""
+    from jaxbox.stochastic._fit import _pad_rows
+
+    model = jaxbox.get_model("BM_TiTe")
+    jobs = []
+    for data in (short_n2, short_n2.slice(None, short_n2.index[66])):
+        sp = make_stochastic_problem(model, data)
+        guess = np.asarray([sp.guess_dict[k] for k in sp.free])
+        starts = np.stack([guess, sp.transform.to_physical(sp.transform.to_internal(guess) + 0.3)])
+        jobs.append((sp, starts, stochastic_arrays(model, data)))
+    assert [len(job[2][1]) for job in jobs] == [80, 67]
+    together = solve_ml(jobs, max_steps=60)
+    for i, job in enumerate(jobs):
+        alone = solve_ml([job], max_steps=60)
+        np.testing.assert_allclose(together["p_jobs"][i], alone["p_jobs"][0], rtol=1e-8, atol=1e-12)
+        np.testing.assert_allclose(
+            together["objective"][together["job"] == i], alone["objective"], rtol=1e-10
+        )
+    # the padding: inputs held, outputs missing, nothing changed before
+    _, u, y = jobs[1][2]
+    up, yp = _pad_rows(u, y, 80)
+    assert up.shape == (80, u.shape[1]) and yp.shape == (80, y.shape[1])
+    np.testing.assert_array_equal(up[:67], u)
+    np.testing.assert_array_equal(up[67:], np.repeat(u[-1:], 13, axis=0))
+    assert np.all(np.isnan(yp[67:])) and np.array_equal(yp[:67], y, equal_nan=True)
+
+
 @pytest.mark.slow
 def test_a_network_with_a_held_node_keeps_a_program_of_its_own():
     """A node at a constant temperature has no array form: its fit runs the per-structure

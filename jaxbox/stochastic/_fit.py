@@ -195,6 +195,33 @@ def _pad_columns(u: np.ndarray, width: int) -> np.ndarray:
     return np.concatenate([u, np.zeros((u.shape[0], width - u.shape[1]))], axis=1)
 
 
+def _pad_rows(u: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(u [N, m], y [N, p])`` extended to ``n`` samples: the inputs hold their last values,
+    the outputs are missing (NaN). The filter's missing samples add exactly nothing to the
+    likelihood, its gradient and its Hessian, and the held inputs leave the drive of the last
+    real sample as it was: a record padded so is the record itself, to the rounding of a
+    longer sum."""
+    u, y = np.asarray(u, dtype=float), np.asarray(y, dtype=float)
+    extra = n - len(u)
+    if extra <= 0:
+        return u, y
+    return (
+        np.concatenate([u, np.repeat(u[-1:], extra, axis=0)]),
+        np.concatenate([y, np.full((extra, y.shape[1]), np.nan)]),
+    )
+
+
+def _common_length(arrays) -> int | None:
+    """The samples every record of a solve is padded to: ``None`` where they all have the same
+    length (solved as they are), else that of the longest rounded up to its bucket
+    (:func:`jaxbox.fit._fit.bucket_samples`), so that later solves of neighbouring lengths
+    share the program."""
+    from ..fit._fit import bucket_samples
+
+    lengths = {len(a[1]) for a in arrays}
+    return None if len(lengths) == 1 else bucket_samples(max(lengths))
+
+
 def solve_ml(
     jobs: Sequence[tuple[StochasticProblem, np.ndarray, tuple]],
     *,
@@ -205,8 +232,10 @@ def solve_ml(
     """BFGS from every start of every job in one compiled, batched call.
 
     A job is ``(problem, starts [S, k] physical, (dt, u, y))``. Jobs must share the hold, the
-    style of the bound transforms, the number of samples and the outputs; they may differ in
-    model structure, data, bounds, fixed values, priors and in which parameters are free. The
+    style of the bound transforms and the outputs; they may differ in model structure, data,
+    record length (records of different lengths are padded to the bucket of the longest with
+    missing samples, which add nothing to the likelihood: :func:`_pad_rows`), bounds, fixed
+    values, priors and in which parameters are free. The
     compiled solve is kept per padded size (:mod:`jaxbox.stochastic._arrays`), hold, data
     shape and solver settings; a job whose network holds a node at a constant temperature
     needs jobs of its own structure and transform kinds, and a program of its own.
@@ -228,11 +257,13 @@ def solve_ml(
         raise FitError(
             "jobs solved together need the same model structure, hold and bound transforms"
         )
-    shapes = {(np.shape(a[1]), np.shape(a[2])) for _, _, a in jobs}
+    shapes = {(np.shape(a[1])[1:], np.shape(a[2])[1:]) for _, _, a in jobs}
     if len(shapes) > 1:
         raise FitError(
-            f"datasets solved together need the same length and columns; got {sorted(shapes)}"
+            f"datasets solved together need the same columns; got {sorted(shapes)} "
+            "(inputs, outputs)"
         )
+    n_common = _common_length([a for _, _, a in jobs])
     sp0, full0 = jobs[0][0], fulls[0][0]
     n_all = len(full0.names)
     cols: list[list] = [[] for _ in range(12)]
@@ -253,6 +284,8 @@ def solve_ml(
             c.append(np.broadcast_to(a, (s, len(a))))
         cols[9].append(np.full(s, float(dt)))
         cols[10].append(np.full(s, float(np.isfinite(y).sum())))
+        if n_common is not None:
+            u, y = _pad_rows(u, y, n_common)
         us.append(u)
         ys.append(y)
         counts.append(s)
@@ -333,11 +366,12 @@ def _solve_arrays(jobs, max_steps: int, rtol: float, atol: float) -> dict:
     problems = [sp for sp, _, _ in jobs]
     if len({(sp.hold, sp.transform.style) for sp in problems}) > 1:
         raise FitError("jobs solved together need the same hold and bound-transform style")
-    shapes = {(len(a[1]), np.shape(a[2])) for _, _, a in jobs}
+    shapes = {np.shape(a[2])[1:] for _, _, a in jobs}
     if len(shapes) > 1:
         raise FitError(
-            f"datasets solved together need the same length and outputs; got {sorted(shapes)}"
+            f"datasets solved together need the same outputs; got {sorted(shapes)} outputs"
         )
+    n_common = _common_length([a for _, _, a in jobs])
     sizes = padded_sizes(problems)
     z0s, members, dts, scales, us, ys, counts, free_idx = [], [], [], [], [], [], [], []
     for sp, starts, (dt, u, y) in jobs:
@@ -351,6 +385,8 @@ def _solve_arrays(jobs, max_steps: int, rtol: float, atol: float) -> dict:
         members.append([np.broadcast_to(arrays[k], (s, *np.shape(arrays[k]))) for k in KEYS])
         dts.append(np.full(s, float(dt)))
         scales.append(np.full(s, float(np.isfinite(y).sum())))
+        if n_common is not None:
+            u, y = _pad_rows(u, y, n_common)
         us.append(_pad_columns(np.asarray(u, dtype=float), sizes["inputs"]))
         ys.append(np.asarray(y, dtype=float))
         counts.append(s)
@@ -386,17 +422,22 @@ def _solve_arrays(jobs, max_steps: int, rtol: float, atol: float) -> dict:
 
 def _hessian(sp: StochasticProblem, vec: np.ndarray, dt: float, u, y):
     """NLL, its gradient and its exact Hessian in every parameter (``param_names`` order) at
-    the values ``vec``: one program per padded size, hold and data shape (a network without an
-    array form: per structure)."""
+    the values ``vec``: one program per padded size, hold and data shape, the record padded to
+    its bucket of samples (:func:`_pad_rows`; a network without an array form: per structure
+    and length)."""
     if not has_array_form(sp.model):
         fn = _hessian_fn(sp, (np.shape(u), np.shape(y)))
         args = (vec, np.asarray(sp.x0_std), dt, u, y)
         return fn(*(jnp.asarray(a, dtype=float) for a in args))
+    from ..fit._fit import bucket_samples
+
     sizes = padded_sizes([sp])
     arrays = tuple(jnp.asarray(a) for a in (ml_arrays(sp, sizes)[k] for k in KEYS))
     pv = np.zeros(sizes["params"])
     pv[: len(vec)] = vec
-    data = (_pad_columns(np.asarray(u, dtype=float), sizes["inputs"]), np.asarray(y, dtype=float))
+    # the record padded to its bucket: a program for records of neighbouring lengths
+    u, y = _pad_rows(u, y, bucket_samples(len(u)))
+    data = (_pad_columns(u, sizes["inputs"]), y)
     args = (jnp.asarray(pv), arrays, jnp.asarray(float(dt)), *(jnp.asarray(a) for a in data))
     shapes = tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves(args))
     hold = sp.hold
@@ -629,8 +670,10 @@ def fit_ml_many(
     rtol: float = 1e-8,
     atol: float = 1e-8,
 ) -> list[MLResult]:
-    """:func:`fit_ml` on several datasets of the same length and step, in one compiled call
-    (every start of every dataset under one ``vmap``). Returns one result per dataset."""
+    """:func:`fit_ml` on several datasets in one compiled call (every start of every dataset
+    under one ``vmap``). Datasets of different lengths are padded to the bucket of the longest
+    with missing samples, which add nothing to the likelihood, so each result is its fit
+    alone's to the optimiser's rounding. Returns one result per dataset."""
     require_x64()
     _check_settings(starts, seed, concentration, max_steps, rtol, atol)
     model = get_model(model)

@@ -136,15 +136,16 @@ def test_structures_of_one_padded_size_compile_once(short_n2):
     assert np.isfinite(second.loglik) and np.all(np.isfinite(second.hessian))
 
 
-def test_jobs_of_different_structures_in_one_solve_equal_separate_solves(short_n2):
-    """Two starts each (the shape of the fits above: the solve alone is already compiled)."""
-    jobs = []
-    for name in ("BM_TiTe", "BM_TiTh"):
-        model = jaxbox.get_model(name)
-        sp = make_stochastic_problem(model, short_n2)
-        guess = np.asarray([sp.guess_dict[k] for k in sp.free])
-        starts = np.stack([guess, sp.transform.to_physical(sp.transform.to_internal(guess) + 0.3)])
-        jobs.append((sp, starts, stochastic_arrays(model, short_n2)))
+def _two_starts(model, data):
+    """A job of ``model`` on ``data``: its guess and a start moved from it."""
+    sp = make_stochastic_problem(model, data)
+    guess = np.asarray([sp.guess_dict[k] for k in sp.free])
+    starts = np.stack([guess, sp.transform.to_physical(sp.transform.to_internal(guess) + 0.3)])
+    return sp, starts, stochastic_arrays(model, data)
+
+
+def _together_equals_alone(jobs):
+    """Each job's estimates and objective in one solve of all are its solve alone's."""
     together = solve_ml(jobs, max_steps=60)
     for i, job in enumerate(jobs):
         alone = solve_ml([job], max_steps=60)
@@ -152,6 +153,12 @@ def test_jobs_of_different_structures_in_one_solve_equal_separate_solves(short_n
         np.testing.assert_allclose(
             together["objective"][together["job"] == i], alone["objective"], rtol=1e-10
         )
+
+
+def test_jobs_of_different_structures_in_one_solve_equal_separate_solves(short_n2):
+    """Two starts each (the shape of the fits above: the solve alone is already compiled)."""
+    jobs = [_two_starts(jaxbox.get_model(name), short_n2) for name in ("BM_TiTe", "BM_TiTh")]
+    _together_equals_alone(jobs)
 
 
 def test_records_of_different_lengths_in_one_solve_equal_separate_solves(short_n2):
@@ -163,20 +170,9 @@ def test_records_of_different_lengths_in_one_solve_equal_separate_solves(short_n
     from jaxbox.stochastic._fit import _pad_rows
 
     model = jaxbox.get_model("BM_TiTe")
-    jobs = []
-    for data in (short_n2, short_n2.slice(None, short_n2.index[66])):
-        sp = make_stochastic_problem(model, data)
-        guess = np.asarray([sp.guess_dict[k] for k in sp.free])
-        starts = np.stack([guess, sp.transform.to_physical(sp.transform.to_internal(guess) + 0.3)])
-        jobs.append((sp, starts, stochastic_arrays(model, data)))
+    jobs = [_two_starts(model, d) for d in (short_n2, short_n2.slice(None, short_n2.index[66]))]
     assert [len(job[2][1]) for job in jobs] == [80, 67]
-    together = solve_ml(jobs, max_steps=60)
-    for i, job in enumerate(jobs):
-        alone = solve_ml([job], max_steps=60)
-        np.testing.assert_allclose(together["p_jobs"][i], alone["p_jobs"][0], rtol=1e-8, atol=1e-12)
-        np.testing.assert_allclose(
-            together["objective"][together["job"] == i], alone["objective"], rtol=1e-10
-        )
+    _together_equals_alone(jobs)
     # the padding: inputs held, outputs missing, nothing changed before
     _, u, y = jobs[1][2]
     up, yp = _pad_rows(u, y, 80)

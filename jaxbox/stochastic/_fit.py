@@ -35,6 +35,7 @@ from .. import _compiled
 from .._compiled import jit
 from .._exported import compile_program
 from .._x64 import require_x64
+from ..fit._fit import bucket_samples
 from ..fit._problem import FitError
 from ..fit._result import StartReport
 from ..fit._starts import sample_starts
@@ -211,15 +212,17 @@ def _pad_rows(u: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndar
     )
 
 
-def _common_length(arrays) -> int | None:
-    """The samples every record of a solve is padded to: ``None`` where they all have the same
-    length (solved as they are), else that of the longest rounded up to its bucket
+def _records(jobs) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each job's ``(u, y)`` as the solve takes it: as they are where every record has the same
+    length, else each padded (:func:`_pad_rows`) to the longest rounded up to its bucket
     (:func:`jaxbox.fit._fit.bucket_samples`), so that later solves of neighbouring lengths
-    share the program."""
-    from ..fit._fit import bucket_samples
-
-    lengths = {len(a[1]) for a in arrays}
-    return None if len(lengths) == 1 else bucket_samples(max(lengths))
+    share the program. Padding adds no finite output: the count of observations stays."""
+    records = [(u, y) for _, _, (_, u, y) in jobs]
+    lengths = {len(u) for u, _ in records}
+    if len(lengths) == 1:
+        return records
+    n = bucket_samples(max(lengths))
+    return [_pad_rows(u, y, n) for u, y in records]
 
 
 def solve_ml(
@@ -263,12 +266,13 @@ def solve_ml(
             f"datasets solved together need the same columns; got {sorted(shapes)} "
             "(inputs, outputs)"
         )
-    n_common = _common_length([a for _, _, a in jobs])
     sp0, full0 = jobs[0][0], fulls[0][0]
     n_all = len(full0.names)
     cols: list[list] = [[] for _ in range(12)]
     us, ys, counts, free_idx = [], [], [], []
-    for (sp, starts, (dt, u, y)), (full, mask, values) in zip(jobs, fulls, strict=True):
+    for (sp, starts, (dt, _, _)), (u, y), (full, mask, values) in zip(
+        jobs, _records(jobs), fulls, strict=True
+    ):
         starts = np.atleast_2d(np.asarray(starts, dtype=float))
         s = len(starts)
         idx = np.flatnonzero(mask)
@@ -284,8 +288,6 @@ def solve_ml(
             c.append(np.broadcast_to(a, (s, len(a))))
         cols[9].append(np.full(s, float(dt)))
         cols[10].append(np.full(s, float(np.isfinite(y).sum())))
-        if n_common is not None:
-            u, y = _pad_rows(u, y, n_common)
         us.append(u)
         ys.append(y)
         counts.append(s)
@@ -371,10 +373,9 @@ def _solve_arrays(jobs, max_steps: int, rtol: float, atol: float) -> dict:
         raise FitError(
             f"datasets solved together need the same outputs; got {sorted(shapes)} outputs"
         )
-    n_common = _common_length([a for _, _, a in jobs])
     sizes = padded_sizes(problems)
     z0s, members, dts, scales, us, ys, counts, free_idx = [], [], [], [], [], [], [], []
-    for sp, starts, (dt, u, y) in jobs:
+    for (sp, starts, (dt, _, _)), (u, y) in zip(jobs, _records(jobs), strict=True):
         starts = np.atleast_2d(np.asarray(starts, dtype=float))
         s = len(starts)
         idx = np.asarray([sp.param_names.index(n) for n in sp.free])
@@ -385,8 +386,6 @@ def _solve_arrays(jobs, max_steps: int, rtol: float, atol: float) -> dict:
         members.append([np.broadcast_to(arrays[k], (s, *np.shape(arrays[k]))) for k in KEYS])
         dts.append(np.full(s, float(dt)))
         scales.append(np.full(s, float(np.isfinite(y).sum())))
-        if n_common is not None:
-            u, y = _pad_rows(u, y, n_common)
         us.append(_pad_columns(np.asarray(u, dtype=float), sizes["inputs"]))
         ys.append(np.asarray(y, dtype=float))
         counts.append(s)
@@ -429,8 +428,6 @@ def _hessian(sp: StochasticProblem, vec: np.ndarray, dt: float, u, y):
         fn = _hessian_fn(sp, (np.shape(u), np.shape(y)))
         args = (vec, np.asarray(sp.x0_std), dt, u, y)
         return fn(*(jnp.asarray(a, dtype=float) for a in args))
-    from ..fit._fit import bucket_samples
-
     sizes = padded_sizes([sp])
     arrays = tuple(jnp.asarray(a) for a in (ml_arrays(sp, sizes)[k] for k in KEYS))
     pv = np.zeros(sizes["params"])

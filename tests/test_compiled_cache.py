@@ -106,6 +106,27 @@ def test_uncertainty_shares_one_program_between_structures(result) -> None:
     assert _compiles() == 1 and _entries("uncertainty") == 1
 
 
+def test_uncertainty_of_neighbouring_lengths_shares_one_program(result, monkeypatch) -> None:
+    """Records of 37, 45 and 48 samples share one compiled Jacobian (each extended to its
+    bucket of 48 samples, the extra samples dropped); each Jacobian is, to the last digit, the
+    one of a program compiled for the record's own length."""
+    import jaxbox.fit._fit as fit_module
+
+    def cut(n):
+        data = result.data.slice(end=result.data.index[n - 1])
+        return types.SimpleNamespace(problem=result.problem, params=TRUTH, data=data)
+
+    shared = {n: sensitivities(cut(n)) for n in (37, 45, N)}
+    assert _compiles() == 1 and _entries("uncertainty") == 1
+    monkeypatch.setattr(fit_module, "bucket_samples", lambda n: n)  # a program per length
+    for n, (y, J) in shared.items():
+        y_own, J_own = sensitivities(cut(n))
+        assert y.shape == (n, 1) and J.shape == (n, 1, len(result.problem.free))
+        np.testing.assert_array_equal(y, y_own)
+        np.testing.assert_array_equal(J, J_own)
+    assert _compiles() == 3  # 37 and 45 of their own; 48 is its own bucket
+
+
 def test_collocation_compiles_once(result) -> None:
     options = {"hessian": "gauss-newton", "max_iterations": 3}
     first = collocation_fit("Zon", result.data, **options)

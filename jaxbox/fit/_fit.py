@@ -56,6 +56,7 @@ from jaxtyping import Float
 from .. import _compiled
 from .._compiled import jit
 from .._exported import compile_program
+from ..simulate._extend import extend_times, hold_rows
 from ..simulate._parallel import _PARALLEL_BATCH, normal_equations_auto, prefer_parallel
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS
 from ._problem import FitError, Problem
@@ -466,13 +467,8 @@ def _pad_samples(data, n: int):
     k = int(n) - len(t)
     if k <= 0:
         return data
-    step = t[1] - t[0]
-
-    def hold(a):
-        return np.concatenate([a, np.repeat(a[-1:], k, axis=0)], axis=0)
-
-    t = np.concatenate([t, t[-1] + step * np.arange(1, k + 1)])
-    return t, hold(u), hold(y), np.concatenate([w, np.zeros((k, *w.shape[1:]))], axis=0)
+    w = np.concatenate([w, np.zeros((k, *w.shape[1:]))], axis=0)
+    return extend_times(t, n), hold_rows(u, n), hold_rows(y, n), w
 
 
 def _input_layout(problems, datas, bucket: bool = False, least: int = 0):

@@ -32,6 +32,8 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
+from ._extend import extend_times, hold_rows
+
 if TYPE_CHECKING:  # imported where it integrates: the exact route never loads it (0.2 s)
     import diffrax
 
@@ -239,10 +241,7 @@ def diffrax_runs_numpy(
     t = np.asarray(t, float)
     n_samples = len(t)
     n_run = run_length(n_samples)
-    if n_run > n_samples:
-        dt = t[-1] - t[-2] if n_samples > 1 else 1.0
-        t = np.concatenate([t, t[-1] + dt * np.arange(1, n_run - n_samples + 1)])
-        Up = np.concatenate([Up, np.repeat(Up[:, -1:], n_run - n_samples, axis=1)], axis=1)
+    t, Up = extend_times(t, n_run), hold_rows(Up, n_run, axis=1)
     options = (("atol", float(atol)), ("rtol", float(rtol)))
     key = ("diffrax-runs", n_pad, m_pad, Up.shape[0], Up.shape[1], options)
     args = (Ap, Bp, t, Up, X0, np.float64(n))

@@ -41,6 +41,7 @@ from ..fit._result import StartReport
 from ..fit._starts import sample_starts
 from ..fit._transforms import Transform, to_physical_coded
 from ..models import get_model
+from ..simulate._extend import hold_rows
 from ._arrays import KEYS, has_array_form, ml_arrays, padded_sizes, system_from_arrays
 from ._checks import as_data, as_datasets, number
 from ._kalman import kalman_scan
@@ -206,10 +207,7 @@ def _pad_rows(u: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndar
     extra = n - len(u)
     if extra <= 0:
         return u, y
-    return (
-        np.concatenate([u, np.repeat(u[-1:], extra, axis=0)]),
-        np.concatenate([y, np.full((extra, y.shape[1]), np.nan)]),
-    )
+    return hold_rows(u, n), np.concatenate([y, np.full((extra, y.shape[1]), np.nan)])
 
 
 def _records(jobs) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -294,10 +294,13 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     Sizes are rounded up (states and inputs to multiples of 8, free parameters to 24…) so that
     the structures of a search share one or two programs (one simulation each: the padding
     costs little); padding states are inert and padding parameters are referenced by nothing,
-    so their Jacobian columns are zero and dropped.
+    so their Jacobian columns are zero and dropped. The record is extended to its bucket of
+    samples (:func:`~jaxbox.fit._fit.bucket_samples`), so that records of neighbouring lengths
+    (a fleet's buildings, the periods of a selection) share the program too.
     """
-    from ..fit._fit import _RC_KEYS, _round_up
+    from ..fit._fit import _RC_KEYS, _round_up, bucket_samples
     from ..models._network import ModelError
+    from ..simulate._extend import extend_times, hold_rows
 
     model = problem.model
     if problem.simulator != "exact" or any(node.constant for node in model.network.nodes):
@@ -322,20 +325,25 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     # every shape, in every process (tens of ms each)
     arrays = tuple(np.asarray(arrays[k]) for k in _RC_KEYS)
     segmented = model.segments > 1
-    key = ("uncertainty", "rc", segmented, len(t), width, fixed_width, m_pad, *sizes.values())
+    # the record extended to its bucket of samples (the times at the data's step, the inputs
+    # held): records of neighbouring lengths share the program, and the samples beyond the
+    # record, which no earlier state depends on, are dropped
+    n_samples = len(t)
+    n_run = bucket_samples(n_samples)
+    key = ("uncertainty", "rc", segmented, n_run, width, fixed_width, m_pad, *sizes.values())
     key += (len(problem.output_states), model.segments)
     p_pad = np.concatenate([np.asarray(p, dtype=float), np.ones(width - n_free)])
     q_pad = np.concatenate([np.asarray(fixed_values, dtype=float), np.ones(fixed_width - n_fixed)])
-    u_pad = np.pad(np.asarray(u, dtype=float), ((0, 0), (0, m_pad - m)))
+    u_pad = hold_rows(np.pad(np.asarray(u, dtype=float), ((0, 0), (0, m_pad - m))), n_run)
     out_idx = np.asarray(problem.output_states)
-    args = (p_pad, q_pad, np.asarray(t, dtype=float), u_pad, arrays, out_idx)
+    args = (p_pad, q_pad, extend_times(t, n_run), u_pad, arrays, out_idx)
     key += tuple((a.shape, str(a.dtype)) for a in jax.tree_util.tree_leaves(args))
 
     def build():  # compiled for these shapes, kept for later processes (jaxbox._exported)
         return compile_program("uncertainty", key, _build_rc_jacobian(segmented), args)
 
     ysim, J = cached(key, build)[0](*args)
-    return np.asarray(ysim), np.asarray(J)[..., :n_free]
+    return np.asarray(ysim)[:n_samples], np.asarray(J)[:n_samples, ..., :n_free]
 
 
 def _build_rc_jacobian(segmented: bool):

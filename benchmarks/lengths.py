@@ -137,9 +137,7 @@ def main() -> None:
     old, new = runs["old"][0], runs["new"][0]
     # each code the one its processes imported
     assert old["jaxbox"].startswith(old_path) and new["jaxbox"].startswith(str(ROOT))
-    best = {
-        k: {m: min(r.get(m, float("nan")) for r in v) for m in _PHASES} for k, v in runs.items()
-    }
+    best = {k: {m: min(r[m] for r in v) for m in _PHASES} for k, v in runs.items()}
     rel = lambda a, b: max(abs(x / y - 1) for x, y in zip(a, b, strict=True))  # noqa: E731
     out = {
         "date": time.strftime("%Y-%m-%d %H:%M"),

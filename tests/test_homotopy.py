@@ -1,6 +1,6 @@
 """The observer-gain continuation of the fit: the fused normal equations with an observer gain
-against autodiff of an independent recursion, the stages of the batched multistart, and the
-checks of the ``homotopy`` argument."""
+against complex-step derivatives of an independent recursion, the stages of the batched
+multistart, and the checks of the ``homotopy`` argument."""
 
 import jax
 import jax.numpy as jnp
@@ -19,29 +19,32 @@ N_STATES, N_INPUTS, N_SAMPLES = 3, 2, 23
 OUTPUTS = (0, 2)
 
 
-def _matrices(v):
-    """A small stable discrete system whose matrices depend smoothly on ``v`` [4]."""
-    a = jnp.asarray([[0.80, 0.10, 0.00], [0.05, 0.90, 0.03], [0.00, 0.10, 0.70]])
-    Phi = a * (1.0 + 0.1 * jnp.tanh(v[0])) + 0.02 * v[1] * jnp.eye(N_STATES)
-    G0 = jnp.asarray([[0.10, 0.02], [0.00, 0.05], [0.03, 0.00]]) * jnp.exp(0.2 * v[2])
+def _matrices(v, xp=jnp):
+    """A small stable discrete system whose matrices depend smoothly on ``v`` [4] (``xp``:
+    ``jax.numpy``, or ``numpy`` for the complex-step reference)."""
+    a = xp.asarray([[0.80, 0.10, 0.00], [0.05, 0.90, 0.03], [0.00, 0.10, 0.70]])
+    Phi = a * (1.0 + 0.1 * xp.tanh(v[0])) + 0.02 * v[1] * xp.eye(N_STATES)
+    G0 = xp.asarray([[0.10, 0.02], [0.00, 0.05], [0.03, 0.00]]) * xp.exp(0.2 * v[2])
     G1 = 0.3 * G0 * v[1]
-    x0 = jnp.asarray([20.0, 15.0, 18.0]) + v[3] * jnp.asarray([1.0, -2.0, 0.5])
+    x0 = xp.asarray([20.0, 15.0, 18.0]) + v[3] * xp.asarray([1.0, -2.0, 0.5])
     return Phi, G0, G1, x0
 
 
 def _reference_residuals(v, gain, u, y, w):
-    """The observer recursion written out sample by sample: the residual at sample k is the
-    prediction's, then the measured states are pulled towards their measurements."""
-    Phi, G0, G1, x = _matrices(v)
-    out = jnp.asarray(OUTPUTS)
+    """The observer recursion written out sample by sample in NumPy (complex ``v`` allowed): the
+    residual at sample k is the prediction's, then the measured states are pulled towards their
+    measurements."""
+    Phi, G0, G1, x = _matrices(v, np)
+    out = list(OUTPUTS)
     res = []
     for k in range(u.shape[0]):
         pred = x[out]
         res.append(w[k] * (pred - y[k]))
         if k + 1 < u.shape[0]:
-            corr = x.at[out].add(-gain * (w[k] > 0) * (pred - y[k]))
+            corr = x.copy()
+            corr[out] += -gain * (w[k] > 0) * (pred - y[k])
             x = Phi @ corr + G0 @ u[k] + G1 @ (u[k + 1] - u[k])
-    return jnp.concatenate(res)
+    return np.concatenate(res)
 
 
 @pytest.fixture(scope="module")
@@ -61,16 +64,20 @@ def _fused(prim, tang, gain, u, y, w):
     return normal_equations(prim, tang, OUTPUTS, u, y, w, chunk=4, gain=gain)
 
 
-@jax.jit
 def _written_out(v, gain, u, y, w):
-    """The written-out recursion's residuals and their Jacobian (autodiff), compiled once."""
-    ref = lambda v: _reference_residuals(v, gain, u, y, w)  # noqa: E731
-    return ref(v), jax.jacfwd(ref)(v)
+    """The written-out recursion's residuals and their Jacobian by complex steps (exact to
+    rounding for this analytic recursion, and independent of JAX's differentiation)."""
+    v = np.asarray(v, float)
+    h = 1e-30
+    J = np.stack(
+        [_reference_residuals(v + 1j * h * e, gain, u, y, w).imag / h for e in np.eye(len(v))], 1
+    )
+    return _reference_residuals(v, gain, u, y, w), J
 
 
 @pytest.mark.parametrize("gains", [(0.0, 0.0), (0.9, 0.3), (1.0, 0.05)])
 def test_normal_equations_with_an_observer_gain(series, gains):
-    """Cost, Jᵀr and JᵀJ of the fused pass with a per-member gain equal those of autodiff
+    """Cost, Jᵀr and JᵀJ of the fused pass with a per-member gain equal those of complex steps
     through the written-out recursion (chunks of 4 samples, so a chunk is padded)."""
     u, y, w = series
     V = jnp.asarray([[0.1, 0.2, -0.3, 0.4], [-0.2, 0.1, 0.2, -0.1]])

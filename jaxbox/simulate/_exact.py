@@ -77,6 +77,24 @@ def discretize_foh_numpy(A, B, dt):
     return E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
 
 
+def exact_runs_numpy(A, B, C, D, dt, u, x0):
+    """Outputs [S, N, p] and states [S, N, n] of S runs of the exact first-order-hold recursion
+    from ``x0`` [S, n] with inputs ``u`` [S, N, m] at the step ``dt`` [s] (NumPy: post-simulating
+    a structure costs no compilation; the recursion is a loop over the samples)."""
+    Phi, G0, G1 = discretize_foh_numpy(A, B, dt)
+    u = np.asarray(u, float)
+    drive = u[:, :-1] @ G0.T + (u[:, 1:] - u[:, :-1]) @ G1.T  # [S, N-1, n]
+    S, N = u.shape[:2]
+    xs = np.empty((S, N, Phi.shape[0]))
+    x = np.asarray(x0, float)
+    xs[:, 0] = x
+    PhiT = Phi.T
+    for k in range(N - 1):
+        x = x @ PhiT + drive[:, k]
+        xs[:, k + 1] = x
+    return xs @ np.asarray(C, float).T + u @ np.asarray(D, float).T, xs
+
+
 def phi_functions(x):
     """``(φ0, φ1, φ2, φ3)`` of ``x`` elementwise: ``φ0 = eˣ``, ``φ_{k+1}(x) = (φ_k(x) − 1/k!)/x``.
 

@@ -13,7 +13,7 @@ import numpy as np
 from .._x64 import require_x64
 from ..models import ModelError, RCModel
 from ._diffrax import diffrax_runs_numpy, simulate_diffrax
-from ._exact import discretize_foh, simulate_exact, simulate_foh_segments
+from ._exact import discretize_foh, exact_runs_numpy, simulate_exact, simulate_foh_segments
 from ._parallel import simulate_parallel
 
 __all__ = ["Simulation", "simulate_model", "simulate_arrays", "check_theta", "METHODS"]
@@ -312,6 +312,27 @@ def simulate_model(
         x = np.concatenate(
             [
                 diffrax_runs_numpy(A, B, t[a:b] - t[a], u[None, a:b], starts[k][None], **options)[0]
+                for k, (a, b) in enumerate(parts)
+            ]
+        )
+        return _checked(model, t, x @ C.T + u @ D.T, x)
+    if method == "exact":
+        # in NumPy (the same Van Loan exponential and recursion as the compiled route, to
+        # rounding): a simulation compiles nothing, whatever its structure or length
+        values = {k: float(np.asarray(v)) for k, v in theta.items()}
+        A, B, C, D = model.state_space_numpy(values)
+        dt = float(t[1] - t[0])
+        if x0 is None:
+            starts = np.asarray(model.initial_states(values), float)
+            parts = _segments(np.asarray(t, float)) if model.segments > 1 else [(0, len(t))]
+        else:
+            starts, parts = np.asarray(x0, float)[None], [(0, len(t))]
+        u = np.asarray(u, float)
+        x = np.concatenate(
+            [
+                exact_runs_numpy(
+                    A, B, C, D, dt, u[None, a:b], starts[min(k, len(starts) - 1)][None]
+                )[1][0]
                 for k, (a, b) in enumerate(parts)
             ]
         )

@@ -18,7 +18,7 @@ import numpy as np
 from .._x64 import require_x64
 from ..simulate import diffrax_runs_numpy
 from ..simulate._diffrax import ADAPTIVE_ATOL, ADAPTIVE_RTOL
-from ..simulate._exact import discretize_foh_numpy
+from ..simulate._exact import discretize_foh_numpy, exact_runs_numpy
 from ._metrics import rmse, simulation_error
 
 __all__ = ["Validation", "validate", "ValidationError", "CARRY_GAP"]
@@ -431,24 +431,6 @@ def _across_gap(model, params, x, u0, u1, gap):
     A, B, _, _ = model.state_space_numpy({k: float(v) for k, v in params.items()})
     Phi, G0, G1 = discretize_foh_numpy(A, B, gap)
     return Phi @ np.asarray(x) + G0 @ u0 + G1 @ (u1 - u0)
-
-
-def exact_runs_numpy(A, B, C, D, dt, u, x0):
-    """Outputs [S, N, p] and states [S, N, n] of S runs of the exact first-order-hold recursion
-    from ``x0`` [S, n] with inputs ``u`` [S, N, m] at the step ``dt`` [s] (NumPy: post-simulating
-    a structure costs no compilation; the recursion is a loop over the samples)."""
-    Phi, G0, G1 = discretize_foh_numpy(A, B, dt)
-    u = np.asarray(u, float)
-    drive = u[:, :-1] @ G0.T + (u[:, 1:] - u[:, :-1]) @ G1.T  # [S, N-1, n]
-    S, N = u.shape[:2]
-    xs = np.empty((S, N, Phi.shape[0]))
-    x = np.asarray(x0, float)
-    xs[:, 0] = x
-    PhiT = Phi.T
-    for k in range(N - 1):
-        x = x @ PhiT + drive[:, k]
-        xs[:, k + 1] = x
-    return xs @ np.asarray(C, float).T + u @ np.asarray(D, float).T, xs
 
 
 def _simulate(model, params, t, u, x0, method, options):

@@ -278,11 +278,12 @@ def simulate_model(
         model: an :class:`~jaxbox.models.RCModel` (or a library model name).
         theta: parameter values in SI units (``None``: the model's defaults).
         data: a :class:`~jaxbox.data.Dataset` holding the model's inputs at a regular step.
-        method: ``"exact"`` (default), ``"parallel"`` (exact, parallel in time: the choice on a
-            GPU, where it is 5× faster at 500 samples and 240× at 50 000 than the sequential
-            scan; slower on a CPU) or ``"diffrax"`` (adaptive Kvaerno3, ``rtol``/``atol``;
-            with no other option, one compiled program serves every model of a padded size:
-            :func:`~jaxbox.simulate.diffrax_runs_numpy`).
+        method: ``"exact"`` (default; run in NumPy, so no program is compiled for a new
+            structure or length: :func:`simulate_arrays` is the JAX route), ``"parallel"``
+            (exact, parallel in time: the choice on a GPU, where it is 5× faster at 500 samples
+            and 240× at 50 000 than the sequential scan; slower on a CPU) or ``"diffrax"``
+            (adaptive Kvaerno3, ``rtol``/``atol``; with no other option, one compiled program
+            serves every model of a padded size: :func:`~jaxbox.simulate.diffrax_runs_numpy`).
         x0: initial state [°C] overriding the ``T_*0`` parameters.
 
     Returns:

@@ -114,21 +114,20 @@ SUBDIVISIONS = (1, 2, 4, 8)
 
 @pytest.fixture(scope="module")
 def order_data():
-    """Collocation state errors at the samples for n_c = 1, 2, 3 and 1, 2, 4, 8 elements per
-    sample interval, against the exact solution and the adaptive diffrax post-simulation."""
-    data, _ = synthetic("ZonWal", ZONWAL)  # the inputs of the agreement tests; own parameters
+    """The order problem (ZonWal, fast zone dynamics, two days of the agreement tests' inputs),
+    its exact states at the samples and the collocation states for n_c = 1, 2, 3 and 1, 2, 4, 8
+    elements per sample interval."""
+    data, _ = synthetic("ZonWal", ZONWAL, n=48)
     theta = ZONWAL_FAST
     model = get_model("ZonWal")
     exact = van_loan_states(model, theta, data)
-    ref = simulate_model(model, theta, data, method="diffrax", rtol=1e-12, atol=1e-12).x
-    err_exact, err_diffrax = {}, {}
-    for n_c in (1, 2, 3):
-        xs = [
+    xs = {
+        n_c: [
             collocation_simulate(model, theta, data, n_c=n_c, subdivide=s).x for s in SUBDIVISIONS
         ]
-        err_exact[n_c] = np.array([np.max(np.abs(x - exact)) for x in xs])
-        err_diffrax[n_c] = np.array([np.max(np.abs(x - ref)) for x in xs])
-    return err_exact, err_diffrax, np.max(np.abs(ref - exact))
+        for n_c in (1, 2, 3)
+    }
+    return model, theta, data, exact, xs
 
 
 def observed_orders(errors: np.ndarray) -> np.ndarray:
@@ -138,20 +137,31 @@ def observed_orders(errors: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("n_c", [1, 2, 3])
 def test_state_error_shrinks_at_the_radau_order(order_data, n_c: int) -> None:
-    err_exact, err_diffrax, diffrax_error = order_data
+    *_, exact, xs = order_data
+    errors = np.array([np.max(np.abs(x - exact)) for x in xs[n_c]])
     theory = 2 * n_c - 1
-    orders = observed_orders(err_exact[n_c])
+    orders = observed_orders(errors)
     # asymptotic order from the last halving, and a least-squares slope over the last three
     assert abs(orders[-1] - theory) <= 0.5, (n_c, orders)
-    slope = -np.polyfit(np.log(SUBDIVISIONS[1:]), np.log(err_exact[n_c][1:]), 1)[0]
+    slope = -np.polyfit(np.log(SUBDIVISIONS[1:]), np.log(errors[1:]), 1)[0]
     assert abs(slope - theory) <= 0.5, (n_c, slope)
-    # the same order measured against the adaptive diffrax post-simulation, as long as the
-    # collocation error stays well above the diffrax error
+
+
+@pytest.mark.slow
+def test_the_radau_order_holds_against_the_adaptive_post_simulation(order_data) -> None:
+    """The same orders measured against the adaptive diffrax post-simulation at tight
+    tolerances (another reference than the exact solution), as long as the collocation error
+    stays well above the diffrax error."""
+    model, theta, data, exact, xs = order_data
+    ref = simulate_model(model, theta, data, method="diffrax", rtol=1e-12, atol=1e-12).x
+    diffrax_error = np.max(np.abs(ref - exact))
     assert diffrax_error < 1e-8
-    usable = err_diffrax[n_c] > 1e2 * diffrax_error
-    assert usable.sum() >= 3
-    orders_d = observed_orders(err_diffrax[n_c][usable])
-    assert abs(orders_d[-1] - theory) <= 0.5, (n_c, orders_d)
+    for n_c in (1, 2, 3):
+        errors = np.array([np.max(np.abs(x - ref)) for x in xs[n_c]])
+        usable = errors > 1e2 * diffrax_error
+        assert usable.sum() >= 3, n_c
+        orders = observed_orders(errors[usable])
+        assert abs(orders[-1] - (2 * n_c - 1)) <= 0.5, (n_c, orders)
 
 
 def test_collocation_simulation_nodes() -> None:

@@ -111,6 +111,8 @@ def _read_back(tmp_path, monkeypatch, pattern, run, same):
     same(again, direct)
 
 
+# three compilations of a large program; the fit's read-back (fast tier) shares the mechanism
+@pytest.mark.slow
 def test_the_adaptive_post_simulation_is_read_back(tmp_path, monkeypatch):
     """The diffrax post-simulation of a validation (the most of a later ``jaxbox fit``'s
     tracing) goes through an export too, and runs to the last digit as compiled directly."""
@@ -131,6 +133,8 @@ def test_the_adaptive_post_simulation_is_read_back(tmp_path, monkeypatch):
     _read_back(tmp_path, monkeypatch, "diffrax-runs-*.bin", run, same)
 
 
+# three compilations of a large program; the fit's read-back (fast tier) shares the mechanism
+@pytest.mark.slow
 def test_a_maximum_likelihood_fit_is_read_back(data, tmp_path, monkeypatch):
     """The stochastic fit's solve and its Hessian at the optimum (most of a later ``jaxbox
     fit --method ml``'s tracing) go through exports too, with the same results."""

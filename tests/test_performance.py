@@ -16,7 +16,7 @@ from jaxbox.fit import compile_cache_info, fit_model, make_problem, problem_arra
 from jaxbox.fit._fit import solve_jobs, solve_starts
 from jaxbox.models import get_model, list_models
 from jaxbox.simulate import discretize_foh
-from jaxbox.simulate._exact import discretize_foh_rc, simulate_exact
+from jaxbox.simulate._exact import discretize_foh_numpy, discretize_foh_rc, simulate_exact
 from jaxbox.simulate._parallel import linear_recurrence, simulate_parallel
 
 TRUTH = {"C_zon": 3.0e6, "C_wal": 4.0e7, "R_wal": 0.012, "gA": 2.5, "T_zon0": 26.0, "T_wal0": 19.0}
@@ -130,6 +130,7 @@ def test_records_of_different_lengths_batch_together_and_share_a_program():
     np.testing.assert_array_equal(wp[:, 0], [1.0, 1.0, 1.0, 0.0, 0.0])
 
 
+@pytest.mark.slow  # 20,000 samples
 def test_long_series_memory_is_bounded():
     """20,000 samples (a scaled-down year of 10-minute data): the solve's memory stays a few bytes
     per sample, no Jacobian or reverse-mode tape of the series is kept."""
@@ -151,7 +152,7 @@ def test_long_series_memory_is_bounded():
     assert mem[20_000] < 12 * mem[2_000]
 
 
-@pytest.mark.parametrize("n", [2, 7, 481])
+@pytest.mark.parametrize("n", [2, 7, pytest.param(481, marks=pytest.mark.slow)])
 def test_parallel_and_sequential_simulation_agree(n):
     model = get_model("ZonWalIntInfWinBouC")
     theta = model.defaults()
@@ -191,8 +192,8 @@ def test_linear_recurrence_carries_trailing_axes():
 @pytest.mark.parametrize("name", list_models())
 def test_rc_route_matches_the_model_and_the_block_exponential(name):
     """The model's one assembly of A, B (incidence matrices) and the fit's discretisation
-    through eigh: the same numbers as the Van Loan exponential for every library model, and
-    ``state_space`` is that assembly."""
+    through eigh: the same numbers as the Van Loan exponential (SciPy's) for every library
+    model, and ``state_space`` is that assembly."""
     model = get_model(name)
     rng = np.random.default_rng(7)
     theta = {k: v * (1 + 0.3 * rng.random()) for k, v in model.defaults().items()}
@@ -202,7 +203,7 @@ def test_rc_route_matches_the_model_and_the_block_exponential(name):
     np.testing.assert_allclose(B, B0, rtol=1e-13, atol=1e-20)
     for dt in (600.0, 3600.0):
         for got, ref in zip(
-            discretize_foh_rc(A, B, caps, dt, held), discretize_foh(A0, B0, dt), strict=True
+            discretize_foh_rc(A, B, caps, dt, held), discretize_foh_numpy(A0, B0, dt), strict=True
         ):
             scale = float(jnp.max(jnp.abs(ref)))
             np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * scale)

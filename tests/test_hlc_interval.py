@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from jaxbox.data import Dataset
-from jaxbox.fit import fit_many, fit_model
+from jaxbox.fit import fit_batch, fit_many, fit_model
 from jaxbox.simulate import simulate_model
 from jaxbox.validate import (
     fit_report,
@@ -221,7 +221,9 @@ def test_an_offset_beside_an_unused_boundary_is_named():
     clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
     y = simulate_model("Zon+BouC", truth, clean).y[:, 0]
     data = clean.with_columns(T_zon=y + rng.normal(0, 0.05, n))
-    fits = {m: fit_model(m, data, starts=4) for m in ("Zon+Int+Off", "Zon+BouC", "Zon+Off")}
+    names = ("Zon+Int+Off", "Zon+BouC", "Zon+Off")  # one batch, as a search fits them
+    batch = fit_batch([{"model": m, "data": data, "starts": 4} for m in names])
+    fits = dict(zip(names, batch, strict=True))
     assert fits["Zon+Int+Off"].params["Q_off"] < 0 < fits["Zon+Off"].params["Q_off"]
     (w,) = _offset_warnings(fits["Zon+Int+Off"], data)
     assert "T_bou" in w and "lost to" in w

@@ -425,11 +425,12 @@ def _write(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def write_section(path: Path, text: str) -> None:
-    """Replace (or append) the section :data:`SECTION` of the markdown file ``path``."""
+def write_section(path: Path, text: str, section: str = SECTION) -> None:
+    """Replace (or append) the section ``section`` (a ``## `` heading, by default
+    :data:`SECTION`) of the markdown file ``path``, up to the next such heading."""
     old = path.read_text() if path.exists() else ""
-    if SECTION in old:
-        head, rest = old.split(SECTION, 1)
+    if section in old:
+        head, rest = old.split(section, 1)
         nxt = rest.find("\n## ")
         tail = "" if nxt < 0 else rest[nxt + 1 :]
         new = head + text + ("\n" + tail if tail else "")

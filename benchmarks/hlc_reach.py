@@ -119,17 +119,22 @@ def _summary(rows: list[dict]) -> dict:
     }
 
 
-MARGINS = (0.0, 0.02, 0.05, 0.1, 0.25, 1.0)
+MARGINS = (0.02, 0.05, 0.1, 0.25, 0.5, 1.0)
 
 
 def _near(r: dict, margin: float) -> list[float]:
-    """The HLC errors of the valid candidates whose criterion is within ``margin`` (relative)
-    of the accepted model's, the accepted model's first."""
+    """The HLC errors of the candidates not found invalid (valid, or left unjudged by the
+    search, which judges lazily) whose criterion is within ``margin`` (relative) of the
+    accepted model's, the accepted model's first."""
     acc = next((c for c in r["candidates"] if c["accepted"]), None)
     if acc is None:
         return []
     lim = (1.0 + margin) * acc["score"]
-    near = [c["error"] for c in r["candidates"] if c["valid"] is True and c["score"] <= lim]
+    near = [
+        c["error"]
+        for c in r["candidates"]
+        if c is not acc and c["valid"] is not False and c["score"] <= lim
+    ]
     return [acc["error"], *near]
 
 
@@ -148,7 +153,7 @@ def _margins(rows: list[dict]) -> list[str]:
         for r, e in zip(ok, spans, strict=True):
             lo, hi = (1.0 + min(e)) / (1.0 + r["error"]), (1.0 + max(e)) / (1.0 + r["error"])
             narrow += lo >= 0.75 and hi <= 1.25
-        n_in = float(np.median([len(set(e)) for e in spans])) if spans else 0.0
+        n_in = float(np.median([len(e) for e in spans])) if spans else 0.0
         out.append(f"| {m:.0%} | {n_in:.0f} | {_pct(cover, len(ok))} | {_pct(narrow, len(ok))} |")
     return out
 
@@ -212,11 +217,12 @@ def markdown(doc: dict) -> str:
             )
         lines += [
             "",
-            "The span of the HLC point estimates of the valid candidates whose criterion (the "
-            "validation SE) is within a margin of the accepted model's, as the structure part "
-            "of `hlc_interval` takes them (there at 2 %, each with its own interval, which "
-            "widens the span further): how often it holds the truth, and how often it stays "
-            "within ±25 % of the accepted HLC:",
+            "The span of the HLC point estimates of the candidates not found invalid (valid, "
+            "or not judged: the search judges validity lazily) whose criterion (the validation "
+            "SE) is within a margin of the accepted model's, as the structure part of "
+            "`hlc_interval` takes them (there at 2 %, each with its own interval, which widens "
+            "the span further): how often it holds the truth, and how often it stays within "
+            "±25 % of the accepted HLC:",
             "",
             *_margins(rows),
         ]

@@ -48,7 +48,7 @@ def run_one(b) -> dict:
     """The search on building ``b`` and the HLC of every candidate it fitted."""
     import jaxbox
     from jaxbox.data import DataWarning
-    from jaxbox.validate import kpi_values
+    from jaxbox.validate import hlc_interval, kpi_values, kpis
 
     truth = float(b.kpis["hlc"])
     row = {"building": b.name, "heating": b.heating, "heater": b.heater, "step": b.step}
@@ -87,11 +87,16 @@ def run_one(b) -> dict:
         if acc is not None:
             row["accepted"] = acc["model"]
             row["error"] = acc["error"]
+            try:  # the interval `select` reports
+                row["ci95"] = [float(v) for v in hlc_interval(s).ci95]
+            except Exception as err:  # noqa: BLE001
+                row["ci_failed"] = f"{type(err).__name__}: {err}"[:200]
             whole = jaxbox.GreyBox(b.data, name=b.name, train=(None, None), valid=False, **held)
             try:
                 case = whole.identify(acc["model"])
                 h = kpi_values(case.model, case.result.params).get("hlc")
                 row["whole_error"] = float(h) / truth - 1.0
+                row["whole_ci95"] = [float(v) for v in kpis(case.result, interval="hac").hlc.ci95]
             except Exception as err:  # noqa: BLE001 - a benchmark row records any failure
                 row["whole_failed"] = f"{type(err).__name__}: {err}"[:200]
     return row
@@ -116,7 +121,26 @@ def _summary(rows: list[dict]) -> dict:
         "closest_valid": sum(_closest(r["candidates"], True) <= WITHIN for r in rows),
         "closest_any": sum(_closest(r["candidates"], False) <= WITHIN for r in rows),
         "span": sum(_span(r["candidates"]) for r in rows),
+        "covers": sum(_covers(r, "ci95") for r in ok),
+        "whole_covers": sum(_covers(r, "whole_ci95") for r in ok),
+        "narrow": sum(_narrow(r, "ci95", r["error"]) for r in ok),
+        "whole_narrow": sum(_narrow(r, "whole_ci95", r.get("whole_error", np.nan)) for r in ok),
+        "intervals": sum("ci95" in r for r in ok),
     }
+
+
+def _covers(r: dict, key: str) -> bool:
+    ci = r.get(key)
+    return ci is not None and ci[0] <= r["hlc_true"] <= ci[1]
+
+
+def _narrow(r: dict, key: str, error: float) -> bool:
+    """The interval ``key`` no wider than ±25 % of its own HLC."""
+    ci = r.get(key)
+    if ci is None or not np.isfinite(error):
+        return False
+    value = r["hlc_true"] * (1.0 + error)
+    return 0.5 * (ci[1] - ci[0]) <= 0.25 * abs(value)
 
 
 MARGINS = (0.02, 0.05, 0.1, 0.25, 0.5, 1.0)
@@ -193,6 +217,24 @@ def markdown(doc: dict) -> str:
         lines.append(
             f"| {label} | {n} | {_pct(s['accepted'], n)} | {_pct(s['whole'], n)} | "
             f"{_pct(s['closest_valid'], n)} | {_pct(s['closest_any'], n)} | {_pct(s['span'], n)} |"
+        )
+    lines.append("")
+    lines += [
+        "The 95 % interval `select` reports (`hlc_interval`, on the identification half) against "
+        "the accepted structure's own HAC interval refitted on the whole record (covers the "
+        "truth / no wider than ±25 %):",
+        "",
+        "| data | buildings | `select`'s interval covers | narrow | whole record covers | narrow |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for label, rows in groups:
+        s = _summary(rows)
+        if not s["intervals"]:
+            continue
+        n = s["n"]
+        lines.append(
+            f"| {label} | {n} | {_pct(s['covers'], n)} | {_pct(s['narrow'], n)} | "
+            f"{_pct(s['whole_covers'], n)} | {_pct(s['whole_narrow'], n)} |"
         )
     lines.append("")
     rows = doc.get("rows", [])

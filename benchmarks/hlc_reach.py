@@ -93,10 +93,9 @@ def run_one(b) -> dict:
                 row["ci_failed"] = f"{type(err).__name__}: {err}"[:200]
             whole = jaxbox.GreyBox(b.data, name=b.name, train=(None, None), valid=False, **held)
             try:
-                case = whole.identify(acc["model"])
-                h = kpi_values(case.model, case.result.params).get("hlc")
-                row["whole_error"] = float(h) / truth - 1.0
-                row["whole_ci95"] = [float(v) for v in kpis(case.result, interval="hac").hlc.ci95]
+                hlc = kpis(whole.identify(acc["model"]).result, interval="hac").hlc
+                row["whole_error"] = float(hlc.value) / truth - 1.0
+                row["whole_ci95"] = [float(v) for v in hlc.ci95]
             except Exception as err:  # noqa: BLE001 - a benchmark row records any failure
                 row["whole_failed"] = f"{type(err).__name__}: {err}"[:200]
     return row

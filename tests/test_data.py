@@ -355,7 +355,7 @@ def test_dates_and_clock_times_in_two_columns() -> None:
     ds = load(df, time=["Date", "time"])
     assert (ds.index == STAMPS).all() and ds.columns == ("T_zon",)
     renamed = df.rename(columns={"time": "Time"})
-    with pytest.raises(DataError, match=r"or time=\['Date', 'Time'\] \(command line: --tim"):
+    with pytest.raises(DataError, match=r"clock times.*time=\['Date', 'Time'\] \(command line"):
         load(renamed)
     with pytest.raises(DataError, match=r"which is the time column"):
         load(renamed, time=["Date", "Time"], columns={"T_amb": "Date"})
@@ -773,3 +773,20 @@ def test_first_values_skip_a_leading_gap_and_follow_new_columns():
     assert ds.first_values(["T_zon"]) == {"T_zon": 20.5}
     empty = ds.with_columns(T_bou=np.full(4, np.nan))
     assert empty.first_values(["T_bou"]) == {}
+
+
+def test_time_column_by_another_case_or_an_unnamed_index(tmp_path) -> None:
+    """'Time' (any case), 'timestamp', 'datetime', or the unnamed first column a DataFrame's
+    index leaves in a CSV, read without time=; two candidates or unreadable stamps are not."""
+    df = frame()
+    assert list(load(df.rename(columns={"time": "Time"})).columns) == list(load(df).columns)
+    assert len(load(df.rename(columns={"time": "TIMESTAMP"})).frame) == len(df)
+    path = tmp_path / "indexed.csv"
+    df.set_index("time").rename_axis(None).to_csv(path)
+    assert pd.read_csv(path).columns[0] == "Unnamed: 0"
+    pd.testing.assert_frame_equal(load(path).frame, load(df).frame, check_freq=False)
+    numbered = tmp_path / "numbered.csv"
+    df.to_csv(numbered)  # an integer index: not the time, and 'time' is found
+    assert len(load(numbered).frame) == len(df)
+    with pytest.raises(DataError, match="no time column found"):
+        load(df.rename(columns={"time": "Time"}).assign(TIME=1.0))

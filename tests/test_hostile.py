@@ -831,3 +831,22 @@ def test_a_sensor_taken_with_stuck_hours_is_not_refused_by_the_verdict(
     doc = json.loads(out.out)
     said = [*doc["reasons"], *doc["warnings"]]
     assert said and not [r for r in said if "stays exactly" in r], said
+
+
+def test_the_command_line_keeps_a_column_name_as_it_is_and_names_the_signals_in_gaps():
+    """A column 'AUX2  [W]' (two spaces) is quoted as it is, so it can be copied into --map;
+    the gap warning names the signals the models read and only counts the other columns."""
+    from jaxbox.cli._common import cli_message
+    from jaxbox.data import DataWarning, load
+
+    assert cli_message("columns: 'AUX2  [W]',\n  'Ph'.") == "columns: 'AUX2  [W]', 'Ph'."
+    stamps = pd.date_range("2024-01-01", periods=48, freq="h")
+    frame = pd.DataFrame(
+        {"time": stamps, "T_zon": 20.0, "T_amb": 5.0, "Setpoint": 20.0, "Mode": 0.0}
+    )
+    frame.loc[10:12, ["T_zon", "Setpoint", "Mode"]] = np.nan
+    with pytest.warns(DataWarning, match="the data have gaps") as seen:
+        load(frame)
+    (note,) = [str(w.message) for w in seen if "the data have gaps" in str(w.message)]
+    assert "'T_zon' (3, the first at 2024-01-01 10:00:00)" in note
+    assert "Setpoint" not in note and "(and 2 other columns no model reads)" in note

@@ -619,3 +619,22 @@ def test_every_way_into_a_dataset_refuses_infinities(base):
     frame.iloc[5, 0] = -np.inf
     with pytest.raises(DataError, match="'T_zon' has infinite"):
         Dataset(frame, check=False)
+
+
+def test_a_large_building_in_kilowatts_is_refused(base):
+    """An office logged in kW peaks above 50 "W" (its boiler at 158 kW) but averages under
+    5 W per K of zone-ambient difference: refused as kW, and the declared range keeps it."""
+    frame = base.copy()
+    frame["T_amb"] = frame["T_zon"] - 12.0
+    on = np.arange(len(frame)) % 24 < 12
+    frame["Q_hea"] = np.where(on, 40.0, 0.0)
+    frame.iloc[5, frame.columns.get_loc("Q_hea")] = 158.0
+    kinds = [(f.column, f.kind, f.severe) for f in find_implausible(Dataset(frame))]
+    assert kinds == [("Q_hea", "kilowatt", True)]
+    with pytest.raises(DataError, match=r"'Q_hea' looks like kW.*--scale Q_hea=1000"):
+        check_plausibility(Dataset(frame))
+    assert load(frame, scale={"Q_hea": 1000}).check_plausible() == ()
+    assert find_implausible(Dataset(frame), overrides={"Q_hea": (0, 200)}) == ()
+    # a heater of the same size serving a zone that loses 10 W/K is kept
+    frame["Q_hea"] = frame["Q_hea"] * 6
+    assert not [f for f in find_implausible(Dataset(frame)) if f.kind == "kilowatt"]

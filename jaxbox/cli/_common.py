@@ -190,9 +190,13 @@ def warning_line(message: object) -> str:
     return f"warning: {_ABOUT[0]}{cli_message(str(message))}"
 
 
+_LINE_BREAKS = re.compile(r"[ \t]*[\r\n]+[ \t]*")
+
+
 def cli_message(message: str) -> str:
     """A library error message in command-line terms: options instead of keyword arguments."""
-    text = " ".join(str(message).split())  # one line
+    # One line; runs of spaces inside a quoted name (a column 'AUX2  [W]') are kept.
+    text = _LINE_BREAKS.sub(" ", str(message)).strip()
     for pattern, replacement in _ADVICE:
         text = pattern.sub(replacement, text)
     return text

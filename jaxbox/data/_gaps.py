@@ -30,6 +30,7 @@ import pandas as pd
 
 from ._checks import fill_missing_rows, segment_slices
 from ._errors import DataError, DataWarning
+from ._signals import signal_base
 
 __all__ = [
     "DEFAULT_MAX_GAP",
@@ -114,11 +115,17 @@ def gap_note(data, columns: Sequence[str] | None = None) -> str | None:
     bad = [str(c) for c in frame.columns if counts[c] > 0]
     if not bad:
         return None
+    # The signals the models read (canonical names) first; other columns only counted.
+    known = [c for c in bad if signal_base(c) is not None]
+    named = known if known else bad
+    others = len(bad) - len(named)
     listed = ", ".join(
         f"{c!r} ({int(counts[c])}, the first at {frame.index[holes[c].to_numpy()][0]})"
-        for c in bad[:6]
+        for c in named[:6]
     )
-    more = f", … ({len(bad) - 6} more)" if len(bad) > 6 else ""
+    more = f", … ({len(named) - 6} more)" if len(named) > 6 else ""
+    if others:
+        more += f" (and {others} other column{'s' if others > 1 else ''} no model reads)"
     note = (
         f"the data have gaps: missing samples in {listed}{more}; in the windows used, input gaps "
         "are interpolated up to max_gap (command line --max-gap) and split the window into "

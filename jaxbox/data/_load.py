@@ -254,6 +254,32 @@ def _units_row(frame: pd.DataFrame, decimal: str, thousands: str | None = None) 
     return text
 
 
+#: Column names taken as the time without time= (any case): 'Time', 'TIMESTAMP', 'DateTime'.
+_TIME_NAMES_ANY_CASE = ("time", "timestamp", "datetime")
+#: How pandas names a CSV's unnamed first column (an index written by ``DataFrame.to_csv``).
+_UNNAMED_INDEX = ("Unnamed: 0", "")
+
+
+def _implied_time_column(raw: pd.DataFrame, names: list[str]) -> str | None:
+    """The column that is the time without being called ``time``: the only one named 'time',
+    'timestamp' or 'datetime' in any case, or an unnamed first column (a DataFrame's index
+    written to CSV) whose values read as time stamps; ``None`` otherwise."""
+    named = [n for n in names if n.strip().lower() in _TIME_NAMES_ANY_CASE]
+    if len(named) == 1:
+        return named[0]
+    if names and names[0] in _UNNAMED_INDEX:
+        head = raw[raw.columns[0]].dropna().head(5)
+        if len(head) and head.map(lambda v: isinstance(v, str)).all():
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # pandas' 'could not infer format'
+                    pd.to_datetime(head, utc=True)
+            except (ValueError, TypeError, OverflowError):
+                return None
+            return names[0]
+    return None
+
+
 def _time_values(
     raw: pd.DataFrame, time: str | Sequence[str] | None, from_frame: bool
 ) -> tuple[pd.Series | pd.Index, str, str | list[str] | None]:
@@ -288,7 +314,13 @@ def _time_values(
             return raw[name], name, name
     if from_frame and isinstance(raw.index, pd.DatetimeIndex):
         return raw.index, str(raw.index.name or "index"), None
-    tried = ", ".join(repr(name) for name in _TIME_NAMES)
+    found = _implied_time_column(raw, names)
+    if found is not None:
+        return raw[found], found, found
+    tried = ", ".join(repr(name) for name in _TIME_NAMES) + (
+        f" in any case, {', '.join(repr(n) for n in _TIME_NAMES_ANY_CASE[1:])}, an unnamed first "
+        "column of time stamps"
+    )
     extra = " and the DataFrame index (not a DatetimeIndex)" if from_frame else ""
     likely = [name for name in names if any(k in name.lower() for k in _TIME_WORDS + _DATE_WORDS)]
     hint = f" (perhaps {list_names(likely, 5)}?)" if likely else ""
@@ -492,7 +524,13 @@ def load(
         origin = pd.Timestamp(epoch)
     except (ValueError, TypeError):
         raise DataError(f"cannot read epoch={epoch!r} as a time stamp.") from None
-    index = parse_time(pd.Series(values), time_name, epoch=origin, where=where, unit=time_unit)
+    try:
+        index = parse_time(pd.Series(values), time_name, epoch=origin, where=where, unit=time_unit)
+    except DataError as error:  # clock times only: name the date column when one is there
+        dates = [n for n in signals if any(k in n.lower() for k in _DATE_WORDS)]
+        if "clock times without dates" not in str(error) or not dates:
+            raise
+        raise DataError(str(error).replace("your_date_column", dates[0])) from None
     if tz is not None:
         index = localize(index, tz, time_name, where)
 

@@ -33,7 +33,9 @@ heat a building. When the data also hold a zone temperature ``T_zon*`` and ``T_a
 difference is at least 3 K, the mean heating power per kelvin of that difference, a lower
 bound of the heat-loss coefficient when the heating covers the losses (solar and internal gains
 only add to it), is computed: below 1 W/K (no building loses so little) the column is refused
-as kW; otherwise, or without those temperatures, a warning is given. Declaring the range of the
+as kW; otherwise, or without those temperatures, a warning is given. A column peaking between
+50 W and 1 kW is refused as kW too when that mean is below 5 W/K (a large building logged in
+kW: an office whose boiler peaks at 158 kW and averages 1.7 kW per K). Declaring the range of the
 column with ``overrides`` (e.g. ``{"Q_hea": (0, 40)}`` for a small test cell) turns the
 heuristic off. Irradiance that peaks below 1.5 W/m² over at least a day gives a warning
 (kW/m²?).
@@ -115,6 +117,10 @@ _KW_PEAK = 50.0
 STUCK_HOURS = 24.0
 #: Below this heat-loss coefficient [W/K] (mean heating / mean T_zon - T_amb) it is in kW.
 _KW_UA = 1.0
+#: A heating column peaking below this [W] (but above ``_KW_PEAK``) whose mean per K of
+#: zone-ambient difference is below ``_KW_UA_MEAN`` [W/K] is in kW too.
+_KW_PEAK_MEAN = 1000.0
+_KW_UA_MEAN = 5.0
 #: Heating above this peak [W], or above this mean per K of zone-ambient difference [W/K], is
 #: more than a building zone takes (mW?).
 _MW_PEAK = 1e6
@@ -676,20 +682,25 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
                 )
             ]
         return []
-    if base != "Q_hea":
+    if base != "Q_hea" or peak == 0:
         return []
-    if peak >= _KW_PEAK:
-        return _milliwatt(c, frame, peak)
-    if peak == 0:
-        return []
-    factor = 1000 if peak * 1000 >= _KW_PEAK else 1_000_000
-    unit = "kW" if factor == 1000 else "MW"
-    fix = f"pass scale={{{c.name!r}: {factor}}} (--scale {c.name}={factor})"
     delta = _zone_ambient_delta(frame)
     ua = None
     if delta is not None and delta >= _KW_DELTA_T:
         ua = float(np.nanmean(finite)) / delta
-    if ua is not None and ua < _KW_UA:
+    if peak >= _KW_PEAK:
+        # A large building logged in kW peaks above 50 "W" (an office's boiler at 158 kW);
+        # below 1 kW the mean per K still tells: no zone a heater of that size serves loses
+        # under 5 W/K.
+        if not (peak < _KW_PEAK_MEAN and ua is not None and ua < _KW_UA_MEAN):
+            return _milliwatt(c, frame, peak)
+        factor, limit = 1000, _KW_UA_MEAN
+    else:
+        factor = 1000 if peak * 1000 >= _KW_PEAK else 1_000_000
+        limit = _KW_UA
+    unit = "kW" if factor == 1000 else "MW"
+    fix = f"pass scale={{{c.name!r}: {factor}}} (--scale {c.name}={factor})"
+    if ua is not None and ua < limit:
         return [
             Finding(
                 c.name,

@@ -247,6 +247,17 @@ def test_an_outdoor_temperature_in_fahrenheit_in_winter_is_named():
     assert _findings(frame(), "T_amb") == []
 
 
+def test_a_swapped_zone_and_outdoor_column_is_named_where_the_heating_runs():
+    """An office whose heating runs a third of the hours, its zone and outdoor columns
+    swapped: judged on the hours with the heating on, the warning names both readings."""
+    data = frame()
+    data["T_zon"], data["T_amb"] = data["T_amb"].to_numpy(), data["T_zon"].to_numpy()
+    data["Q_hea"] = np.where(np.arange(len(data)) % 3 == 0, data["Q_hea"].abs() + 100.0, 0.0)
+    found = _findings(data, "T_amb")
+    assert [(f.kind, f.severe) for f in found] == [("fahrenheit", False)]
+    assert "swapped" in found[0].message and "°F" in found[0].message
+
+
 @pytest.mark.parametrize(
     "convert, kind",
     [(lambda x: x + 273.15, "kelvin"), (lambda x: 1.8 * x + 32, "fahrenheit")],

@@ -132,6 +132,8 @@ _SCALE_MIN_SAMPLES = 12
 _SCALE_MIN_HOURS = 24.0
 #: An outdoor temperature this much [K] warmer than the heated zone on average may be in °F.
 _WARM_OUTSIDE_K = 5.0
+#: ... judged on at least this many samples (and a tenth of them) with the heating on.
+_WARM_MIN_SAMPLES = 12
 #: Smallest mean zone-ambient difference [K] for the kW test.
 _KW_DELTA_T = 3.0
 #: An irradiance peaking below this [W/m²] over a day or more may be in kW/m².
@@ -794,19 +796,24 @@ def _warm_outside(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Findi
     warning; winter °F values such as 20–45 lie within the plausible range of °C)."""
     if c.overridden or signal_base(c.name) != "T_amb":
         return []
-    delta = _zone_ambient_delta(frame)
     heating = [n for n in frame.columns if signal_base(str(n)) == "Q_hea"]
-    if delta is None or delta > -_WARM_OUTSIDE_K or not heating:
+    zones = [n for n in frame.columns if signal_base(str(n)) == "T_zon"]
+    if not heating or not zones:
         return []
-    q = frame[heating].to_numpy(dtype=float)
-    if not np.nanmean(q) > 0 or np.nanmean(q > 0) < 0.5:
+    # judged where the heating runs (an office's nights and holidays are off)
+    on = np.nansum(frame[heating].to_numpy(dtype=float), axis=1) > 0
+    if on.sum() < max(_WARM_MIN_SAMPLES, 0.1 * on.size):
+        return []
+    delta = _zone_ambient_delta(frame[on])
+    if delta is None or delta > -_WARM_OUTSIDE_K:
         return []
     return [
         Finding(
             c.name,
             "fahrenheit",
             f"{c.name!r} is on average {-delta:.3g} K warmer than the zone while the heating "
-            f"runs: in °F? convert it to °C ((°F - 32) / 1.8) before loading; if it is right, "
+            f"runs: in °F? convert it to °C ((°F - 32) / 1.8) before loading; or are the zone "
+            f"and outdoor columns swapped (check columns=, command line --map)? If it is right, "
             f"declare its range with {c.override_hint()}.",
             severe=False,
         )

@@ -117,7 +117,8 @@ def fit_command(args) -> int:
     from ..fit import fit_batch
     from ..fit._batch import fit_data
     from ..fit._fit import bucket_samples
-    from ..models import get_model
+    from ..models import get_model, list_models
+    from ..models._grammar import is_structure_name
     from ..select._cases import data_checks
     from ..validate import validate
 
@@ -139,8 +140,21 @@ def fit_command(args) -> int:
     check_run_options(args)
     opts = DataOptions(args)
     plots = check_output_folders(args.plots, "--plots", opts.specs)
-    # the data, checked in the periods used
-    sets = load_all(args, opts, model=model)
+    # the data, checked in the periods used; a structure name is built for the data's columns
+    # (no solar aperture without I_glo_hor), as the structure search builds it
+    if is_structure_name(args.model) and args.model not in list_models():
+        sets = load_all(args, opts, model_for=lambda cols: get_model(args.model, cols))
+        built = {get_model(args.model, data.columns).param_names for _, data, _, _ in sets}
+        if len(built) > 1:
+            raise UsageError(
+                f"--model {args.model} reads other columns in each DATA (its parameters differ:"
+                f" {' / '.join(', '.join(b) for b in sorted(built))}); fit them one at a time"
+            )
+        model = get_model(args.model, sets[0][1].columns)
+        check_parameters(model, fixed, "--fix")
+        check_parameters(model, limits, "--bounds")
+    else:
+        sets = load_all(args, opts, model=model)
     say = _say(args)
     lengths = {len(ident) for _, _, ident, _ in sets}
     for spec, _, ident, _ in sets:

@@ -483,6 +483,8 @@ def fit_json(result, validation, *, timing, data_info, valid=None, data_checks=N
     status = list(starts.status)
     doc.update(
         model=result.model.name,
+        # the columns the model reads: a structure name is rebuilt for them (forecast, export)
+        model_columns=[*result.model.inputs, *result.model.outputs],
         starts={
             "n": starts.n,
             "converged": status.count("converged"),

@@ -449,9 +449,10 @@ def _trimmed(data, opts: DataOptions, columns):
     return data
 
 
-def load_all(args, opts: DataOptions | None = None, *, model=None):
+def load_all(args, opts: DataOptions | None = None, *, model=None, model_for=None):
     """Every DATA of the command line, loaded, split and checked: ``[(spec, data, ident, valid),
-    …]``. With ``model``, its inputs and outputs must be columns of each."""
+    …]``. With ``model``, its inputs and outputs must be columns of each; ``model_for(columns)``
+    gives the model for each DATA's columns instead (a structure name built for the data)."""
     from ..data import DataError
 
     opts = opts or DataOptions(args)
@@ -460,6 +461,8 @@ def load_all(args, opts: DataOptions | None = None, *, model=None):
         try:
             with about(spec if len(opts.specs) > 1 else None):
                 data = load_data(spec, opts)
+                if model_for is not None:
+                    model = model_for(data.columns)
                 columns = None
                 if model is not None:
                     columns = list(model.inputs) + list(model.outputs)

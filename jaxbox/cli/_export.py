@@ -76,6 +76,7 @@ def _fit_data(path: str, given: str | None):
 def export_command(args) -> int:
     """``jaxbox export FIT.json --step 15min --format json --out MODEL.json``."""
     from ..control import modelica_model, to_state_space
+    from ..data import DataError
     from ..forecast import StochasticForm
     from ..stochastic import noise_names
 
@@ -87,11 +88,18 @@ def export_command(args) -> int:
             ".json, .npz, .mo or .py"
         )
     fit = read_fit(args.fit, option="FIT.json")
-    model = fit_model_of(fit, args.model, args.fit, option="FIT.json")
     step = _step(args.step)
     data, where = _fit_data(args.fit, args.data)
+    columns = None if data is None else data.columns
+    model = fit_model_of(fit, args.model, args.fit, option="FIT.json", columns=columns)
     if data is not None:
-        data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+        try:
+            data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+        except DataError:
+            if args.data:
+                raise
+            # the fit's file read again without the column mapping it was loaded with
+            data, where = None, "no data (the fit's data name their columns otherwise: give --data)"
     check_fit_params(fit, model, args.fit, option="FIT.json")
     noisy = all(n in fit["params"] for n in noise_names(model))
     if data is None and not noisy:  # an output-error fit without data: no noise, no state

@@ -108,6 +108,14 @@ def read_fit(path: str, option: str = "--params") -> dict:
         doc = doc["fits"][0]
     if not isinstance(doc, dict):
         raise UsageError(f"{option} {path}: expected a JSON object")
+    if "table" in doc and "fit" in doc and "params" not in doc:
+        # the JSON of `jaxbox select --json` (or its selection.json): the accepted model's fit
+        if not isinstance(doc["fit"], dict):
+            raise UsageError(
+                f"{option} {path}: the structure search it holds accepted no model; fit one "
+                "with `jaxbox fit DATA --model NAME --json` and give that file"
+            )
+        doc = doc["fit"]
     raw = doc.get("params", doc)
     params = {}
     if isinstance(raw, dict):
@@ -127,12 +135,17 @@ def read_fit(path: str, option: str = "--params") -> dict:
             "{name: value} (SI)"
         )
     model = doc.get("model") if isinstance(doc.get("model"), str) else None
+    columns = doc.get("model_columns")
+    columns = (
+        columns if isinstance(columns, list) and all(isinstance(c, str) for c in columns) else None
+    )
     info = doc.get("data") if isinstance(doc.get("data"), dict) else {}
     step = info.get("step_s")
     return {
         "covariance": _covariance(doc),
         "step": float(step) if isinstance(step, int | float) and step > 0 else None,
         "model": model,
+        "columns": columns,
         "params": params,
         "hold": doc.get("hold"),
         "x0_std": doc.get("x0_std"),
@@ -168,10 +181,13 @@ def _covariance(doc: dict):
     return tuple(names), R * sd[:, None] * sd[None, :]
 
 
-def fit_model_of(fit: dict, name: str | None, path: str, option: str = "--params"):
-    """The model of a fit file (``--model`` must agree with the file's own)."""
+def fit_model_of(fit: dict, name: str | None, path: str, option: str = "--params", columns=None):
+    """The model of a fit file (``--model`` must agree with the file's own). A structure name
+    is built for the columns it was fitted on (the file's ``model_columns``), else for
+    ``columns`` (the data at hand), else with every input the grammar knows."""
     from ..models import get_model
 
+    columns = fit.get("columns") or columns
     if name and fit["model"] and get_model(name).name != get_model(fit["model"]).name:
         raise UsageError(
             f"{option} {path} is a fit of {fit['model']}, not of --model {name}; give the fit "
@@ -179,7 +195,7 @@ def fit_model_of(fit: dict, name: str | None, path: str, option: str = "--params
         )
     if not (name or fit["model"]):
         raise UsageError(f"{option} {path} does not name its model; give --model")
-    return get_model(name or fit["model"])
+    return get_model(name or fit["model"], columns)
 
 
 def check_fit_params(fit: dict, model, path: str, option: str = "--params") -> None:
@@ -272,8 +288,8 @@ def forecast_command(args) -> int:
 
         parse_setback(args.setback)
     fit = read_fit(args.params)
-    model = fit_model_of(fit, args.model, args.params)
     data = load_data(opts.specs[0], opts)
+    model = fit_model_of(fit, args.model, args.params, columns=data.columns)
     history = _history(data, args.at)
     history.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     form = fit_form(fit, model, args.params, history)

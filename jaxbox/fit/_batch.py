@@ -38,6 +38,14 @@ from ._solver import LevenbergMarquardt
 __all__ = ["fit_model", "fit_many", "fit_batch", "fit_data"]
 
 
+def data_columns(data) -> tuple[str, ...] | None:
+    """The columns of a Dataset, or of the first of a list of periods (``None`` otherwise):
+    what a structure name is built for (:func:`~jaxbox.models.get_model`)."""
+    if isinstance(data, list | tuple) and data:
+        data = data[0]
+    return tuple(data.columns) if isinstance(data, Dataset) else None
+
+
 def fit_data(model, data, max_gap=DEFAULT_MAX_GAP, what: str = "identification data"):
     """``(model, data)`` ready for a fit: a list of periods joined
     (:func:`~jaxbox.data.concat_periods`), gaps prepared
@@ -282,11 +290,11 @@ def fit_many(
             free/fixed split between datasets, or every start of one dataset failed.
     """
     require_x64()
-    model = get_model(model)
     keys = list(datasets) if isinstance(datasets, Mapping) else None
     items = [datasets[k] for k in keys] if keys is not None else list(datasets)
     if not items:
         raise FitError("fit_many needs at least one dataset")
+    model = get_model(model, data_columns(items[0]))
     step = items[0].step
     for i, data in enumerate(items):
         label = keys[i] if keys is not None else i
@@ -376,7 +384,8 @@ def fit_batch(
             if "model" not in req or "data" not in req:
                 raise FitError(f"request {i} needs 'model' and 'data'")
             arg = {k: req.get(k, _DEFAULTS[k]) for k in _DEFAULTS}
-            model, data = fit_data(get_model(req["model"]), req["data"], arg["max_gap"])
+            model = get_model(req["model"], data_columns(req["data"]))
+            model, data = fit_data(model, req["data"], arg["max_gap"])
             problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
             x0 = make_starts(problem, data, *(arg[k] for k in _STARTS))
             solver = (

@@ -252,7 +252,7 @@ def make_problem(
     parameter name or a list of them; ``fixed`` and ``guess`` map names to numbers, ``bounds``
     names to pairs ``(lower, upper)``, in the parameters' units.
     """
-    model = get_model(model) if isinstance(model, str) else model
+    model = get_model(model, getattr(data, "columns", None)) if isinstance(model, str) else model
     if not isinstance(model, RCModel):
         raise TypeError(
             f"model must be an RCModel or a library model name, got {type(model).__name__}"

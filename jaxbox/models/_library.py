@@ -76,7 +76,7 @@ import re
 from collections.abc import Callable, Sequence
 
 from . import _components as c
-from ._grammar import is_structure_name, parse_structure
+from ._grammar import Grammar, is_structure_name, parse_structure
 from ._network import RCModel, RCNetwork
 from ._parameters import ModelError
 
@@ -155,14 +155,29 @@ def register(
     return factory
 
 
-def get_model(name: str | RCModel) -> RCModel:
+def get_model(name: str | RCModel, columns: Sequence[str] | None = None) -> RCModel:
     """The library model ``name`` (an :class:`RCModel` is passed through); a structure name of
     the component grammar (``"Zon+Wal+Int"``, :mod:`~jaxbox.models.grammar`) builds that
-    structure."""
+    structure.
+
+    ``columns``: the data's canonical columns. A structure is then built for those data as the
+    structure search builds it (:meth:`~jaxbox.models.Grammar.from_columns`): without a solar
+    aperture where they have no ``I_glo_hor``, without heating where they have no ``Q_hea``.
+    Without them (or where they hold no zone and ``T_amb``) it has both. Library models do not
+    depend on the data.
+    """
     if isinstance(name, RCModel):
         return name
     if name not in _REGISTRY and is_structure_name(name):
-        return parse_structure(name).build()
+        structure = parse_structure(name)
+        if columns is not None:
+            try:
+                grammar = Grammar.from_columns([str(x) for x in columns])
+            except ModelError:
+                grammar = None  # no zone or no T_amb: the fit names the missing column
+            if grammar is not None:
+                return structure.build(grammar)
+        return structure.build()
     try:
         return _REGISTRY[name].make()
     except (KeyError, TypeError):

@@ -105,7 +105,8 @@ def candidate_models(candidates, data=None) -> list[RCModel]:
         else:
             models = [get_model(n) for n in list_models(family=candidates)]
     else:
-        models = [get_model(m) for m in candidates]
+        cols = None if data is None else data.columns  # structures built for the data's columns
+        models = [get_model(m, cols) for m in candidates]
         twice = sorted({m.name for m in models if [n.name for n in models].count(m.name) > 1})
         if twice:
             raise ValueError(

@@ -259,7 +259,7 @@ class GreyBox:
                 ``homotopy``; ``()`` fits every start's output error directly, without the
                 continuation route) and ``postsim``, the validation's simulator.
         """
-        model = get_model(model)
+        model = get_model(model, self.data.columns)  # a structure built for the data's columns
         name = _case_name(name)
         if name is not None and name in self.cases:
             raise ValueError(

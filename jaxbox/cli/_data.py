@@ -345,8 +345,9 @@ class DataOptions:
 
 #: Appended where a named model needs a signal the data lack.
 SEARCH_HINT = (
-    "; or let 'jaxbox select DATA' (the structure search, its default) build models from the "
-    "signals your data hold"
+    "; or name a structure of the component grammar (--model Zon+Wal+Int: built for the "
+    "signals your data hold), or let 'jaxbox select DATA' (the structure search, its default) "
+    "choose one"
 )
 
 

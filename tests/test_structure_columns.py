@@ -76,6 +76,24 @@ def test_fit_forecast_and_export_of_a_structure_on_data_without_irradiance(offic
     code, _, err = _cli(args, capsys)
     assert code == 0, err
     pd.testing.assert_frame_equal(pd.read_csv(fc), pd.read_csv(fc2))
+    # a search that accepted the heat-demand form: its network, the zone's initial
+    # temperature the measured one
+    params = {n: v["value"] for n, v in doc["params"].items()}
+    params["T_zon0"] = float(data["T_zon"][0])
+    held = {k: v for k, v in params.items() if k != "T_zon0"}
+    form = {"structure": "Zon+Wal", "params": held, "fixed": {}}
+    demand = folder / "demand.json"
+    demand.write_text(json.dumps({"table": [], "fit": None, "form_model": form}))
+    plain = folder / "plain.json"
+    plain.write_text(json.dumps({"model": "Zon+Wal", "params": params}))
+    frames = []
+    for path in (demand, plain):
+        out_csv = folder / f"{path.stem}.csv"
+        args = ["forecast", csv, "--params", path, "--at", at, "--horizon", "12h"]
+        code, _, err = _cli([*args, "--out", out_csv], capsys)
+        assert code == 0, err
+        frames.append(pd.read_csv(out_csv))
+    pd.testing.assert_frame_equal(*frames)
     none = folder / "none.json"
     none.write_text(json.dumps({"table": [], "accepted": None, "fit": None}))
     code, _, err = _cli(["forecast", csv, "--params", none, "--at", at, "--out", fc2], capsys)

@@ -15,7 +15,14 @@ import json
 from pathlib import Path
 
 from ._common import UsageError, print_json
-from ._forecast import check_fit_params, fit_form, fit_model_of, output_file, read_fit
+from ._forecast import (
+    check_fit_params,
+    fill_initial_outputs,
+    fit_form,
+    fit_model_of,
+    output_file,
+    read_fit,
+)
 
 __all__ = ["add_export_arguments", "export_command"]
 
@@ -100,6 +107,8 @@ def export_command(args) -> int:
                 raise
             # the fit's file read again without the column mapping it was loaded with
             data, where = None, "no data (the fit's data name their columns otherwise: give --data)"
+    if data is not None:
+        fill_initial_outputs(fit, model, data)
     check_fit_params(fit, model, args.fit, option="FIT.json")
     noisy = all(n in fit["params"] for n in noise_names(model))
     if data is None and not noisy:  # an output-error fit without data: no noise, no state

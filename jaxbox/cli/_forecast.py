@@ -109,13 +109,20 @@ def read_fit(path: str, option: str = "--params") -> dict:
     if not isinstance(doc, dict):
         raise UsageError(f"{option} {path}: expected a JSON object")
     if "table" in doc and "fit" in doc and "params" not in doc:
-        # the JSON of `jaxbox select --json` (or its selection.json): the accepted model's fit
-        if not isinstance(doc["fit"], dict):
+        # the JSON of `jaxbox select --json` (or its selection.json): the accepted model's fit,
+        # or the network of the heat-demand form it accepted (the zone's initial temperature
+        # is then the measured one: see fill_initial_outputs)
+        form = doc.get("form_model")
+        if isinstance(doc["fit"], dict):
+            doc = doc["fit"]
+        elif isinstance(form, dict) and isinstance(form.get("params"), dict):
+            fixed = form.get("fixed") if isinstance(form.get("fixed"), dict) else {}
+            doc = {"model": form.get("structure"), "params": {**fixed, **form["params"]}}
+        else:
             raise UsageError(
                 f"{option} {path}: the structure search it holds accepted no model; fit one "
                 "with `jaxbox fit DATA --model NAME --json` and give that file"
             )
-        doc = doc["fit"]
     raw = doc.get("params", doc)
     params = {}
     if isinstance(raw, dict):
@@ -249,6 +256,21 @@ def fit_form(
     return noise_from_residuals(model, params, data)
 
 
+def fill_initial_outputs(fit: dict, model, data) -> None:
+    """The initial temperature ``T_<node>0`` of each measured state that the fit file lacks
+    (a heat-demand form, whose zone temperature was an input) set to its first measurement in
+    ``data`` [°C]."""
+    import numpy as np
+
+    for state in model.states:  # states are named after their node's temperature: T_zon
+        name = f"{state}0"
+        if name in model.param_names and name not in fit["params"] and state in model.outputs:
+            x = np.asarray(data[state], float)
+            x = x[np.isfinite(x)]
+            if x.size:
+                fit["params"][name] = float(x[0])
+
+
 def _history(data, at: str):
     from ..data import DataError
 
@@ -292,6 +314,7 @@ def forecast_command(args) -> int:
     model = fit_model_of(fit, args.model, args.params, columns=data.columns)
     history = _history(data, args.at)
     history.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+    fill_initial_outputs(fit, model, history)
     form = fit_form(fit, model, args.params, history)
     future = data if args.inputs is None else load_data(args.inputs)
     if args.setpoint is not None:

@@ -484,3 +484,22 @@ def test_which_heat_inputs_leave_the_scale_undetermined(columns, inputs, outputs
     else:
         (text,) = got
         assert said in text and "not the heat-loss coefficient or the capacities" in text
+
+
+def test_no_valid_model_repeats_the_data_checks_doubt_of_swapped_columns(tmp_path, capsys):
+    """The zone and outdoor columns swapped: the data check's warning (given at the start)
+    is the last line's first cause when no model is valid."""
+    from test_hostile import frame as tiny
+
+    from jaxbox.cli._main import main
+
+    data = tiny(72)
+    data["T_zon"], data["T_amb"] = data["T_amb"].to_numpy(), data["T_zon"].to_numpy()
+    path = tmp_path / "swapped.csv"
+    data.to_csv(path, index=False)
+    argv = ["select", str(path), "--models", "Zon", "--starts", "1", "--max-steps", "30"]
+    code = main([*argv, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert any(line.startswith("warning:") and "swapped" in line for line in err), err
+    assert code == 1 and err[-1].startswith("no valid model: the data check warned: 'T_amb'")
+    assert "swapped" in err[-1] and err[-1].index("swapped") < err[-1].index("none of the")

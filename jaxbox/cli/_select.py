@@ -437,6 +437,28 @@ def _heated_elsewhere(gb) -> str:
     )
 
 
+#: the data checks' warnings that may explain why no model is valid: a unit or a column in doubt
+_UNIT_WARNINGS = ("fahrenheit", "kilowatt", "sign")
+
+
+def _unit_warnings(gb) -> list[tuple[str, str]]:
+    """``(column, text)`` of each warning of the data checks on ``gb``'s identification data
+    that puts a unit or a column in doubt (°F, swapped columns, kW, the heating's sign),
+    repeated where no model is valid: given at the start, they have scrolled away by the end."""
+    from ..data import find_implausible
+
+    checks = next((c.data_checks for c in gb.cases.values() if c.data_checks), None) or {}
+    try:
+        found = find_implausible(gb.ident, overrides=checks.get("data_overrides"))
+    except Exception:  # noqa: BLE001 - a hint, never a new failure
+        return []
+    return [
+        (f.column, f"the data check warned: {f.message.rstrip('.')}")
+        for f in found
+        if not f.severe and f.kind in _UNIT_WARNINGS and not f.message.startswith("allowed:")
+    ]
+
+
 def _no_valid_model(outcomes) -> int:
     """0 when every building has an accepted model; else 1, with one line on stderr."""
     import sys
@@ -470,7 +492,13 @@ def _no_valid_model(outcomes) -> int:
         idle = idle_heat_inputs(judged)
         if idle and len(none) == 1:
             idle = [idle[0] + _heated_elsewhere(gb)]
-        found = idle + unit_doubts(list(gb.cases.values()))
+        units = unit_doubts(list(gb.cases.values()))  # a gain on a bound: the fits' evidence
+        warned = [  # the data checks' warnings on the other columns
+            text
+            for column, text in _unit_warnings(gb)
+            if not any(u.startswith(repr(column)) for u in units)
+        ]
+        found = idle + units + warned
         doubts += [d for d in found if d not in doubts]
     first = f"{doubts[0]}; " if doubts else ""
     print(

@@ -122,6 +122,13 @@ def test_heat_demand_form_recovers_the_hlc_and_the_search_says_so():
     assert d["verdict"] == search.verdict and search.verdict.startswith("the heat demand form")
     assert d["form_model"]["structure"] == best.structure
     assert "form accepted: heat demand" in search.tree_text()
+    # select --json gives the form's HLC at the top, with the interval's method
+    from jaxbox.cli._select import _form_hlc
+
+    top = _form_hlc(best)
+    assert top["value"] == best.hlc and top["ci95"] == list(best.hlc_interval)
+    assert top["method"].startswith("delta (HAC") and top["form"] == "heat demand"
+    assert d["form_model"]["hlc_method"] == top["method"] and "(delta (HAC" in best.summary()
     from jaxbox.report import greybox_report
 
     page = greybox_report(search.greybox, search)
@@ -137,6 +144,28 @@ def test_coheating_steady_state_covers_the_hlc():
     lo, hi = fit.hlc_interval
     assert lo <= truth_hlc() <= hi, fit.summary()
     assert "dynamics" in fit.undetermined[0]
+    assert fit.hlc_method.startswith("least squares on the daily means")
+    assert fit.to_dict()["hlc_method"] == fit.hlc_method
+
+
+def test_steady_state_warns_of_residuals_correlated_day_to_day():
+    """Student's interval takes the days as independent: residuals that follow each other
+    from day to day (AR(1), ρ = 0.8) are named, white ones and days apart are not."""
+    from jaxbox.select._steady import _day_to_day
+
+    rng = np.random.default_rng(0)
+    n = 30
+    days, previous = np.arange(n), np.r_[False, np.ones(n - 1, bool)]
+    white = rng.normal(size=n)
+    assert _day_to_day(white, days, previous) == ()
+    ar = np.empty(n)
+    ar[0] = white[0]
+    for k in range(1, n):
+        ar[k] = 0.8 * ar[k - 1] + 0.6 * white[k]
+    (warning,) = _day_to_day(ar, days, previous)
+    assert "correlated from one day to the next" in warning and "29 pairs" in warning
+    # every other day missing: no consecutive pairs, nothing to judge
+    assert _day_to_day(ar[::2], days[::2], previous) == ()
 
 
 @pytest.mark.slow

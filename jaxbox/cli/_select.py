@@ -237,7 +237,29 @@ def _document(gb, sel, spec, ident, valid) -> dict:
             valid=c.valid,
             data_checks=c.data_checks,
         )
+    elif getattr(sel, "form_model", None) is not None:
+        doc["hlc"] = _form_hlc(sel.form_model)
     return doc
+
+
+def _form_hlc(model) -> dict | None:
+    """The HLC of an accepted heat-demand or steady-state model, in the fields of the
+    temperature form's (:func:`_hlc`): value, interval, its method and warnings."""
+    import numpy as np
+
+    value, (lo, hi) = float(model.hlc), model.hlc_interval
+    if not np.isfinite(value):
+        return None
+    return {
+        "value": value,
+        "unit": "W/K",
+        "ci95": [float(lo), float(hi)],
+        "level": 0.95,
+        "method": model.hlc_method,
+        "form": model.form,
+        "models": [{"model": model.structure, "value": value, "ci95": [float(lo), float(hi)]}],
+        "warnings": list(getattr(model, "warnings", ())),
+    }
 
 
 def _hlc(sel) -> dict | None:

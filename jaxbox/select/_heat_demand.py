@@ -39,6 +39,7 @@ from scipy import linalg, optimize
 
 from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
 from ..validate import MAX_REL_CI
+from ..validate._hlc_hac import HAC
 
 __all__ = ["HeatDemandFit", "heat_demand_fit", "heat_demand_search", "held_zone", "Problem"]
 
@@ -122,6 +123,8 @@ class HeatDemandFit:
         valid: the verdict; ``reasons`` why not; ``undetermined`` the free parameters whose
             interval is too wide (half-width over :data:`~jaxbox.validate.MAX_REL_CI`).
         form: ``"heat demand"``.
+        hlc_method: how the HLC's interval was made (the HAC covariance of the heating's
+            residuals, by the delta method).
     """
 
     structure: str
@@ -137,6 +140,7 @@ class HeatDemandFit:
     reasons: tuple = ()
     undetermined: tuple = ()
     form: str = "heat demand"
+    hlc_method: str = HAC
 
     @property
     def relative(self) -> float:
@@ -149,7 +153,8 @@ class HeatDemandFit:
         lo, hi = self.hlc_interval
         lines = [
             f"{self.structure} in its heat-demand form: HLC {self.hlc:.4g} W/K "
-            f"[{lo:.4g}, {hi:.4g}], heating RMSE {self.rmse_valid:.4g} W on validation "
+            f"[{lo:.4g}, {hi:.4g}] ({self.hlc_method}), heating RMSE {self.rmse_valid:.4g} W on "
+            "validation "
             f"({self.relative:.3g} of its std {self.q_std:.4g} W), "
             + ("valid" if self.valid else "not valid: " + "; ".join(self.reasons))
         ]

@@ -23,6 +23,7 @@ the form does not claim them. Its error is the leave-one-day-out RMSE of the dai
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from scipy import stats
@@ -33,6 +34,10 @@ __all__ = ["SteadyFit", "steady_fit", "MIN_DAYS"]
 
 #: fewest complete days a steady-state fit is posed on
 MIN_DAYS = 5
+
+
+#: the steady-state form's interval: least squares on the daily means, Student's t
+STEADY_METHOD = "least squares on the daily means (Student's t)"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,6 +56,9 @@ class SteadyFit:
         dropped: terms left out: ``H1`` (the previous day's share: its interval spans zero or too
             few consecutive days), ``gA`` (no irradiance), ``Q0`` (its interval spans zero).
         form: ``"steady state"``.
+        hlc_method: how the HLC's interval was made; ``warnings`` where it may be too narrow
+            (daily residuals correlated from one day to the next, which Student's interval
+            takes as independent).
     """
 
     hlc: float
@@ -66,6 +74,8 @@ class SteadyFit:
     dropped: tuple = ()
     q0: float = 0.0
     form: str = "steady state"
+    hlc_method: str = STEADY_METHOD
+    warnings: tuple = ()
 
     @property
     def structure(self) -> str:
@@ -87,7 +97,7 @@ class SteadyFit:
         lo, hi = self.hlc_interval
         text = (
             f"steady-state form on {self.days} daily means: HLC {self.hlc:.4g} W/K "
-            f"[{lo:.4g}, {hi:.4g}]"
+            f"[{lo:.4g}, {hi:.4g}] ({self.hlc_method})"
         )
         if "H1" not in self.dropped:
             text += " (a share a day late: the envelope's storage)"
@@ -101,7 +111,8 @@ class SteadyFit:
             f"; daily heating RMSE {self.rmse_loo:.4g} W leaving one day out "
             f"({self.relative:.3g} of its std); undetermined: {', '.join(self.undetermined)}; "
         )
-        return text + ("valid" if self.valid else "not valid: " + "; ".join(self.reasons))
+        text += "valid" if self.valid else "not valid: " + "; ".join(self.reasons)
+        return text + "".join(f"; warning: {w}" for w in self.warnings)
 
     def to_dict(self) -> dict:
         """JSON-ready fields (SI units)."""
@@ -114,6 +125,7 @@ class SteadyFit:
             reasons=list(self.reasons),
             undetermined=list(self.undetermined),
             dropped=list(self.dropped),
+            warnings=list(self.warnings),
         )
         return d
 
@@ -215,6 +227,30 @@ def steady_fit(data, zone: str = "T_zon", heating: str = "Q_hea") -> SteadyFit:
         undetermined=tuple(undetermined),
         dropped=tuple(dropped),
         q0=float(beta[names.index("Q0")]) if "Q0" in names else 0.0,
+        warnings=_day_to_day(y - X @ beta, np.flatnonzero(rows), previous),
+    )
+
+
+def _day_to_day(e: np.ndarray, days: np.ndarray, previous: np.ndarray) -> tuple[str, ...]:
+    """A warning where the residuals ``e`` of consecutive days (``days``: their positions
+    among the complete days) are correlated beyond chance (lag-1 correlation above 2/√pairs):
+    Student's interval takes the days as independent and is then too narrow."""
+    pairs = [
+        (a, b)
+        for a, b in zip(range(len(days) - 1), range(1, len(days)), strict=True)
+        if days[b] == days[a] + 1 and previous[days[b]]
+    ]
+    if len(pairs) < MIN_DAYS:
+        return ()
+    x = np.asarray([e[a] for a, _ in pairs])
+    z = np.asarray([e[b] for _, b in pairs])
+    rho = float(np.sum(x * z) / max(np.sqrt(np.sum(x * x) * np.sum(z * z)), 1e-300))
+    if not rho > 2.0 / math.sqrt(len(pairs)):
+        return ()
+    return (
+        f"the daily residuals are correlated from one day to the next (lag-1 correlation "
+        f"{rho:.2f} over {len(pairs)} pairs of days): the interval, which takes the days as "
+        "independent, may be too narrow",
     )
 
 

@@ -105,3 +105,12 @@ def test_fit_forecast_and_export_of_a_structure_on_data_without_irradiance(offic
     assert code == 0, err
     exported = json.loads((folder / "m.json").read_text())
     assert "I_glo_hor" not in json.dumps(exported)
+
+
+@pytest.mark.slow
+def test_a_maximum_likelihood_fit_of_a_structure_on_data_without_irradiance(office, capsys):
+    _, csv, _ = office
+    args = ["fit", csv, "--model", "Zon+Wal", "--method", "ml", "--starts", "2", "--json"]
+    code, out, err = _cli(args, capsys)
+    assert code == 0, err
+    assert "gA" not in json.loads(out)["params"]

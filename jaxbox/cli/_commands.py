@@ -31,7 +31,7 @@ from ._data import (
     DataOptions,
     add_data_arguments,
     check_output_folders,
-    load_all,
+    load_for_model,
     slug,
 )
 from ._outputs import (
@@ -117,8 +117,7 @@ def fit_command(args) -> int:
     from ..fit import fit_batch
     from ..fit._batch import fit_data
     from ..fit._fit import bucket_samples
-    from ..models import get_model, list_models
-    from ..models._grammar import is_structure_name
+    from ..models import get_model
     from ..select._cases import data_checks
     from ..validate import validate
 
@@ -142,19 +141,11 @@ def fit_command(args) -> int:
     plots = check_output_folders(args.plots, "--plots", opts.specs)
     # the data, checked in the periods used; a structure name is built for the data's columns
     # (no solar aperture without I_glo_hor), as the structure search builds it
-    if is_structure_name(args.model) and args.model not in list_models():
-        sets = load_all(args, opts, model_for=lambda cols: get_model(args.model, cols))
-        built = {get_model(args.model, data.columns).param_names for _, data, _, _ in sets}
-        if len(built) > 1:
-            raise UsageError(
-                f"--model {args.model} reads other columns in each DATA (its parameters differ:"
-                f" {' / '.join(', '.join(b) for b in sorted(built))}); fit them one at a time"
-            )
-        model = get_model(args.model, sets[0][1].columns)
-        check_parameters(model, fixed, "--fix")
-        check_parameters(model, limits, "--bounds")
-    else:
-        sets = load_all(args, opts, model=model)
+    sets, built = load_for_model(args, opts, args.model, model)
+    if built is not model:
+        check_parameters(built, fixed, "--fix")
+        check_parameters(built, limits, "--bounds")
+    model = built
     say = _say(args)
     lengths = {len(ident) for _, _, ident, _ in sets}
     for spec, _, ident, _ in sets:

@@ -31,6 +31,7 @@ __all__ = [
     "add_data_arguments",
     "check_output_folders",
     "load_all",
+    "load_for_model",
     "load_data",
     "slug",
 ]
@@ -479,6 +480,26 @@ def load_all(args, opts: DataOptions | None = None, *, model=None, model_for=Non
         check_interrupted()
         out.append((spec, data, ident, valid))
     return out
+
+
+def load_for_model(args, opts: DataOptions, name: str, model):
+    """:func:`load_all` for ``--model name`` (``model``: as built without data): ``(sets,
+    model)``. A structure of the grammar (``Zon+Wal+Int``) is built for the data's columns, as
+    the structure search builds it (no solar aperture without ``I_glo_hor``); every DATA must
+    then give the same model."""
+    from ..models import get_model, list_models
+    from ..models._grammar import is_structure_name
+
+    if not (is_structure_name(name) and name not in list_models()):
+        return load_all(args, opts, model=model), model
+    sets = load_all(args, opts, model_for=lambda columns: get_model(name, columns))
+    built = {get_model(name, data.columns).param_names for _, data, _, _ in sets}
+    if len(built) > 1:
+        raise UsageError(
+            f"--model {name} reads other columns in each DATA (its parameters differ: "
+            f"{' / '.join(', '.join(b) for b in sorted(built))}); fit them one at a time"
+        )
+    return sets, get_model(name, sets[0][1].columns)
 
 
 def slug(spec: str, specs: Sequence[str] = ()) -> str:

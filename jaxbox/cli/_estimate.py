@@ -23,7 +23,7 @@ from ._common import (
     floats,
     print_json,
 )
-from ._data import DataOptions, add_data_arguments, load_all, load_data
+from ._data import DataOptions, add_data_arguments, load_data, load_for_model
 
 __all__ = ["ml_fit_command", "add_estimate_arguments", "estimate_command"]
 
@@ -62,7 +62,11 @@ def ml_fit_command(args) -> int:
         args.max_steps = DEFAULT_ML_MAX_STEPS
     check_run_options(args)
     opts = DataOptions(args)
-    sets = load_all(args, opts, model=model)
+    sets, built = load_for_model(args, opts, args.model, model)
+    if built is not model:  # a structure built for the data's columns
+        model, view = built, _stochastic_view(built)
+        check_parameters(view, fixed, "--fix")
+        check_parameters(view, limits, "--bounds")
     docs = []
     for spec, _, ident, valid in sets:
         t0 = time.perf_counter()

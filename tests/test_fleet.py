@@ -286,3 +286,19 @@ def test_local_workers_keep_the_xla_flags_of_the_process():
     ]
     assert worker_env({})["XLA_FLAGS"] == "--xla_cpu_multi_thread_eigen=false"
     assert env["OMP_NUM_THREADS"] == env["OPENBLAS_NUM_THREADS"] == "1"
+
+
+def test_a_structure_name_is_built_for_each_buildings_columns(tmp_path):
+    """``--model Zon+Wal`` on a fleet where one building has no irradiance sensor: that one is
+    fitted without a solar aperture (the search's structure), not refused for a missing
+    column."""
+    folder = tmp_path / "in"
+    make_fleet(2, folder, days=4, seed=3)
+    f = pd.read_csv(folder / "b1.csv")
+    f.drop(columns=["I_glo_hor"]).to_csv(folder / "b1.csv", index=False)
+    out = tmp_path / "out"
+    run_fleet(folder, out, load_config(models="Zon+Wal", starts=2, partition_size=2), workers=0)
+    rows = read_results(out).set_index("building")
+    assert "bad_data" not in set(rows["status"]), rows["status"]
+    sunny, dark = (json.loads((out / "fits" / f"{b}.json").read_text()) for b in ("b0", "b1"))
+    assert "gA" in sunny["params"] and "gA" not in dark["params"]

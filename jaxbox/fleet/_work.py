@@ -196,16 +196,18 @@ def _doc(name: str, row: dict, report: dict | None, timing: dict) -> dict:
 
 def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: dict) -> None:
     """Fit one model to every checked building (one batched call per data shape: records of
-    neighbouring lengths are padded to one, see :func:`~jaxbox.fit.solve_jobs`)."""
+    neighbouring lengths are padded to one, see :func:`~jaxbox.fit.solve_jobs`); a structure
+    name is built for each building's columns."""
     from ..fit import FitError, fit_batch
     from ..fit._fit import bucket_samples
+    from ..models import get_model
 
     names = list(checked)
     extra = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
 
     def request(n):
         return {
-            "model": model,
+            "model": get_model(model, checked[n][0].columns),
             "data": checked[n][0],
             "starts": cfg.starts,
             "seed": cfg.seed,
@@ -380,8 +382,8 @@ def process_partition(
                 out[b.name] = (_empty_row(b.name, "bad_data", str(data)), None, {"load_s": load_s})
                 continue
             try:
-                if fixed:
-                    models = [get_model(fixed)]
+                if fixed:  # a structure name built for this building's columns
+                    models = [get_model(fixed, data.columns)]
                 elif cfg.models == "search":  # the simplest structure's columns are needed
                     grammar = Grammar.from_columns(data.columns)
                     models = [roots(grammar)[0].build(grammar)]
@@ -393,7 +395,7 @@ def process_partition(
                 out[b.name] = (_empty_row(b.name, "bad_data", str(err)), None, {"load_s": load_s})
         if checked:
             if fixed:
-                _fixed_model(get_model(fixed), checked, cfg, fit_json, out)
+                _fixed_model(fixed, checked, cfg, fit_json, out)
             elif cfg.models == "search":  # each building its own search
                 for n, item in checked.items():
                     _selection("search", {n: item}, cfg, fit_json, out)

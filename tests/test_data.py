@@ -790,3 +790,50 @@ def test_time_column_by_another_case_or_an_unnamed_index(tmp_path) -> None:
     assert len(load(numbered).frame) == len(df)
     with pytest.raises(DataError, match="no time column found"):
         load(df.rename(columns={"time": "Time"}).assign(TIME=1.0))
+
+
+def test_columns_in_other_units_are_converted_at_load(tmp_path) -> None:
+    """units= converts °F, K, kW, Btu/h and kW/m² before the checks (°F and kelvin columns
+    are refused otherwise, naming the option); a unit that does not fit the column, a column
+    not there, a unit with a scale or a counter are refused."""
+    df = frame().assign(T_amb=5.0, I_glo_hor=np.linspace(0.0, 400.0, 13))
+    ref = load(df).frame
+    logged = df.assign(
+        T_zon=df["T_zon"] * 1.8 + 32,
+        T_amb=df["T_amb"] + 273.15,
+        Q_hea=df["Q_hea"] / 1000,
+        I_glo_hor=df["I_glo_hor"] / 1000,
+    )
+    units = {"T_zon": "degF", "T_amb": "K", "Q_hea": "kW", "I_glo_hor": "kW/m2"}
+    pd.testing.assert_frame_equal(load(logged, units=units).frame, ref, rtol=1e-12)
+    btu = load(df.assign(Q_hea=df["Q_hea"] / 0.29307107), units={"Q_hea": "Btu/h"}).frame
+    np.testing.assert_allclose(btu["Q_hea"], ref["Q_hea"], rtol=1e-12)
+    with pytest.raises(DataError, match=r"looks like kelvin.*units=\{'T_amb': 'K'\}"):
+        load(logged.drop(columns=["T_zon"]))
+    for bad, words in (
+        ({"Q_hea": "degF"}, "is a power .* 'kW'"),
+        ({"T_zon": "kelvin"}, "is a temperature .* 'degF'"),
+        ({"T_zonx": "K"}, "there is none.*did you mean 'T_zon'"),
+    ):
+        with pytest.raises(DataError, match=words):
+            load(logged, units=bad)
+    with pytest.raises(DataError, match="both a unit .* and a scale factor"):
+        load(df, units={"Q_hea": "kW"}, scale={"Q_hea": 1000})
+    with pytest.raises(DataError, match="both a unit and a counter"):
+        load(df, units={"Q_hea": "kW"}, counters={"Q_hea": "kWh"})
+
+
+def test_the_command_line_takes_units(tmp_path) -> None:
+    from jaxbox.cli._common import cli_message
+    from jaxbox.cli._data import DataOptions, load_data
+    from jaxbox.cli._main import build_parser
+
+    df = frame()
+    path = tmp_path / "f.csv"
+    df.assign(T_zon=df["T_zon"] * 1.8 + 32).to_csv(path, index=False)
+    args = build_parser().parse_args(["fit", str(path), "--model", "Zon", "--unit", "T_zon=degF"])
+    got = load_data(str(path), DataOptions(args)).frame
+    np.testing.assert_allclose(got["T_zon"], load(df).frame["T_zon"], rtol=1e-12)
+    with pytest.raises(DataError) as info:
+        load(df.assign(T_zon=df["T_zon"] + 273.15))
+    assert "--unit T_zon=K" in cli_message(str(info.value))

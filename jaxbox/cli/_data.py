@@ -107,6 +107,14 @@ def add_data_arguments(p) -> None:
         help="multiply canonical column COLUMN by FACTOR, e.g. Q_hea=1000 for kW (repeatable)",
     )
     p.add_argument(
+        "--unit",
+        action="append",
+        default=[],
+        metavar="COLUMN=UNIT",
+        help="canonical column COLUMN is logged in UNIT, converted at load: degF or K for a "
+        "temperature, kW, MW or Btu/h for a power, kW/m2 for irradiance (repeatable)",
+    )
+    p.add_argument(
         "--counter",
         action="append",
         default=[],
@@ -277,6 +285,7 @@ class DataOptions:
             )
         self.scale = scale(args.scale)
         self.counters = pairs(args.counter, "--counter", "Q_hea=kWh")
+        self.units = pairs(getattr(args, "unit", []), "--unit", "T_zon=degF")
         self.ranges = bounds(args.range, "--range", "T_zon=-10:60")
         self.stuck_hours = _stuck_hours(getattr(args, "stuck_hours", None))
         self.allow = _allow(getattr(args, "allow", []))
@@ -301,6 +310,7 @@ class DataOptions:
             "--decimal": self.decimal,
             "--thousands": self.thousands,
             "--scale": self.scale,
+            "--unit": self.units,
             "--counter": self.counters,
         }
 
@@ -384,6 +394,7 @@ def load_data(spec: str, opts: DataOptions | None = None):
         thousands=opts.thousands,
         scale=opts.scale or None,
         counters=opts.counters or None,
+        units=opts.units or None,
         tz=opts.tz,
         **({"time_unit": opts.time_unit} if opts.time_unit else {}),
         **({"epoch": opts.epoch} if opts.epoch else {}),

@@ -37,3 +37,4 @@ from ._plausible import trim_edges as trim_edges
 from ._signals import CONSTANT as CONSTANT
 from ._signals import SIGNALS as SIGNALS
 from ._signals import signal_unit as signal_unit
+from ._units import UNITS as UNITS

@@ -522,7 +522,8 @@ def check_kelvin(frame: pd.DataFrame) -> None:
         median = float(np.median(seen)) if seen.size else np.nan
         if median > _KELVIN_MEDIAN:
             raise DataError(
-                f"column {name!r} looks like kelvin (median {median:.1f}); convert to °C "
+                f"column {name!r} looks like kelvin (median {median:.1f}); load it with "
+                f"units={{{name!r}: 'K'}} (command line: --unit {name}=K), or convert it to °C "
                 "(subtract 273.15)."
             )
 

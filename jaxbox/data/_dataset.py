@@ -53,6 +53,7 @@ def validated_frame(
     where: Where = _position,
     scale: Mapping[str, float] | None = None,
     counters: Mapping[str, float] | None = None,
+    offsets: Mapping[str, float] | None = None,
 ) -> pd.DataFrame:
     """A fresh float64 copy of ``frame`` (DatetimeIndex named ``time``) after the checks.
 
@@ -61,10 +62,11 @@ def validated_frame(
     kelvin and, with ``regular``, a constant sampling step; rows missing from that step's grid
     (every step a whole multiple of the median step) are put back as rows of NaN. NaN values
     are gaps, kept (see :mod:`jaxbox.data._gaps`). ``scale`` (column -> factor) multiplies
-    columns before the value checks; ``counters`` (column -> joules per unit) turns cumulative
-    energy meters into the mean power of each interval (:mod:`jaxbox.data._counters`; on a
-    regular grid, an interval over missing rows is a gap) and drops the first row, which only
-    gives their starting readings.
+    columns before the value checks, and ``offsets`` (column -> value) is added after it (a
+    unit converted: °F to °C, :mod:`jaxbox.data._units`); ``counters`` (column -> joules per
+    unit) turns cumulative energy meters into the mean power of each interval
+    (:mod:`jaxbox.data._counters`; on a regular grid, an interval over missing rows is a gap)
+    and drops the first row, which only gives their starting readings.
     """
     if not isinstance(frame, pd.DataFrame):
         raise DataError(
@@ -96,6 +98,8 @@ def validated_frame(
     values = to_float(frame.set_axis(columns, axis=1).set_axis(index, axis=0), where)
     for name, factor in (scale or {}).items():
         values[name] = values[name] * factor
+    for name, offset in (offsets or {}).items():
+        values[name] = values[name] + offset
     if counters:
         longest = median_step(index) if grid is not None else None
         values = counters_to_power(values, counters, longest=longest)

@@ -23,6 +23,7 @@ from ._dataset import Dataset, validated_frame
 from ._errors import DataError, DataWarning, list_names
 from ._gaps import gap_note
 from ._signals import signal_base
+from ._units import unit_conversions
 
 __all__ = ["as_dataset", "load"]
 
@@ -430,6 +431,7 @@ def load(
     scale: Mapping[str, float] | None = None,
     counters: Mapping[str, str] | None = None,
     tz: str | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> Dataset:
     """Load monitoring data into a checked :class:`Dataset`.
 
@@ -475,6 +477,10 @@ def load(
             daylight-saving changes (the hour repeated at the end of summer time told apart by
             its order); stamps with offsets are converted to it. The data keep that zone.
             Without ``tz`` naive stamps stay naive (a repeated hour is a duplicate).
+        units: canonical column name (after ``columns``) -> the unit it is logged in, converted
+            to jaxbox's before the checks: ``{"T_zon": "degF", "T_amb": "degF"}`` (or ``"K"``),
+            ``{"Q_hea": "kW"}`` (``"MW"``, ``"Btu/h"``), ``{"I_glo_hor": "kW/m2"}``; see
+            :mod:`jaxbox.data._units`. A column takes a unit or a ``scale``, not both.
 
     Always refused (whatever ``check``): duplicate column names, infinite values and absurd
     magnitudes (see :func:`jaxbox.data.check_finite`). The physical plausibility of the
@@ -538,7 +544,16 @@ def load(
     frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)
     frame = frame.set_axis(index, axis=0)
     factors = _factors(scale, [str(name) for name in frame.columns])
+    by_unit, offsets = unit_conversions(units, [str(name) for name in frame.columns], factors)
+    factors = {**factors, **by_unit}
     joules = check_counters(counters, [str(name) for name in frame.columns])
+    both = sorted(set(joules) & set(check_mapping(units, "units", "{'T_zon': 'degF'}")))
+    if both:
+        raise DataError(
+            f"{both[0]!r} is given both a unit and a counter: a counter's unit is its energy "
+            f"(counters={{{both[0]!r}: 'kWh'}}, command line --counter {both[0]}=kWh); drop "
+            "its unit."
+        )
     dataset = Dataset._new(
         validated_frame(
             frame,
@@ -547,6 +562,7 @@ def load(
             where=where,
             scale=factors,
             counters=joules,
+            offsets=offsets,
         )
     )
     dataset = dataset if resample is None else dataset.resample(resample)

@@ -406,8 +406,9 @@ def _fahrenheit(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding
         Finding(
             c.name,
             "fahrenheit",
-            f"{c.name!r} looks like °F (median {median:.4g}, too warm for °C); convert it to °C "
-            f"((°F - 32) / 1.8) before loading, or declare its range with {c.override_hint()}.",
+            f"{c.name!r} looks like °F (median {median:.4g}, too warm for °C); load it with "
+            f"units={{{c.name!r}: 'degF'}} (command line: --unit {c.name}=degF), or declare its "
+            f"range with {c.override_hint()}.",
         )
     ]
 
@@ -812,8 +813,9 @@ def _warm_outside(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Findi
             c.name,
             "fahrenheit",
             f"{c.name!r} is on average {-delta:.3g} K warmer than the zone while the heating "
-            f"runs: in °F? convert it to °C ((°F - 32) / 1.8) before loading; or are the zone "
-            f"and outdoor columns swapped (check columns=, command line --map)? If it is right, "
+            f"runs: in °F? then load it with units={{{c.name!r}: 'degF'}} (command line: --unit "
+            f"{c.name}=degF); or are the zone and outdoor columns swapped (check columns=, "
+            f"--map)? If it is right, "
             f"declare its range with {c.override_hint()}.",
             severe=False,
         )

@@ -182,13 +182,15 @@ def test_config_from_toml(tmp_path):
     assert cfg.load_options() == {"columns": {"T_zon": "indoor"}, "resample": "1h"}
     assert load_config().fixed_model is None and load_config().models == "search"
     path.write_text(
-        '[data]\ncounters = { Q_hea = "kWh" }\ntz = "Europe/Berlin"\n', encoding="utf-8"
+        '[data]\ncounters = { Q_hea = "kWh" }\ntz = "Europe/Berlin"\nunits = { T_zon = "degF" }\n',
+        encoding="utf-8",
     )
     cfg = load_config(path, time=["date", "clock"], time_unit="ms")
     assert cfg.load_options() == {
         "time": ["date", "clock"],
         "time_unit": "ms",
         "counters": {"Q_hea": "kWh"},
+        "units": {"T_zon": "degF"},
         "tz": "Europe/Berlin",
     }
     with pytest.raises(FleetError, match="data.time must be a column or"):
@@ -225,6 +227,7 @@ def test_config_from_toml(tmp_path):
         ({"scale": {"Q_hea": "kW"}}, "data.scale.Q_hea must be a number"),
         ({"scale": {"Q_hea": 0}}, "data.scale.Q_hea must be a finite factor"),
         ({"counters": {"Q_hea": "kwh"}}, "data.counters.Q_hea: unknown energy unit"),
+        ({"units": {"T_zon": "fahrenheit"}}, "data.units.T_zon: unknown unit 'fahrenheit'"),
         ({"sep": ";;"}, "data.sep must be one character"),
         ({"decimal": ";"}, "data.decimal must be"),
         ({"resample": "hourly"}, "data.resample 'hourly' is not a positive fixed length"),

@@ -10,6 +10,7 @@ A TOML file has up to four tables; every key is optional::
     resample = "1h"             # average onto this grid
     scale = { Q_hea = 1000 }    # factors (after renaming), e.g. kW -> W
     counters = { Q_hea = "kWh" }  # cumulative energy meters (after renaming) and their unit
+    units = { T_zon = "degF", T_amb = "degF" }  # columns logged in another unit (degF, K, kW…)
     tz = "Europe/Berlin"        # time zone of stamps without a UTC offset (local clock time)
     sep = ","
     decimal = "."
@@ -78,6 +79,8 @@ class FleetConfig:
         resample: pandas frequency to average onto (``None``: as recorded).
         scale: canonical name -> factor.
         counters: canonical name -> energy unit of a cumulative meter (``"kWh"``…).
+        units: canonical name -> the unit it is logged in (``"degF"``, ``"K"``, ``"kW"``…;
+            :data:`jaxbox.data.UNITS`).
         tz: time zone of the time stamps (``None``: as written; see :func:`jaxbox.data.load`).
         sep, decimal, thousands: CSV separator, decimal mark and thousands separator.
         fraction: identification share of each building's data (without ``train``).
@@ -100,6 +103,7 @@ class FleetConfig:
     resample: str | None = None
     scale: Mapping[str, float] = dataclasses.field(default_factory=dict)
     counters: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    units: Mapping[str, str] = dataclasses.field(default_factory=dict)
     tz: str | None = None
     sep: str | None = None
     decimal: str | None = None
@@ -180,6 +184,16 @@ class FleetConfig:
                     f"{', '.join(COUNTER_UNITS)}"
                 )
         object.__setattr__(self, "counters", counters)
+        from ..data._units import UNITS
+
+        units = _names_map("data.units", self.units)
+        known = sorted({u for table in UNITS.values() for u in table})
+        for k, unit in units.items():
+            if unit.strip() not in known:
+                raise FleetError(
+                    f"data.units.{k}: unknown unit {unit!r}; use one of {', '.join(known)}"
+                )
+        object.__setattr__(self, "units", units)
         if self.tz is not None and (not isinstance(self.tz, str) or not self.tz.strip()):
             raise FleetError(
                 f"data.tz must name a time zone such as 'Europe/Berlin', got {self.tz!r}"
@@ -290,6 +304,7 @@ class FleetConfig:
             "resample": self.resample,
             "scale": self.scale or None,
             "counters": self.counters or None,
+            "units": self.units or None,
             "tz": self.tz,
             "sep": self.sep,
             "decimal": self.decimal,
@@ -329,6 +344,7 @@ _TABLES = {
         "resample",
         "scale",
         "counters",
+        "units",
         "tz",
         "sep",
         "decimal",

@@ -543,17 +543,11 @@ def load(
     frame = raw.drop(columns=dropped) if dropped else raw
     frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)
     frame = frame.set_axis(index, axis=0)
-    factors = _factors(scale, [str(name) for name in frame.columns])
-    by_unit, offsets = unit_conversions(units, [str(name) for name in frame.columns], factors)
+    names = [str(name) for name in frame.columns]
+    factors = _factors(scale, names)
+    joules = check_counters(counters, names)
+    by_unit, offsets = unit_conversions(units, names, factors, joules)
     factors = {**factors, **by_unit}
-    joules = check_counters(counters, [str(name) for name in frame.columns])
-    both = sorted(set(joules) & set(check_mapping(units, "units", "{'T_zon': 'degF'}")))
-    if both:
-        raise DataError(
-            f"{both[0]!r} is given both a unit and a counter: a counter's unit is its energy "
-            f"(counters={{{both[0]!r}: 'kWh'}}, command line --counter {both[0]}=kWh); drop "
-            "its unit."
-        )
     dataset = Dataset._new(
         validated_frame(
             frame,

@@ -59,14 +59,18 @@ _KIND = {"°C": "temperature", "W": "power", "W/m²": "irradiance"}
 
 
 def unit_conversions(
-    units: Mapping[str, str] | None, names: list[str], scale: Mapping[str, float]
+    units: Mapping[str, str] | None,
+    names: list[str],
+    scale: Mapping[str, float],
+    counters: Mapping[str, float],
 ) -> tuple[dict[str, float], dict[str, float]]:
     """``(factors, offsets)`` per column from ``units`` (canonical column -> the unit it is
-    logged in), for columns ``names`` (after mapping); ``scale`` must not name them too.
+    logged in), for columns ``names`` (after mapping); ``scale`` and ``counters`` must not
+    name them too.
 
     Raises:
         DataError: a column that is not there, is not a temperature, power or irradiance, a
-            unit it does not take, or a column in both ``units`` and ``scale``.
+            unit it does not take, or a column in ``units`` and ``scale`` or ``counters``.
     """
     given = check_mapping(units, "units", "{'T_zon': 'degF'}")
     factors: dict[str, float] = {}
@@ -88,6 +92,12 @@ def unit_conversions(
                 f"units: {name!r} is not a canonical temperature (T_…), power (Q_…, P_…) or "
                 "irradiance (I_…) column; convert it before loading, or use scale= "
                 "(command line --scale) for a factor."
+            )
+        if name in counters:
+            raise DataError(
+                f"{name!r} is given both a unit and a counter: a counter's unit is its energy "
+                f"(counters={{{name!r}: 'kWh'}} (command line: --counter {name}=kWh)); drop "
+                "its unit."
             )
         if name in scale:
             raise DataError(

@@ -235,21 +235,17 @@ def _day_to_day(e: np.ndarray, days: np.ndarray, previous: np.ndarray) -> tuple[
     """A warning where the residuals ``e`` of consecutive days (``days``: their positions
     among the complete days) are correlated beyond chance (lag-1 correlation above 2/√pairs):
     Student's interval takes the days as independent and is then too narrow."""
-    pairs = [
-        (a, b)
-        for a, b in zip(range(len(days) - 1), range(1, len(days)), strict=True)
-        if days[b] == days[a] + 1 and previous[days[b]]
-    ]
-    if len(pairs) < MIN_DAYS:
+    pair = (np.diff(days) == 1) & previous[days[1:]]  # day k+1 follows day k
+    n = int(pair.sum())
+    if n < MIN_DAYS:
         return ()
-    x = np.asarray([e[a] for a, _ in pairs])
-    z = np.asarray([e[b] for _, b in pairs])
+    x, z = e[:-1][pair], e[1:][pair]
     rho = float(np.sum(x * z) / max(np.sqrt(np.sum(x * x) * np.sum(z * z)), 1e-300))
-    if not rho > 2.0 / math.sqrt(len(pairs)):
+    if not rho > 2.0 / math.sqrt(n):
         return ()
     return (
         f"the daily residuals are correlated from one day to the next (lag-1 correlation "
-        f"{rho:.2f} over {len(pairs)} pairs of days): the interval, which takes the days as "
+        f"{rho:.2f} over {n} pairs of days): the interval, which takes the days as "
         "independent, may be too narrow",
     )
 

@@ -819,8 +819,11 @@ def test_columns_in_other_units_are_converted_at_load(tmp_path) -> None:
             load(logged, units=bad)
     with pytest.raises(DataError, match="both a unit .* and a scale factor"):
         load(df, units={"Q_hea": "kW"}, scale={"Q_hea": 1000})
-    with pytest.raises(DataError, match="both a unit and a counter"):
+    with pytest.raises(DataError, match="both a unit and a counter") as info:
         load(df, units={"Q_hea": "kW"}, counters={"Q_hea": "kWh"})
+    from jaxbox.cli._common import cli_message
+
+    assert "(--counter Q_hea=kWh)" in cli_message(str(info.value))
 
 
 def test_the_command_line_takes_units(tmp_path) -> None:

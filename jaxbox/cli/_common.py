@@ -123,7 +123,10 @@ def deferred_interrupt():
 #: (pattern, replacement) turning the library's Python advice into command-line options.
 _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
     # "units={'T_zon': 'degF'} (command line: --unit T_zon=degF)" -> "--unit T_zon=degF"
-    (re.compile(r"\bunits=\{'[^']+': '[^']+'\}\s*\(command line: ([^)]*)\)"), r"\1"),
+    (
+        re.compile(r"\b(?:units|counters)=\{'[^']+': '[^']+'\}\s*\(command line: ([^)]*)\)"),
+        r"\1",
+    ),
     # "pass sep=';' (command line: --sep ';')" -> "pass --sep ';'"
     (re.compile(r"\b[a-z_]+=(?:(?![;:.] )[^()])*?\s*\(command line: ([^)]*)\)"), r"\1"),
     (re.compile(r"\s*\(command line: [^)]*\)"), ""),

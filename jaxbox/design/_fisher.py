@@ -34,6 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._derivatives import value_and_jacfwd
 from ..models import ModelError, RCModel
 from ..simulate._exact import discretize_foh_rc
 from ..simulate._parallel import normal_equations_auto
@@ -135,8 +136,7 @@ class Setup:
         p), ``c = ∂ log HLC/∂φ`` [S, p] and the HLC [W/K], shape [S]."""
 
         def one(phi):
-            mats = self.matrices(phi, fixed, dt)
-            tangents = jax.jacfwd(self.matrices)(phi, fixed, dt)
+            mats, tangents = value_and_jacfwd(self.matrices)(phi, fixed, dt)
             log_hlc = lambda p: jnp.log(self.hlc(self.theta(p, fixed)))  # noqa: E731
             return mats, tangents, jax.grad(log_hlc)(phi), self.hlc(self.theta(phi, fixed))
 

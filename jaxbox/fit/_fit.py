@@ -55,6 +55,7 @@ from jaxtyping import Float
 
 from .. import _compiled
 from .._compiled import jit
+from .._derivatives import value_and_jacfwd
 from .._exported import compile_program
 from ..simulate._extend import extend_times, hold_rows
 from ..simulate._parallel import _PARALLEL_BATCH, normal_equations_auto, prefer_parallel
@@ -561,8 +562,7 @@ def _padded_matrices(prob: Problem, spec, args):
     n_free, n_fixed, n, inputs, n_max, m_max = spec
     Z, fixed, lo, hi, sc, dt = args
     own = (Z[:, :n_free], fixed[:, :n_fixed], lo[:, :n_free], hi[:, :n_free], sc[:, :n_free], dt)
-    (Phi, G0, G1, x0) = jax.vmap(prob.matrices)(*own)
-    (dPhi, dG0, dG1, dx0) = jax.vmap(jax.jacfwd(prob.matrices))(*own)
+    (Phi, G0, G1, x0), (dPhi, dG0, dG1, dx0) = jax.vmap(value_and_jacfwd(prob.matrices))(*own)
     dq = Z.shape[1] - n_free
     P = np.zeros((len(inputs), m_max))
     P[np.arange(len(inputs)), list(inputs)] = 1.0
@@ -682,8 +682,7 @@ def _build(
                 args = (Z, *members, *(a[idx] for a in structure))
                 mats = _rc_matrices(groups[0][0].transform.style)
                 tt, uu, yy, ww = data
-                prim = jax.vmap(mats)(*args)
-                tang = jax.vmap(jax.jacfwd(mats))(*args)
+                prim, tang = jax.vmap(value_and_jacfwd(mats))(*args)
                 return normal_equations_auto(
                     prim, tang, groups[0][0].output_states, uu, yy, ww, t=tt, gain=gain
                 )
@@ -693,8 +692,9 @@ def _build(
                 start += count
                 args = (Z[sl],) + tuple(a[sl] for a in members)
                 if pads is None:
-                    prim.append(jax.vmap(prob.matrices)(*args))
-                    tang.append(jax.vmap(jax.jacfwd(prob.matrices))(*args))
+                    pm, pt = jax.vmap(value_and_jacfwd(prob.matrices))(*args)
+                    prim.append(pm)
+                    tang.append(pt)
                 else:
                     pm, pt = _padded_matrices(prob, pads[k], args)
                     prim.append(pm)

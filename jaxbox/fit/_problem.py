@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 import jax
 import numpy as np
 
+from .._derivatives import value_and_jacfwd
 from ..data._args import check_mapping
 from ..models import RCModel, get_model
 from ..simulate import simulate_arrays
@@ -170,8 +171,7 @@ class Problem:
         t, u, y, w = data
         if self.simulator == "exact":
             args = (Z, fixed, lo, hi, sc, dt)
-            primal = jax.vmap(self.matrices)(*args)
-            tangents = jax.vmap(jax.jacfwd(self.matrices))(*args)
+            primal, tangents = jax.vmap(value_and_jacfwd(self.matrices))(*args)
             return normal_equations(primal, tangents, self.output_states, u, y, w, chunk=chunk, t=t)
         shared = u.shape[1] == 1 and Z.shape[0] != 1
         d_axis = None if shared else 1
@@ -181,8 +181,7 @@ class Problem:
                 p = self.transform.to_physical(zz, a, b, c)
                 return ((self.simulate(p, f, tt, uu) - yy) * ww).ravel()
 
-            r = res(z)
-            J = jax.jacfwd(res)(z)
+            r, J = value_and_jacfwd(res)(z)
             return r @ r, J.T @ r, J.T @ J
 
         if shared:

@@ -32,6 +32,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Float
 
 from .._compiled import cached, jit
+from .._derivatives import value_and_jacfwd
 from .._x64 import require_x64
 from ._problem import FitError, Problem, problem_arrays
 from ._result import BOUND_TOLERANCE
@@ -183,8 +184,8 @@ def _build_functions(problem: Problem) -> dict:
             return outputs(qq, scale, fixed_values, t, u)
 
         def first(qq):
-            Jq = jax.jacfwd(sim)(qq)
-            return Jq, (Jq, sim(qq))
+            yq, Jq = value_and_jacfwd(sim)(qq)
+            return Jq, (Jq, yq)
 
         d2, (J, yhat) = jax.jacfwd(first, has_aux=True)(q)  # d2: [N, p_out, n, n]
         w2 = jnp.broadcast_to(sqrt_w**2, y.shape)  # 0 at the samples of an output gap

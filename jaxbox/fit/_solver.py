@@ -215,8 +215,12 @@ def _jacfwd_normal_equations(fn, y, args):
         r, aux = fn(unravel(v), args)
         return ravel_pytree(r)[0], aux
 
-    r, aux = residuals(flat)
-    J = jax.jacfwd(lambda v: residuals(v)[0])(flat)
+    def with_value(v):
+        r, aux = residuals(v)
+        return r, (r, aux)
+
+    # the residuals from the Jacobian's own primal: the model is traced and run once
+    J, (r, aux) = jax.jacfwd(with_value, has_aux=True)(flat)
     return (0.5 * jnp.dot(r, r), J.T @ r, J.T @ J), aux
 
 

@@ -33,6 +33,7 @@ from jaxtyping import Array
 
 from .. import _compiled
 from .._compiled import jit
+from .._derivatives import value_grad_hessian
 from .._exported import compile_program
 from .._x64 import require_x64
 from ..fit._fit import bucket_samples
@@ -441,7 +442,7 @@ def _hessian(sp: StochasticProblem, vec: np.ndarray, dt: float, u, y):
         def f(pv, arrays, dt, u, y):
             return _nll_arrays(pv, dict(zip(KEYS, arrays, strict=True)), dt, hold, u, y)
 
-        return jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)), once=True)
+        return jit(value_grad_hessian(f), once=True)
 
     key = ("stochastic", "hessian-arrays", hold, shapes)
     fn = _compiled.cached(key, lambda: compile_program("stochastic-hessian", key, build(), args))[0]
@@ -463,7 +464,7 @@ def _hessian_fn(sp: StochasticProblem, shapes):
             mats, C, D, r, m0, P0 = system(sp.model, theta, dt, sp.hold, x0_std)
             return kalman_scan(mats, C, D, r, m0, P0, u, y)
 
-        return jit(lambda *a: (f(*a), jax.grad(f)(*a), jax.hessian(f)(*a)))
+        return jit(value_grad_hessian(f))
 
     return _compiled.cached(key, build)[0]
 

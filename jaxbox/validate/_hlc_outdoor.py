@@ -32,11 +32,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._compiled import cached, jit
+from .._derivatives import value_and_jacfwd
 
 __all__ = ["OutdoorHLC", "outdoor_hlc", "boundary_follow", "AMBIENT"]
 
@@ -121,7 +121,7 @@ def _function(model, free: tuple[str, ...], fixed: tuple[str, ...], jq: int, jb:
             k = jnp.stack([gain[0, j] for j in jb]) if jb else jnp.zeros(0)
             return jnp.concatenate([jnp.stack([hlc * (1.0 - k @ alpha), hlc]), k])
 
-        return jit(lambda p, fv, a: (g(p, fv, a), jax.jacfwd(g)(p, fv, a)), once=True)
+        return jit(value_and_jacfwd(g), once=True)
 
     return cached(("kpi_outdoor", model, free, fixed, jq, jb), build)[0]
 

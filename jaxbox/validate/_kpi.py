@@ -41,11 +41,11 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._compiled import cached, jit
+from .._derivatives import value_and_jacfwd
 from .._x64 import require_x64
 from ..data import signal_unit
 from ._hlc_hac import HAC, MAX_RHO, WHITE
@@ -239,7 +239,7 @@ def _compiled(model, free: tuple[str, ...], fixed: tuple[str, ...], symmetric: b
             theta.update({n: fv[i] for i, n in enumerate(fixed)})
             return g(theta)
 
-        return jit(lambda p, fv: (f(p, fv), jax.jacfwd(f)(p, fv)), once=True)
+        return jit(value_and_jacfwd(f), once=True)
 
     return cached(("kpi", model, free, fixed, symmetric), build)[0]
 

@@ -46,6 +46,7 @@ from jaxtyping import ArrayLike, Bool, Float
 from scipy import stats
 
 from .._compiled import cached, jit
+from .._derivatives import value_and_jacfwd
 from .._exported import compile_program
 from .._x64 import require_x64
 from ._args import check_fit
@@ -361,10 +362,7 @@ def _build_rc_jacobian(segmented: bool):
             return simulate_foh_segments(Phi, G0, G1, C, D, x0, u, t)[0]
         return simulate_foh(Phi, G0, G1, C, D, x0, u)[0]
 
-    def both(p, *args):
-        return f(p, *args), jax.jacfwd(f)(p, *args)
-
-    return jit(both)
+    return jit(value_and_jacfwd(f))
 
 
 def _jacobian_fn(problem, n_samples: int):
@@ -378,10 +376,7 @@ def _build_jacobian_fn(problem):
     def f(p, fixed_values, t, u):
         return problem.simulate(p, fixed_values, t, u)
 
-    def both(p, fixed_values, t, u):
-        return f(p, fixed_values, t, u), jax.jacfwd(f)(p, fixed_values, t, u)
-
-    return jit(both)
+    return jit(value_and_jacfwd(f))
 
 
 def sensitivities(

@@ -461,6 +461,7 @@ def test_no_heat_input_measured_is_named(tmp_path, monkeypatch):
         ({"Q_hea": 500.0}, ("T_amb", "Q_hea"), ("T_zon",), None),
         ({}, ("T_amb",), ("T_zon",), "no heat input is measured"),
         ({"Q_hea": 300.0}, ("T_amb",), ("T_zon",), "none of the models takes a heat input"),
+        ({"Heizung [kW]": 1.5}, ("T_amb",), ("T_zon",), "also have 'Heizung [kW]', under names"),
         ({"Q_hea": 0.0}, ("T_amb", "T_zon"), ("Q_hea",), None),  # the heat demand form
     ],
 )
@@ -484,6 +485,53 @@ def test_which_heat_inputs_leave_the_scale_undetermined(columns, inputs, outputs
     else:
         (text,) = got
         assert said in text and "not the heat-loss coefficient or the capacities" in text
+
+
+def test_a_search_without_its_required_columns_names_them_all_and_the_mapping(
+    tmp_path, capsys, monkeypatch
+):
+    """Columns under the names of a German logger: the search names both signals it needs
+    at once, the columns the data have, and the mapping in each interface's terms; where the
+    heating is left unmapped, the verdict names the columns no model reads."""
+    from test_hostile import frame as tiny
+
+    import jaxbox.select
+    from jaxbox.cli._main import main
+    from jaxbox.models import Grammar, ModelError
+    from jaxbox.select import _cases
+
+    names = {"T_zon": "Raumtemperatur", "T_amb": "Aussen", "Q_hea": "Heizung [kW]"}
+    with pytest.raises(ModelError) as err:
+        Grammar.from_columns(["Raumtemperatur", "Aussen", "I_glo_hor"])
+    text = str(err.value)
+    assert "needs the ambient temperature T_amb and a zone temperature T_zon" in text, text
+    assert "'Raumtemperatur', 'Aussen', 'I_glo_hor'" in text
+    assert "columns={'T_amb': 'your_col', 'T_zon': 'your_col'} in jaxbox.data.load" in text
+    with pytest.raises(ModelError, match=r"needs the ambient temperature T_amb \(did you mean"):
+        Grammar.from_columns(["T_zon", "T_amb_"])
+    data = tiny(72).rename(columns=names)
+    data["Heizung [kW]"] /= 1000.0
+    path = tmp_path / "logger.csv"
+    data.to_csv(path, index=False)
+    assert main(["select", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "--map T_amb=YOUR_COLUMN --map T_zon=YOUR_COLUMN" in err, err
+    argv = ["select", str(path), "--map", "T_zon=Raumtemperatur", "--map", "T_amb=Aussen"]
+    monkeypatch.setattr(_cases.Case, "is_valid", property(lambda self: False))
+    search = jaxbox.select.structure_search
+    monkeypatch.setattr(  # the roots alone: a short search
+        jaxbox.select,
+        "structure_search",
+        lambda gb, **kw: search(gb, max_depth=0, lookahead=0, **kw),
+    )
+    assert main([*argv, "--starts", "1", "--max-steps", "20", "--patience", "1"]) == 1
+    err = capsys.readouterr().err
+    # the progress lines in command-line terms as the last one is
+    (verdict,) = [line for line in err.splitlines() if line.startswith("accepted: ")]
+    for line in (verdict, err.strip().splitlines()[-1]):
+        assert "also have 'Heizung [kW]', under names no model reads" in line, line
+        assert "map yours with --map Q_hea=YOUR_COLUMN" in line, line
+        assert "jaxbox.data.load" not in line
 
 
 def test_no_valid_model_repeats_the_data_checks_doubt_of_swapped_columns(tmp_path, capsys):

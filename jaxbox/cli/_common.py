@@ -198,13 +198,17 @@ def warning_line(message: object) -> str:
 _LINE_BREAKS = re.compile(r"[ \t]*[\r\n]+[ \t]*")
 
 
-def cli_message(message: str) -> str:
-    """A library error message in command-line terms: options instead of keyword arguments."""
-    # One line; runs of spaces inside a quoted name (a column 'AUX2  [W]') are kept.
-    text = _LINE_BREAKS.sub(" ", str(message)).strip()
+def _advice(text: str) -> str:
+    """``text`` with the library's Python advice replaced by command-line options."""
     for pattern, replacement in _ADVICE:
         text = pattern.sub(replacement, text)
     return text
+
+
+def cli_message(message: str) -> str:
+    """A library error message in command-line terms: options instead of keyword arguments."""
+    # One line; runs of spaces inside a quoted name (a column 'AUX2  [W]') are kept.
+    return _advice(_LINE_BREAKS.sub(" ", str(message)).strip())
 
 
 # ---- options -----------------------------------------------------------------------------------
@@ -467,8 +471,9 @@ def progress(args) -> Callable[[str], None]:
 
     def say(msg: str) -> None:
         check_interrupted()
-        if not quiet:
-            print(msg, file=sys.stderr, flush=True)
+        if not quiet:  # the library's advice in command-line terms, line by line
+            lines = str(msg).split("\n")
+            print("\n".join(_advice(line) for line in lines), file=sys.stderr, flush=True)
 
     return say
 

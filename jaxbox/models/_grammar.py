@@ -178,6 +178,31 @@ def _typo_column(column: str) -> str | None:
     )
 
 
+def _require_search_columns(cols: list[str], zone: bool) -> None:
+    """Raise :class:`ModelError` naming every signal a structure search cannot go without
+    (``T_amb``; a zone temperature ``T_zon``, or ``T_zon1``/``T_zon2``) that ``cols`` lack,
+    with the columns there are and how to map them."""
+    missing = [name for name, ok in (("T_amb", "T_amb" in cols), ("T_zon", zone)) if not ok]
+    if not missing:
+        return
+    what = {"T_amb": "the ambient temperature T_amb", "T_zon": "a zone temperature T_zon"}
+    needs = " and ".join(what[m] for m in missing)
+    if "T_zon" in missing:
+        needs += " (or T_zon1, T_zon2 for two zones)"
+    close = [
+        match
+        for name in missing
+        for match in difflib.get_close_matches(name, cols, n=1, cutoff=0.7)
+    ]
+    hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
+    shown = ", ".join(repr(c) for c in cols) or "(none)"
+    mapping = ", ".join(f"{name!r}: 'your_col'" for name in missing)
+    raise ModelError(
+        f"a structure search needs {needs}{hint}; the data have {shown}; map yours with "
+        f"columns={{{mapping}}} in jaxbox.data.load"
+    )
+
+
 @dataclasses.dataclass(frozen=True)
 class Grammar:
     """What the data can drive.
@@ -213,17 +238,9 @@ class Grammar:
                 column whose word reads like a typo of a token (``T_wall``: ``Wall``).
         """
         cols = list(columns)
-        if "T_amb" not in cols:
-            raise ModelError("a structure search needs the ambient temperature column T_amb")
         numbered = sorted(int(m[1]) for x in cols if (m := re.fullmatch(r"T_zon(\d+)", x)))
-        if "T_zon" in cols:
-            zones: tuple[int, ...] = (0,)
-        elif numbered:
-            zones = tuple(numbered)
-        else:
-            raise ModelError(
-                "a structure search needs a zone temperature column T_zon (or T_zon1, T_zon2)"
-            )
+        _require_search_columns(cols, zone="T_zon" in cols or bool(numbered))
+        zones: tuple[int, ...] = (0,) if "T_zon" in cols else tuple(numbered)
         if len(zones) > 2:
             raise ModelError(
                 f"the structure search models one or two zones; the data have {len(zones)} "

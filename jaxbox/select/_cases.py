@@ -471,12 +471,21 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
                 x = np.asarray(case.ident[name], dtype=float)
                 powers[name] = x[np.isfinite(x)]
     if not powers:
-        unused = [c for c in cases[0].ident.columns if signal_unit(c) == "W"]
-        what = (
-            f"none of the models takes a heat input ('{unused[0]}' is in the data)"
-            if unused
-            else "no heat input is measured (no column such as 'Q_hea')"
-        )
+        columns = cases[0].ident.columns
+        unused = [c for c in columns if signal_unit(c) == "W"]
+        # columns under names no model reads: perhaps the heating, not mapped
+        unread = [c for c in columns if signal_unit(c) is None]
+        if unused:
+            what = f"none of the models takes a heat input ('{unused[0]}' is in the data)"
+        elif unread:
+            listed = ", ".join(f"'{c}'" for c in unread[:6]) + (", …" if len(unread) > 6 else "")
+            what = (
+                "no heat input is measured (no column such as 'Q_hea'; the data also have "
+                f"{listed}, under names no model reads: if one of them is the heating, map yours "
+                "with columns={'Q_hea': 'your_col'} in jaxbox.data.load)"
+            )
+        else:
+            what = "no heat input is measured (no column such as 'Q_hea')"
         return [
             f"{what}: the data fix the time constants but not the heat-loss coefficient or "
             "the capacities (only their ratios); add the heating power, or fix a capacity"

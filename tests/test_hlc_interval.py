@@ -96,6 +96,74 @@ def test_hac_is_the_white_covariance_on_white_residuals(white_fit):
     assert again.bandwidth == rc.bandwidth
 
 
+def test_the_blocking_finds_a_slow_error_under_fast_noise():
+    """Scores of white noise over a slow AR(1) part (ρ = 0.99, long-run variance 26 times the
+    white one's): the kernel at the samples' scale sees a twentieth of it, the blocking level
+    about all of it; on white scores the blocking adds at most its sampling error."""
+    from jaxbox.validate._hlc_hac import _blocked_sandwich, _sandwich
+
+    n, rho, sd = 4000, 0.99, 0.05
+    truth = n * (1 + sd**2 / (1 - rho) ** 2)
+    ones, blocked = [], []
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        slow, shocks = np.zeros(n), rng.normal(0, sd, n)
+        for t in range(1, n):
+            slow[t] = rho * slow[t - 1] + shocks[t]
+        s = (rng.normal(0, 1, n) + slow)[:, None]
+        ones.append(_sandwich(s, np.eye(1), 0.97)[0][0, 0] / truth)
+        cov, _, _, block = _blocked_sandwich(s, np.eye(1), 0.97)
+        blocked.append(cov[0, 0] / truth)
+        assert block > 1
+        white = rng.normal(0, 1, (n, 3))
+        se1 = np.sqrt(np.diag(_sandwich(white, np.eye(3), 0.97)[0]))
+        seb = np.sqrt(np.diag(_blocked_sandwich(white, np.eye(3), 0.97)[0]))
+        assert 1 - 1e-12 <= np.median(seb / se1) < 1.3  # the largest median level
+    assert max(ones) < 0.1, ones
+    assert 0.6 < np.median(blocked) < 2.0 and 0.4 < min(blocked) and max(blocked) < 3.5, blocked
+
+
+def test_the_interval_from_10_minute_data_is_that_of_their_hourly_means(monkeypatch):
+    """A slow AR(1) error (0.3 K, ρ = 0.9 an hour) under fast white noise (0.15 K): the HAC
+    interval of the HLC from 10-minute samples is about that from their hourly means (the
+    same information on a steady state), and holds the truth; at the samples' scale alone it
+    was half as wide as the hourly one and missed the truth."""
+    import jaxbox.validate._hlc_hac as hac
+
+    step, n = 600.0, 1008
+    fine = []
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        t = np.arange(n) * step
+        day = 2 * np.pi * t / 86400.0
+        on = np.random.default_rng(seed + 100).random(n // 6) > 0.5
+        u = {
+            "T_amb": 8.0 + 5.0 * np.sin(day - 2.0),
+            "Q_hea": 1500.0 * np.repeat(on, 6),
+            "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)),
+        }
+        clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
+        y = simulate_model("ZonWal", ZONWAL, clean).y[:, 0]
+        rho = 0.9 ** (step / STEP)
+        e, w = np.empty(n), rng.normal(0.0, 0.3 * np.sqrt(1 - rho**2), n)
+        e[0] = rng.normal(0.0, 0.3)
+        for i in range(1, n):
+            e[i] = rho * e[i - 1] + w[i]
+        fine.append(clean.with_columns(T_zon=y + e + rng.normal(0.0, 0.15, n)))
+    hourly = [d.resample("1h") for d in fine]
+    fits = fit_many("ZonWal", fine, starts=_start()), fit_many("ZonWal", hourly, starts=_start())
+    for a, b in zip(*fits, strict=True):
+        ka, kb = kpis(a, interval="hac"), kpis(b, interval="hac")
+        assert ka.residuals["block"] > 1
+        assert 1 / 1.6 < ka.hlc.std / kb.hlc.std < 1.6, (ka.hlc.std, kb.hlc.std)
+        assert ka.hlc.ci95[0] <= TRUE_HLC <= ka.hlc.ci95[1], ka.hlc.ci95
+    monkeypatch.setattr(hac, "MIN_BLOCKS", 10**9)  # the samples' scale alone
+    alone = [kpis(a, interval="hac") for a in fits[0]]
+    hours = [kpis(b, interval="hac") for b in fits[1]]
+    assert all(a.hlc.std < 0.8 * b.hlc.std for a, b in zip(alone, hours, strict=True))
+    assert not all(a.hlc.ci95[0] <= TRUE_HLC <= a.hlc.ci95[1] for a in alone)
+
+
 def test_the_method_and_a_warning_are_reported(coloured_fits):
     r = coloured_fits[0]
     w = kpis(r)

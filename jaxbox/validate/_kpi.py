@@ -106,8 +106,9 @@ class Kpis:
         gradient: ∂g/∂θ [KPIs, free] (rows in :meth:`all` order, columns ``free``).
         free: the free parameters (columns of ``gradient``).
         method: how the intervals were made (the covariance they rest on).
-        residuals: ``{"lag1", "ljung_box_p", "white", "bandwidth", "inflation"}`` of the
-            identification residuals (``bandwidth`` [samples] and ``inflation`` (HAC over
+        residuals: ``{"lag1", "ljung_box_p", "white", "bandwidth", "inflation", "block"}`` of
+            the identification residuals (``block``: the samples summed per block at the HAC's
+            blocking level; ``bandwidth`` [samples] and ``inflation`` (HAC over
             white standard errors, median over the parameters) of the HAC covariance).
         warnings: what the intervals cannot vouch for: white residuals assumed where they
             are not; a slowest time constant longer than the identification record (the HLC
@@ -368,6 +369,7 @@ def kpis(result, uncertainty=None, *, level: float | None = None, interval: str 
             "white": robust.white,
             "bandwidth": robust.bandwidth,
             "inflation": robust.inflation,
+            "block": robust.block,
         },
         warnings=warnings,
     )

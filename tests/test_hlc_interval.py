@@ -247,6 +247,32 @@ def test_near_best_models_widen_the_interval(coloured_fits):
     assert "heat-loss coefficient" in both.text() and both.method in both.text()
 
 
+def test_an_interval_below_zero_is_reported_from_zero_with_a_warning(coloured_fits, monkeypatch):
+    """A heat-loss coefficient is not negative: where the delta interval reaches below 0 W/K
+    (the data do not bound it from below), the reported one starts at 0 and says why."""
+    import jaxbox.validate._kpi as kpi_module
+
+    real = kpi_module.kpis
+
+    def wide(*args, **kwargs):  # the accepted model's interval 3 times its value wide
+        k = real(*args, **kwargs)
+        v = k.hlc.value
+        hlc = dataclasses.replace(k.hlc, std=1.5 * v, ci95=(v - 3 * v, v + 3 * v))
+        return dataclasses.replace(k, hlc=hlc)
+
+    sel = _selection([_Case("a", coloured_fits[0], 0.1)])
+    plain = hlc_interval(sel)
+    assert plain.ci95[0] > 0 and not any("below 0" in w for w in plain.warnings)
+    monkeypatch.setattr(kpi_module, "kpis", wide)
+    got = hlc_interval(sel)
+    v = got.value
+    assert got.ci95 == pytest.approx((0.0, 4 * v))
+    (why,) = [w for w in got.warnings if "below 0" in w]
+    assert f"{-2 * v:.3g} W/K" in why and "do not bound the HLC from below" in why
+    assert got.to_dict()["ci95"] == pytest.approx([0.0, 4 * v])
+    assert "below 0" in got.text()
+
+
 def test_the_select_outputs_carry_the_method(coloured_fits):
     from jaxbox.cli._select import _hlc, _hlc_text
     from jaxbox.report._html import _hlc_section

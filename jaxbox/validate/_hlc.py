@@ -54,7 +54,9 @@ class HlcInterval:
     Attributes:
         value: the accepted model's HLC [W/K].
         ci95: (lower, upper) [W/K] at ``level``: the union of the near-best models' intervals,
-            and of the accepted model's moved up by the conductance its offset may be.
+            and of the accepted model's moved up by the conductance its offset may be; from 0
+            where that union reaches below 0 (with a warning: the data do not bound the HLC
+            from below).
         level: confidence level.
         method: how the interval was made, in words.
         models: per near-best model (the accepted one first): ``{"model", "value", "ci95",
@@ -264,6 +266,12 @@ def hlc_interval(
         extra = max(h for h, _ in readings)
         hi = max(hi, models[0]["ci95"][1] + extra)
         method += f" + the offset read as a conductance the model leaves out (+{extra:.3g} W/K)"
+    if lo < 0:  # a heat-loss coefficient is not negative: the data leave it unbounded below
+        warns.append(
+            f"the interval reaches {lo:.3g} W/K, below 0: the data do not bound the HLC from "
+            "below; reported from 0"
+        )
+        lo = 0.0
     return HlcInterval(
         value=float(models[0]["value"]),
         ci95=(float(lo), float(hi)),

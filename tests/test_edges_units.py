@@ -216,24 +216,32 @@ def _findings(data, column):
 
 
 @pytest.mark.parametrize(
-    "column, factor, severe, fix",
+    "column, factor, severe, fix, unit",
     [
-        ("I_glo_hor", 1e-3, False, "--scale I_glo_hor=1000"),  # kW/m²
-        ("I_glo_hor", 1e3, True, "--scale I_glo_hor=0.001"),  # W/m² logged ×1000
-        ("Q_hea", 1e-3, True, "--scale Q_hea=1000)"),  # kW
-        ("Q_hea", 1e-6, True, "--scale Q_hea=1000000"),  # MW
-        ("Q_hea", 1e3, False, "--scale Q_hea=0.001"),  # mW
+        ("I_glo_hor", 1e-3, False, "--scale I_glo_hor=1000", "kW/m2"),  # kW/m²
+        ("I_glo_hor", 1e3, True, "--scale I_glo_hor=0.001", None),  # W/m² logged ×1000
+        ("Q_hea", 1e-3, True, "--scale Q_hea=1000)", "kW"),  # kW
+        ("Q_hea", 1e-6, True, "--scale Q_hea=1000000", "MW"),  # MW
+        ("Q_hea", 1e3, False, "--scale Q_hea=0.001", None),  # mW
     ],
     ids=["irradiance-kW", "irradiance-x1000", "heating-kW", "heating-MW", "heating-mW"],
 )
 def test_a_power_or_irradiance_in_another_unit_names_the_scale_that_fixes_it(
-    column, factor, severe, fix
+    column, factor, severe, fix, unit
 ):
+    from jaxbox.cli._common import cli_message
+    from jaxbox.data import load
+
     data = frame()
     data[column] = data[column] * factor
     found = _findings(data, column)
     assert len(found) == 1 and found[0].severe == severe, found
     assert fix in found[0].message, found[0].message
+    if unit is not None:  # the unit named as well, in each interface's terms, and it fixes it
+        assert f"units={{'{column}': '{unit}'}}" in found[0].message, found[0].message
+        assert f"pass --unit {column}={unit} or --scale" in cli_message(found[0].message)
+        fixed = load(data, units={column: unit})
+        assert not [f for f in fixed.check_plausible() if f.column == column]
 
 
 def test_an_outdoor_temperature_in_fahrenheit_in_winter_is_named():

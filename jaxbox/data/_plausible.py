@@ -680,7 +680,8 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
                     c.name,
                     "kilowatt",
                     f"{c.name!r} peaks at {peak:.3g} W/m² over {span:.3g} h: in kW/m²? then "
-                    f"pass scale={{{c.name!r}: 1000}} (--scale {c.name}=1000).",
+                    f"pass units={{{c.name!r}: 'kW/m2'}} (command line: --unit {c.name}=kW/m2) "
+                    f"or scale={{{c.name!r}: 1000}} (--scale {c.name}=1000).",
                     severe=False,
                 )
             ]
@@ -702,7 +703,10 @@ def _kilowatt(c: _Column, frame: pd.DataFrame, opts: _Options) -> list[Finding]:
         factor = 1000 if peak * 1000 >= _KW_PEAK else 1_000_000
         limit = _KW_UA
     unit = "kW" if factor == 1000 else "MW"
-    fix = f"pass scale={{{c.name!r}: {factor}}} (--scale {c.name}={factor})"
+    fix = (
+        f"pass units={{{c.name!r}: {unit!r}}} (command line: --unit {c.name}={unit}) or "
+        f"scale={{{c.name!r}: {factor}}} (--scale {c.name}={factor})"
+    )
     if ua is not None and ua < limit:
         return [
             Finding(

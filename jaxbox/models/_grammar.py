@@ -68,6 +68,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from ..data._errors import list_names
 from . import _components as c
 from ._network import RCModel, RCNetwork
 from ._parameters import ModelError
@@ -194,11 +195,10 @@ def _require_search_columns(cols: list[str], zone: bool) -> None:
         for name in missing
         for match in difflib.get_close_matches(name, cols, n=1, cutoff=0.7)
     ]
-    hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
-    shown = ", ".join(repr(c) for c in cols) or "(none)"
+    hint = f" (did you mean {list_names(close)}?)" if close else ""
     mapping = ", ".join(f"{name!r}: 'your_col'" for name in missing)
     raise ModelError(
-        f"a structure search needs {needs}{hint}; the data have {shown}; map yours with "
+        f"a structure search needs {needs}{hint}; the data have {list_names(cols)}; map yours with "
         f"columns={{{mapping}}} in jaxbox.data.load"
     )
 

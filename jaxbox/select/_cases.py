@@ -459,6 +459,7 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
     identifiable, whatever the structure. (A constant heat input that is not zero does set
     the scale, through the mean temperature it holds; a heat demand as the output too.)"""
     from ..data import signal_unit
+    from ..data._errors import list_names
 
     if not cases:
         return []
@@ -478,11 +479,10 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
         if unused:
             what = f"none of the models takes a heat input ('{unused[0]}' is in the data)"
         elif unread:
-            listed = ", ".join(f"'{c}'" for c in unread[:6]) + (", …" if len(unread) > 6 else "")
             what = (
                 "no heat input is measured (no column such as 'Q_hea'; the data also have "
-                f"{listed}, under names no model reads: if one of them is the heating, map yours "
-                "with columns={'Q_hea': 'your_col'} in jaxbox.data.load)"
+                f"{list_names(unread, limit=6)}, under names no model reads: if one of them is "
+                "the heating, map yours with columns={'Q_hea': 'your_col'} in jaxbox.data.load)"
             )
         else:
             what = "no heat input is measured (no column such as 'Q_hea')"

@@ -155,6 +155,8 @@ def test_the_interval_from_10_minute_data_is_that_of_their_hourly_means(monkeypa
     for a, b in zip(*fits, strict=True):
         ka, kb = kpis(a, interval="hac"), kpis(b, interval="hac")
         assert ka.residuals["block"] > 1
+        block = ka.to_dict()["residuals"]["block"]  # samples per block: an integer in JSON
+        assert isinstance(block, int) and block == ka.residuals["block"]
         assert 1 / 1.6 < ka.hlc.std / kb.hlc.std < 1.6, (ka.hlc.std, kb.hlc.std)
         assert ka.hlc.ci95[0] <= TRUE_HLC <= ka.hlc.ci95[1], ka.hlc.ci95
     monkeypatch.setattr(hac, "MIN_BLOCKS", 10**9)  # the samples' scale alone

@@ -91,6 +91,17 @@ def _num(x) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _residual_entry(key: str, value):
+    """One entry of :attr:`Kpis.residuals` for JSON: the verdict ``white`` as it is, the
+    blocking level ``block`` [samples] as an integer, the statistics as finite floats or
+    ``None``."""
+    if key == "white":
+        return value
+    if key == "block" and value is not None:
+        return int(value)
+    return _num(value)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Kpis:
     """The physical indicators of a fit.
@@ -148,7 +159,7 @@ class Kpis:
             "outputs": list(self.outputs),
             "level": self.level,
             "method": self.method,
-            "residuals": {k: _num(v) if k != "white" else v for k, v in self.residuals.items()},
+            "residuals": {k: _residual_entry(k, v) for k, v in self.residuals.items()},
             "warnings": list(self.warnings),
         }
 

@@ -14,10 +14,12 @@ leaves no partial file.
 
 from __future__ import annotations
 
+import ast
 import json
 import math
 import os
 import re
+import shlex
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -120,8 +122,30 @@ def deferred_interrupt():
 
 # ---- messages in command-line terms -------------------------------------------------------------
 
+
+def _suggested_options(m: re.Match) -> str:
+    """A suggested mapping (:func:`jaxbox.data._suggest.suggestion_text`) as ``--map`` and
+    ``--unit`` options, each name quoted for the shell."""
+    try:
+        columns = ast.literal_eval(m.group(1))
+        units = ast.literal_eval(m.group(2)) if m.group(2) else {}
+    except (ValueError, SyntaxError):  # a name the pattern cut: the Python form stays
+        return m.group(0)
+    maps = [f"--map {shlex.quote(f'{k}={v}')}" for k, v in columns.items()]
+    return "by their names, perhaps " + " ".join(
+        maps + [f"--unit {shlex.quote(f'{k}={v}')}" for k, v in units.items()]
+    )
+
+
 #: (pattern, replacement) turning the library's Python advice into command-line options.
 _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
+    # "by their names, perhaps columns={'T_zon': 'Ti'} with units={'Q_hea': 'kW'}"
+    (
+        re.compile(
+            r"by their names, perhaps columns=(\{.*?\})(?: with units=(\{.*?\}))?(?=\.?$|\)|;)"
+        ),
+        _suggested_options,
+    ),
     # "units={'T_zon': 'degF'} (command line: --unit T_zon=degF)" -> "--unit T_zon=degF"
     (
         re.compile(r"\b(?:units|counters)=\{'[^']+': '[^']+'\}\s*\(command line: ([^)]*)\)"),

@@ -27,6 +27,7 @@ from ._errors import DataError, list_names
 from ._plausible import STUCK_HOURS, check_plausibility
 from ._resample import resample_mean
 from ._signals import CONSTANT
+from ._suggest import suggestion_text
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -325,7 +326,7 @@ class Dataset:
             f"the data has no column{plural} {listed}"
             f"{f' required by {what}' if what else ''}{hint}; available: "
             f"{list_names(self.columns)}; map yours with columns={{{mapping}}} in "
-            "jaxbox.data.load."
+            f"jaxbox.data.load{suggestion_text(missing, self.columns)}."
         )
 
     def array(self, names: str | Iterable[str]) -> np.ndarray:

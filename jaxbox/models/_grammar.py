@@ -69,6 +69,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..data._errors import list_names
+from ..data._suggest import suggestion_text
 from . import _components as c
 from ._network import RCModel, RCNetwork
 from ._parameters import ModelError
@@ -197,9 +198,11 @@ def _require_search_columns(cols: list[str], zone: bool) -> None:
     ]
     hint = f" (did you mean {list_names(close)}?)" if close else ""
     mapping = ", ".join(f"{name!r}: 'your_col'" for name in missing)
+    # the heating and the sun too: a search that finds only the temperatures fits no heat
+    guess = suggestion_text(missing, cols, also=("Q_hea", "I_glo_hor"))
     raise ModelError(
         f"a structure search needs {needs}{hint}; the data have {list_names(cols)}; map yours with "
-        f"columns={{{mapping}}} in jaxbox.data.load"
+        f"columns={{{mapping}}} in jaxbox.data.load{guess}"
     )
 
 

@@ -460,6 +460,7 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
     the scale, through the mean temperature it holds; a heat demand as the output too.)"""
     from ..data import signal_unit
     from ..data._errors import list_names
+    from ..data._suggest import suggestion_text
 
     if not cases:
         return []
@@ -482,7 +483,8 @@ def idle_heat_inputs(cases: Sequence[Case]) -> list[str]:
             what = (
                 "no heat input is measured (no column such as 'Q_hea'; the data also have "
                 f"{list_names(unread, limit=6)}, under names no model reads: if one of them is "
-                "the heating, map yours with columns={'Q_hea': 'your_col'} in jaxbox.data.load)"
+                "the heating, map yours with columns={'Q_hea': 'your_col'} in jaxbox.data.load"
+                f"{suggestion_text(['Q_hea'], unread)})"
             )
         else:
             what = "no heat input is measured (no column such as 'Q_hea')"

@@ -185,3 +185,35 @@ def test_the_no_heat_verdict_suggests_the_heating_column(tmp_path):
 
     (text,) = idle_heat_inputs([_Case(["T_zon", "T_amb", "HeatSupply_kW_", "Mode"])])
     assert "perhaps columns={'Q_hea': 'HeatSupply_kW_'} with units={'Q_hea': 'kW'})" in text
+
+
+def test_a_mapped_column_whose_name_states_another_unit_is_warned_at_load(tmp_path):
+    """Mapped without its unit, a column whose name says kW is named at load with the option
+    that reads it so; given the unit or a scale factor, nothing is said; mapped onto a signal
+    of another kind (a power onto a temperature), the mapping is named."""
+    import warnings
+
+    from test_hostile import frame as tiny
+
+    import jaxbox
+    from jaxbox.data import DataWarning
+
+    data = tiny(48).rename(columns={"Q_hea": "HeatSupply_kW_", "T_amb": "Outdoor [W]"})
+    data["HeatSupply_kW_"] /= 1000.0
+    path = tmp_path / "logger.csv"
+    data.to_csv(path, index=False)
+
+    def notes(**kw):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            jaxbox.load(path, check=False, **kw)
+        return [str(w.message) for w in seen if issubclass(w.category, DataWarning)]
+
+    heat = {"Q_hea": "HeatSupply_kW_"}
+    (said,) = notes(columns=heat)
+    assert "'HeatSupply_kW_' (mapped to 'Q_hea') states kW in its name" in said, said
+    assert "units={'Q_hea': 'kW'} (command line: --unit Q_hea=kW)" in said, said
+    assert notes(columns=heat, units={"Q_hea": "kW"}) == []
+    assert notes(columns=heat, scale={"Q_hea": 1000}) == []
+    (said,) = notes(columns={"T_amb": "Outdoor [W]"})
+    assert "mapped to 'T_amb' (a temperature), but its name states a power" in said, said

@@ -22,7 +22,8 @@ from ._counters import check_counters
 from ._dataset import Dataset, validated_frame
 from ._errors import DataError, DataWarning, list_names
 from ._gaps import gap_note
-from ._signals import signal_base
+from ._signals import signal_base, signal_unit
+from ._suggest import stated_unit_notes
 from ._units import unit_conversions
 
 __all__ = ["as_dataset", "load"]
@@ -547,6 +548,8 @@ def load(
     factors = _factors(scale, names)
     joules = check_counters(counters, names)
     by_unit, offsets = unit_conversions(units, names, factors, joules)
+    for note in stated_unit_notes(renaming, [*factors, *by_unit, *joules], signal_unit):
+        warnings.warn(note, DataWarning, stacklevel=2)
     factors = {**factors, **by_unit}
     dataset = Dataset._new(
         validated_frame(

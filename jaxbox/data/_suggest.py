@@ -30,9 +30,9 @@ electric *unit*), is not suggested.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
-__all__ = ["suggest_columns", "name_unit", "suggestion_text"]
+__all__ = ["suggest_columns", "name_unit", "suggestion_text", "stated_unit_notes"]
 
 #: signal -> (words naming it, code names that are the whole name, kind of unit it takes)
 _SIGNALS: dict[str, tuple[frozenset, frozenset, str]] = {
@@ -175,3 +175,36 @@ def suggestion_text(
     text = f"; by their names, perhaps columns={mapping!r}"
     units = {s: u for s, u in units.items() if s in mapping}
     return text + (f" with units={units!r}" if units else "")
+
+
+_KIND_OF_UNIT = {"°C": "temperature", "W": "power", "W/m²": "irradiance"}
+
+
+def stated_unit_notes(
+    renaming: dict[str, str], converted: Iterable[str], unit_of: Callable[[str], str | None]
+) -> list[str]:
+    """Warnings for columns mapped onto a signal whose names state another unit than the one
+    they are read in: ``renaming`` (your column -> canonical name), ``converted`` the canonical
+    names given a unit or a scale factor, ``unit_of`` the unit jaxbox reads a canonical name
+    in (``"°C"``, ``"W"``, ``"W/m²"``, ``None``). A name that states a unit of another kind
+    (a power mapped onto a temperature) is named too."""
+    converted = set(converted)
+    notes = []
+    for user, canonical in renaming.items():
+        kind = _KIND_OF_UNIT.get(unit_of(canonical) or "")
+        unit, stated = name_unit(user)
+        if kind is None or stated is None or canonical in converted:
+            continue
+        if stated != kind:
+            notes.append(
+                f"column {user!r} is mapped to {canonical!r} (a {kind}), but its name states a "
+                f"{stated}: check the mapping (columns=, --map)"
+            )
+        elif unit is not None:
+            notes.append(
+                f"column {user!r} (mapped to {canonical!r}) states {unit} in its name, but no "
+                f"unit was given: it is read in {unit_of(canonical)}; if it is logged in "
+                f"{unit}, pass units={{{canonical!r}: {unit!r}}} (command line: --unit "
+                f"{canonical}={unit})"
+            )
+    return notes

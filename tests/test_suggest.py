@@ -217,3 +217,70 @@ def test_a_mapped_column_whose_name_states_another_unit_is_warned_at_load(tmp_pa
     assert notes(columns=heat, scale={"Q_hea": 1000}) == []
     (said,) = notes(columns={"T_amb": "Outdoor [W]"})
     assert "mapped to 'T_amb' (a temperature), but its name states a power" in said, said
+
+
+def test_several_columns_make_one_signal_the_mean_of_rooms_the_sum_of_heaters(tmp_path, capsys):
+    """A house logged room by room: the zone the mean of the rooms, the heating the sum of
+    the heaters, a row missing in one room missing; on the command line by repeating --map."""
+    import pandas as pd
+    from test_hostile import frame as tiny
+
+    import jaxbox
+    from jaxbox.cli._main import main
+    from jaxbox.data import DataError
+
+    f = tiny(48)
+    f["room_a"], f["room_b"] = f.pop("T_zon") + 1.0, f["T_amb"] + 15.0
+    f["heater_1"], f["heater_2"] = f["Q_hea"] * 0.25, f.pop("Q_hea") * 0.75
+    f.loc[5, "room_b"] = np.nan
+    d = jaxbox.load(
+        f,
+        time="time",
+        columns={"T_zon": ["room_a", "room_b"], "Q_hea": ["heater_1", "heater_2"]},
+        scale={"Q_hea": 2.0},  # the canonical signal's options apply to it after combining
+    )
+    frame = d.frame
+    want = (frame["room_a"] + frame["room_b"]) / 2
+    np.testing.assert_allclose(frame["T_zon"], want)
+    assert np.isnan(frame["T_zon"].iloc[5]) and not np.isnan(frame["room_a"].iloc[5])
+    np.testing.assert_allclose(frame["Q_hea"], 2.0 * (frame["heater_1"] + frame["heater_2"]))
+    with pytest.raises(DataError, match=r"is mapped twice"):
+        jaxbox.load(f, columns={"T_zon": ["room_a", "room_b"], "T_zon2": "room_b"})
+    with pytest.raises(DataError, match=r"no column 'room_c'"):
+        jaxbox.load(f, columns={"T_zon": ["room_a", "room_c"]})
+    with pytest.raises(DataError, match=r"'Mode' is no signal jaxbox knows how to combine"):
+        jaxbox.load(f.assign(m=1.0), columns={"Mode": ["m", "room_a"]})
+    text = f.astype({"room_a": object})
+    text.loc[3, "room_a"] = "n/a"
+    with pytest.raises(DataError, match=r"'room_a'.*row 3"):  # a source's text cell is named
+        jaxbox.load(text, columns={"T_zon": ["room_a", "room_b"]})
+    path = tmp_path / "rooms.csv"
+    pd.DataFrame(f).to_csv(path, index=False)
+    argv = ["fit", str(path), "--model", "Zon", "--starts", "1", "--json", "--validate", "none"]
+    rooms = ["--map", "T_zon=room_a", "--map", "T_zon=room_b"]
+    heaters = ["--map", "Q_hea=heater_1", "--map", "Q_hea=heater_2"]
+    assert main([*argv, *rooms, *heaters]) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert main([*argv, *rooms, "--map", "T_zon=room_a", *heaters]) == 2
+    assert "--map gives T_zon=room_a twice" in capsys.readouterr().err
+
+
+def test_rooms_and_heaters_that_all_fit_are_listed_with_the_mapping_that_combines_them():
+    from jaxbox.cli._common import cli_message
+
+    cols = ["Room 1 temp", "Room 2 temp", "Outdoor temp", "Heater 1 [W]", "Heater 2 [W]"]
+    text = suggestion_text(["T_zon", "T_amb"], cols, also=["Q_hea"])
+    assert text == (
+        "; by their names, perhaps columns={'T_amb': 'Outdoor temp'}"
+        "; several columns could be T_zon: one of them, or all: "
+        "columns={'T_zon': ['Room 1 temp', 'Room 2 temp']} for their mean"
+        "; several columns could be Q_hea: one of them, or all: "
+        "columns={'Q_hea': ['Heater 1 [W]', 'Heater 2 [W]']} for their sum"
+    ), text
+    assert cli_message("x" + text) == (
+        "x; by their names, perhaps --map 'T_amb=Outdoor temp'"
+        "; several columns could be T_zon: one of them, or all: "
+        "--map 'T_zon=Room 1 temp' --map 'T_zon=Room 2 temp' for their mean"
+        "; several columns could be Q_hea: one of them, or all: "
+        "--map 'Q_hea=Heater 1 [W]' --map 'Q_hea=Heater 2 [W]' for their sum"
+    )

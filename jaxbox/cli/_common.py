@@ -131,14 +131,33 @@ def _suggested_options(m: re.Match) -> str:
         units = ast.literal_eval(m.group(2)) if m.group(2) else {}
     except (ValueError, SyntaxError):  # a name the pattern cut: the Python form stays
         return m.group(0)
-    maps = [f"--map {shlex.quote(f'{k}={v}')}" for k, v in columns.items()]
-    return "by their names, perhaps " + " ".join(
-        maps + [f"--unit {shlex.quote(f'{k}={v}')}" for k, v in units.items()]
-    )
+    return "by their names, perhaps " + _map_options(columns, units)
+
+
+def _map_options(columns: dict, units: dict | None = None) -> str:
+    """``--map`` options of a mapping (a list of columns: the option once for each), then the
+    ``--unit`` options; each item quoted for the shell."""
+    maps = [
+        f"--map {shlex.quote(f'{k}={c}')}"
+        for k, v in columns.items()
+        for c in (v if isinstance(v, list) else [v])
+    ]
+    return " ".join(maps + [f"--unit {shlex.quote(f'{k}={v}')}" for k, v in (units or {}).items()])
+
+
+def _several_options(m: re.Match) -> str:
+    """ "all: columns={'T_zon': [...]} for their mean" as repeated ``--map`` options."""
+    try:
+        columns = ast.literal_eval(m.group(1))
+    except (ValueError, SyntaxError):
+        return m.group(0)
+    return f"all: {_map_options(columns)} for their"
 
 
 #: (pattern, replacement) turning the library's Python advice into command-line options.
 _ADVICE: list[tuple[re.Pattern, str | Callable]] = [
+    # "all: columns={'T_zon': ['a', 'b']} for their mean" -> "--map T_zon=a --map T_zon=b"
+    (re.compile(r"all: columns=(\{'[^']+': \[.*?\]\}) for their"), _several_options),
     # "by their names, perhaps columns={'T_zon': 'Ti'} with units={'Q_hea': 'kW'}"
     (
         re.compile(

@@ -62,7 +62,8 @@ def add_data_arguments(p) -> None:
         action="append",
         default=[],
         metavar="CANONICAL=COLUMN",
-        help="take canonical signal CANONICAL from your column COLUMN (repeatable)",
+        help="take canonical signal CANONICAL from your column COLUMN (repeatable; a "
+        "CANONICAL given several columns takes their mean, of powers their sum)",
     )
     p.add_argument(
         "--time",
@@ -231,12 +232,29 @@ def _max_gap(text) -> float:
         raise UsageError(str(err).replace("--max-gap=", "--max-gap ")) from None
 
 
+def _mapping(items) -> dict[str, str | list[str]]:
+    """``--map CANONICAL=COLUMN`` items; a canonical name given several columns takes them all
+    (``--map T_zon=room1 --map T_zon=room2``: their mean; powers their sum), a column given
+    twice for one name is refused."""
+    out: dict[str, str | list[str]] = {}
+    for item in items:
+        ((key, value),) = pairs([item], "--map", "T_zon=living_temp").items()
+        if key not in out:
+            out[key] = value
+            continue
+        got = out[key] if isinstance(out[key], list) else [out[key]]
+        if value in got:
+            raise UsageError(f"--map gives {key}={value} twice")
+        out[key] = [*got, value]
+    return out
+
+
 class DataOptions:
     """The checked data options of a command line (before anything is loaded)."""
 
     def __init__(self, args) -> None:
         self.specs = list(args.data)
-        self.columns = pairs(args.map, "--map", "T_zon=living_temp")
+        self.columns = _mapping(args.map)
         self.time = args.time
         if self.time is not None and not self.time.strip():
             raise UsageError("--time is empty; give the name of the time column")

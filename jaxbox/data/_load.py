@@ -347,49 +347,98 @@ def _time_values(
 
 
 def _renaming(
-    columns: Mapping[str, str] | None, signals: list[str], time_names: Sequence[str]
-) -> dict[str, str]:
-    """Validate ``columns`` (canonical -> user name) and return user -> canonical."""
+    columns: Mapping[str, str | Sequence[str]] | None,
+    signals: list[str],
+    time_names: Sequence[str],
+) -> tuple[dict[str, str], dict[str, list[str]]]:
+    """Validate ``columns`` (canonical -> your column, or a list of your columns) and return
+    ``(user -> canonical, canonical -> [user, …])``: the columns renamed, and the canonical
+    signals combined from several of yours (:func:`_combined`)."""
     if not columns:
-        return {}
+        return {}, {}
     if not isinstance(columns, Mapping):
         raise DataError(
             "columns must map canonical names to your column names, e.g. "
             "columns={'T_zon': 'living_T'}."
         )
     renaming: dict[str, str] = {}
-    for canonical, user in columns.items():
-        if user in time_names:
-            raise DataError(
-                f"columns maps {canonical!r} to {user!r}, which is the time column; map a "
-                "signal column instead."
-            )
-        if user not in signals:
-            close = difflib.get_close_matches(str(user), signals, n=3, cutoff=0.6)
-            if canonical in signals and signal_base(str(user)) is not None:
-                hint = f" (the mapping goes canonical -> yours: {{{user!r}: {canonical!r}}}?)"
-            elif close:
-                hint = f" (did you mean {list_names(close)}?)"
-            else:
-                hint = ""
-            raise DataError(
-                f"columns maps {canonical!r} to {user!r}, but there is no column {user!r}{hint}; "
-                f"available: {list_names(signals)}."
-            )
-        if user in renaming:
-            raise DataError(
-                f"column {user!r} is mapped twice (to {renaming[user]!r} and {canonical!r}); map "
-                "each of your columns to one canonical name."
-            )
-        renaming[user] = str(canonical)
-    for user, canonical in renaming.items():
+    combine: dict[str, list[str]] = {}
+    used: dict[str, str] = {}
+    for canonical, given in columns.items():
+        several = isinstance(given, (list, tuple))
+        users = list(dict.fromkeys(given)) if several else [given]
+        if several and not users:
+            raise DataError(f"columns maps {canonical!r} to no column; name one or more.")
+        for user in users:
+            _check_mapped(canonical, user, signals, time_names, used)
+            used[user] = str(canonical)
+        if len(users) > 1:
+            if _COMBINE.get(signal_unit(str(canonical)) or "") is None:
+                raise DataError(
+                    f"columns maps {canonical!r} to several columns ({list_names(users)}), but "
+                    f"{canonical!r} is no signal jaxbox knows how to combine: temperatures (°C) "
+                    "and irradiances (W/m²) are averaged, powers (W) summed; map one column."
+                )
+            combine[str(canonical)] = [str(u) for u in users]
+        else:
+            renaming[users[0]] = str(canonical)
+    targets = [(u, c) for u, c in renaming.items()] + [(cols[0], c) for c, cols in combine.items()]
+    for user, canonical in targets:
         if canonical in signals and canonical not in renaming:
             raise DataError(
                 f"two columns would be named {canonical!r}: yours {user!r} (mapped by columns=) "
                 f"and the existing {canonical!r}; drop one or map to a numbered variant "
                 f"such as {canonical + '2'!r}."
             )
-    return renaming
+    return renaming, combine
+
+
+def _check_mapped(canonical, user, signals, time_names, used: dict[str, str]) -> None:
+    """Refuse a mapping of ``canonical`` onto ``user`` that is the time column, no column, or
+    a column mapped already (``used``: yours -> canonical)."""
+    if user in time_names:
+        raise DataError(
+            f"columns maps {canonical!r} to {user!r}, which is the time column; map a "
+            "signal column instead."
+        )
+    if user not in signals:
+        close = difflib.get_close_matches(str(user), signals, n=3, cutoff=0.6)
+        if canonical in signals and signal_base(str(user)) is not None:
+            hint = f" (the mapping goes canonical -> yours: {{{user!r}: {canonical!r}}}?)"
+        elif close:
+            hint = f" (did you mean {list_names(close)}?)"
+        else:
+            hint = ""
+        raise DataError(
+            f"columns maps {canonical!r} to {user!r}, but there is no column {user!r}{hint}; "
+            f"available: {list_names(signals)}."
+        )
+    if user in used:
+        raise DataError(
+            f"column {user!r} is mapped twice (to {used[user]!r} and {canonical!r}); map "
+            "each of your columns to one canonical name."
+        )
+
+
+#: how several of your columns make one canonical signal, by the signal's unit
+_COMBINE = {"°C": "mean", "W/m²": "mean", "W": "sum"}
+
+
+def _combined(frame: pd.DataFrame, combine: Mapping[str, list[str]], where) -> pd.DataFrame:
+    """``frame`` with each canonical signal of ``combine`` added from several of your columns:
+    the mean of temperatures and irradiances, the sum of powers (:data:`_COMBINE`); a row
+    missing in any of them is missing (a gap), so that the mean of the others does not stand
+    in for it. Your columns are kept as they are."""
+    if not combine:
+        return frame
+    sources = list(dict.fromkeys(c for cols in combine.values() for c in cols))
+    values = validated_frame(frame[sources], check=False, regular=False, where=where)
+    out = frame.copy()
+    for canonical, cols in combine.items():
+        block = values[cols].to_numpy(dtype=float)
+        how = _COMBINE[signal_unit(canonical)]
+        out[canonical] = block.sum(axis=1) if how == "sum" else block.mean(axis=1)
+    return out
 
 
 def _factors(scale: Mapping[str, float] | None, names: list[str]) -> dict[str, float]:
@@ -447,8 +496,11 @@ def load(
             that cannot be seconds are refused naming the unit they look like). Each time stamp
             should mark the end of its averaging interval.
         columns: canonical name -> your column name, e.g. ``{"T_zon": "living_T"}``; those
-            columns are renamed, all others are kept as they are. Units must be those of the
-            canonical names (°C, W, W/m²; see :data:`SIGNALS`).
+            columns are renamed, all others are kept as they are. A list of your columns
+            makes one signal of them all (``{"T_zon": ["living_T", "kitchen_T"], "Q_hea":
+            ["heater_1", "heater_2"]}``): the mean of temperatures and irradiances, the sum of
+            powers, a row missing in any of them missing; your columns are kept beside it.
+            Units must be those of the canonical names (°C, W, W/m²; see :data:`SIGNALS`).
         resample: a pandas frequency such as ``"1h"``: after the checks, average onto that grid
             (see :meth:`Dataset.resample`); irregular sampling is then allowed.
         check: also require a regular step (rows missing from the grid become rows of NaN)
@@ -526,7 +578,7 @@ def load(
     values, time_name, time_column = _time_values(raw, time, from_frame)
     dropped = [time_column] if isinstance(time_column, str) else list(time_column or [])
     signals = [str(name) for name in raw.columns if name not in dropped]
-    renaming = _renaming(columns, signals, dropped or [time_name])
+    renaming, combine = _renaming(columns, signals, dropped or [time_name])
     try:
         origin = pd.Timestamp(epoch)
     except (ValueError, TypeError):
@@ -543,12 +595,13 @@ def load(
 
     frame = raw.drop(columns=dropped) if dropped else raw
     frame = frame.set_axis([renaming.get(str(name), str(name)) for name in frame.columns], axis=1)
-    frame = frame.set_axis(index, axis=0)
+    frame = _combined(frame.set_axis(index, axis=0), combine, where)
     names = [str(name) for name in frame.columns]
     factors = _factors(scale, names)
     joules = check_counters(counters, names)
     by_unit, offsets = unit_conversions(units, names, factors, joules)
-    for note in stated_unit_notes(renaming, [*factors, *by_unit, *joules], signal_unit):
+    mapped = [*renaming.items(), *((u, c) for c, cols in combine.items() for u in cols)]
+    for note in stated_unit_notes(mapped, [*factors, *by_unit, *joules], signal_unit):
         warnings.warn(note, DataWarning, stacklevel=2)
     factors = {**factors, **by_unit}
     dataset = Dataset._new(

@@ -6,12 +6,15 @@ name. Where a search or a model asks for a canonical signal the data do not have
 suggests the columns whose names say they are that signal, with the unit their names state:
 ``suggest_columns(['Indoor Temp [C]', 'OutdoorTemp_C_', 'HeatSupply_kW_'])`` gives
 ``{'T_zon': 'Indoor Temp [C]', 'T_amb': 'OutdoorTemp_C_', 'Q_hea': 'HeatSupply_kW_'}`` and
-``{'Q_hea': 'kW'}``. Nothing is mapped or converted without the user: a suggestion is named only
-where exactly one column fits a signal, and the user passes it (``columns=``, ``units=``; on
-the command line ``--map``, ``--unit``).
+``{'Q_hea': 'kW'}``. Nothing is mapped or converted without the user: a column is suggested
+only where it alone fits a signal, and the user passes it (``columns=``, ``units=``; on the
+command line ``--map``, ``--unit``); where several fit one (the rooms of a house, its
+heaters), they are listed with the mapping that takes them all (their mean, of powers their
+sum). :func:`stated_unit_notes` warns where a mapped column's name states a unit the column is
+not read in.
 
-The words read (lower case; a name is cut at every non-alphanumeric character and between a
-lower-case letter and a capitalised word):
+The words read (in English, lower case; a name is cut at every non-alphanumeric character,
+between a word and a capitalised one and before digits):
 
 * the zone's air ``T_zon``: *indoor, inside, interior, internal, room, zone, living*, or a
   code ``Ti``, ``Tin``, ``Tz``, ``Tzone``, ``Tint``, ``yTi``;
@@ -136,6 +139,18 @@ def _fits(signal: str, name: str) -> bool:
     return True
 
 
+def _fitting(columns: Iterable[str], signals: Sequence[str] | None) -> dict[str, list[str]]:
+    """The columns whose names fit each signal, a column that two signals claim left out."""
+    columns = [str(c) for c in columns]
+    signals = list(_SIGNALS) if signals is None else [s for s in signals if s in _SIGNALS]
+    fits = {s: [c for c in columns if _fits(s, c)] for s in signals}
+    claimed: dict[str, int] = {}
+    for found in fits.values():
+        for c in found:
+            claimed[c] = claimed.get(c, 0) + 1
+    return {s: [c for c in f if claimed[c] == 1] for s, f in fits.items()}
+
+
 def suggest_columns(
     columns: Iterable[str], signals: Sequence[str] | None = None
 ) -> tuple[dict[str, str], dict[str, str]]:
@@ -144,14 +159,8 @@ def suggest_columns(
     it and no other signal claims that column; and the units their names state where these are
     not jaxbox's own. Returns ``(columns, units)``: ``{signal: column}``, ``{signal: unit}``
     (ready for ``jaxbox.data.load(..., columns=…, units=…)``, keyed by the canonical names)."""
-    columns = [str(c) for c in columns]
-    signals = list(_SIGNALS) if signals is None else [s for s in signals if s in _SIGNALS]
-    fits = {s: [c for c in columns if _fits(s, c)] for s in signals}
-    claimed: dict[str, int] = {}
-    for found in fits.values():
-        for c in found:
-            claimed[c] = claimed.get(c, 0) + 1
-    mapping = {s: f[0] for s, f in fits.items() if len(f) == 1 and claimed[f[0]] == 1}
+    fits = _fitting(columns, signals)
+    mapping = {s: f[0] for s, f in fits.items() if len(f) == 1}
     units = {}
     for s, c in mapping.items():
         unit, _ = name_unit(c)
@@ -167,30 +176,46 @@ def suggestion_text(
     (and those of ``also`` the data lack, which a model would read), or ``""`` where no name
     says which of ``columns`` they are."""
     columns = list(columns)
+    missing = list(missing)
     wanted = list(dict.fromkeys([*missing, *(s for s in also if s not in columns)]))
-    mapping, units = suggest_columns([c for c in columns if c not in wanted], wanted)
-    mapping = {s: c for s, c in mapping.items() if c not in _SIGNALS}
-    if not any(s in mapping for s in missing):
-        return ""
-    text = f"; by their names, perhaps columns={mapping!r}"
-    units = {s: u for s, u in units.items() if s in mapping}
-    return text + (f" with units={units!r}" if units else "")
+    own = [c for c in columns if c not in wanted and c not in _SIGNALS]
+    mapping, units = suggest_columns(own, wanted)
+    text = ""
+    if any(s in mapping for s in missing):
+        text = f"; by their names, perhaps columns={mapping!r}"
+        units = {s: u for s, u in units.items() if s in mapping}
+        text += f" with units={units!r}" if units else ""
+    for signal, found in _fitting(own, wanted).items():
+        # rooms, heaters: one of them, or all of them together
+        if signal not in mapping and 1 < len(found) <= _MAX_SEVERAL:
+            how = "sum" if _SIGNALS[signal][2] == "power" else "mean"
+            text += (
+                f"; several columns could be {signal}: one of them, or all: "
+                f"columns={ {signal: found}!r} for their {how}"
+            )
+    return text
+
+
+#: the most columns that fit one signal listed as its candidates (more: no suggestion)
+_MAX_SEVERAL = 12
 
 
 _KIND_OF_UNIT = {"°C": "temperature", "W": "power", "W/m²": "irradiance"}
 
 
 def stated_unit_notes(
-    renaming: dict[str, str], converted: Iterable[str], unit_of: Callable[[str], str | None]
+    mapped: Iterable[tuple[str, str]],
+    converted: Iterable[str],
+    unit_of: Callable[[str], str | None],
 ) -> list[str]:
     """Warnings for columns mapped onto a signal whose names state another unit than the one
-    they are read in: ``renaming`` (your column -> canonical name), ``converted`` the canonical
-    names given a unit or a scale factor, ``unit_of`` the unit jaxbox reads a canonical name
-    in (``"°C"``, ``"W"``, ``"W/m²"``, ``None``). A name that states a unit of another kind
-    (a power mapped onto a temperature) is named too."""
+    they are read in: ``mapped`` the pairs (your column, canonical name), ``converted`` the
+    canonical names given a unit or a scale factor, ``unit_of`` the unit jaxbox reads a
+    canonical name in (``"°C"``, ``"W"``, ``"W/m²"``, ``None``). A name that states a unit of
+    another kind (a power mapped onto a temperature) is named too."""
     converted = set(converted)
     notes = []
-    for user, canonical in renaming.items():
+    for user, canonical in mapped:
         kind = _KIND_OF_UNIT.get(unit_of(canonical) or "")
         unit, stated = name_unit(user)
         if kind is None or stated is None or canonical in converted:

@@ -209,11 +209,17 @@ CASES = [
         ["living"],
     ),
     ("--map without =", renamed(T_zon="indoor"), [*FIT, "--map", "T_zon"], ["--map"]),
-    (
-        "--map twice for one signal",
+    (  # (two columns for one signal are their mean: tests/test_suggest.py)
+        "--map one column twice for one signal",
         renamed(T_zon="indoor"),
-        [*FIT, "--map", "T_zon=indoor", "--map", "T_zon=T_amb"],
-        ["--map", "T_zon"],
+        [*FIT, "--map", "T_zon=indoor", "--map", "T_zon=indoor"],
+        ["--map", "T_zon=indoor twice"],
+    ),
+    (
+        "--map several columns for a signal that cannot combine them",
+        renamed(T_zon="indoor"),
+        [*FIT, "--map", "T_zon=indoor", "--map", "flag=T_amb", "--map", "flag=Q_hea"],
+        ["'flag' is no signal jaxbox knows how to combine"],
     ),
     (
         "duplicate column names",

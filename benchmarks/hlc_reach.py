@@ -202,7 +202,8 @@ def markdown(doc: dict) -> str:
     ]
     groups = [("as measured", doc.get("rows", []))]
     if doc.get("revealed"):
-        groups.append(("gains and ground measured (`--reveal`)", doc["revealed"]))
+        at = f", at {doc['revealed_commit']}" if doc.get("revealed_commit") else ""
+        groups.append((f"gains and ground measured (`--reveal`{at})", doc["revealed"]))
     lines += [
         "| data | buildings | accepted within ±15 % | whole record | closest valid | "
         "closest of all | truth within the valid span |",
@@ -310,8 +311,8 @@ def main(argv=None) -> None:
     doc.update(
         date=time.strftime("%Y-%m-%d %H:%M"),
         machine=f"{platform.machine()}, {os.cpu_count()} cores",
-        commit=_commit(),
     )
+    doc["commit" if key == "rows" else "revealed_commit"] = _commit()
     kept = {r["building"]: r for r in doc.get(key, [])}
     reveal = ("gains", "ground") if args.reveal else ()
     zoo = jaxbox.datasets.make_detailed_zoo(args.n, seed=args.seed, reveal=reveal)

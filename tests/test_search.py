@@ -542,34 +542,3 @@ def test_a_pinned_initial_temperature_is_narrowed_from_the_data(building):
     assert 5.0 < hi < 37.0 and lo > -3.0  # the span of the temperatures around the envelope
     run_cases([retry])
     assert retry.done and any("narrowed" in n for n in retry.notes)
-
-
-def test_a_reduction_the_fit_refuses_is_dropped_and_says_why():
-    """A reduced candidate whose identification RMSE is more than the margin above that of the
-    case it reduces: the data need what the reduction fixed (its interval was blurred by a
-    flat direction, not empty). The reduced candidate is dropped, the case it reduces keeps
-    its own verdict with the reason, and it is never reduced again; one within the margin
-    stands for it."""
-    from jaxbox.select._search import _Judge, _Search
-
-    said = []
-    search = _Search.__new__(_Search)
-    search.rule, search.say = _Judge("cv", 0.02, 0.05), said.append
-    for reduced_cost, refuted in ((1.0, False), (1.0399, False), (1.0405, True), (2.6, True)):
-        child = _fake("Zon", ["T_zon"], se=1.6, rel=[0.5], cost=1.0)
-        child.notes = []
-        reduced = _fake("Zon+reduced", ["T_zon"], se=1.1, rel=[0.4], cost=reduced_cost)
-        search.nodes = {"Zon": {}, "Zon+reduced": {"status": "reduced"}}
-        search.reduced = {"Zon": "gA undetermined (→ 0): Zon reduced to Zon (gA = 0)"}
-        search.source, search.refuted = {"Zon+reduced": child}, {}
-        assert search.refutes(reduced) is refuted
-        if not refuted:
-            assert search.refuted == {} and "Zon" in search.reduced
-            continue
-        pct = round(100 * (reduced_cost**0.5 - 1))
-        why = f"not reduced: gA undetermined (→ 0) raises the identification RMSE by {pct} %"
-        assert search.refuted["Zon"].startswith(why), search.refuted
-        assert "more than the 2 % margin" in search.refuted["Zon"]
-        assert search.nodes["Zon+reduced"]["status"] == "refuted"
-        assert "Zon" not in search.reduced and child.notes == [search.refuted["Zon"]]
-        assert said[-1] == f"  Zon: {search.refuted['Zon']}"

@@ -113,9 +113,7 @@ class SearchNode:
             p-value for ``lr``).
         status: ``"accepted"``, ``"grown"`` (in a beam), ``"improves"`` (not in the beam),
             ``"stepping stone"`` (grown for the lookahead without improving), ``"no
-            improvement"``, ``"not valid"``, ``"reduced"`` (judged as its reduced candidate),
-            ``"refuted"`` (a reduced candidate whose fit the reduction worsens beyond the
-            search's margin: the data need what it fixed), ``"failed"`` or ``"not judged"``.
+            improvement"``, ``"not valid"``, ``"failed"`` or ``"not judged"``.
         why: the reason in words (the verdict's first reason, the comparison with the parent).
     """
 
@@ -362,8 +360,6 @@ class _Search:
         self.nodes: dict[str, dict] = {}  # case name -> SearchNode fields
         self.seen: set[str] = set()  # structures (and reduced problems) declared
         self.reduced: dict[str, str] = {}  # case name -> what it was reduced to, in words
-        self.source: dict[str, Case] = {}  # a reduced candidate's name -> the case it reduces
-        self.refuted: dict[str, str] = {}  # a case whose reduction the data refuse -> why
         self.widest = 0  # the most input columns of a step so far: later steps pad to it
 
     # ---- propose --------------------------------------------------------------------------------
@@ -445,10 +441,7 @@ class _Search:
                 elif child.name in self.reduced:
                     node.update(status="reduced", why=self.reduced[child.name])
                 else:
-                    why = (child.reasons or ("not valid",))[0]
-                    if child.name in self.refuted:
-                        why += f"; {self.refuted[child.name]}"
-                    node.update(status="not valid", why=why)
+                    node.update(status="not valid", why=(child.reasons or ("not valid",))[0])
         return winners
 
     def reduce(self, children: list[tuple[Case, Case | None]], depth: int) -> list:
@@ -457,8 +450,6 @@ class _Search:
         out = []
         for child, ref in children:
             if child.verdict is None or child.is_valid or child.name in self.reduced:
-                continue
-            if child.name in self.refuted:
                 continue
             try:  # a reduction that cannot be posed is a note, never the end of the search
                 cut = reduction(child, self.structure(child), self.grammar)
@@ -517,33 +508,9 @@ class _Search:
             start=start,
         )
         self.seen.add(source)
-        self.source[case.name] = child
         case.notes.append(f"reduced from {child.name}: {text}")
         child.notes.append(f"reduced to {case.name}: {text}")
         return case
-
-    def refutes(self, case: Case) -> bool:
-        """Whether the data refuse the reduction that made ``case``: its identification RMSE
-        more than the search's margin above that of the case it reduces. The parameters it
-        fixed had intervals that spanned their limit (a flat direction through them blurs
-        them), but the fit needs them: the reduced candidate is dropped (its node says why)
-        and the case it reduces is judged as it is."""
-        child = self.source.get(case.name)
-        if child is None or not (case.done and child.done):
-            return False
-        ratio = math.sqrt(case.result.cost / child.result.cost) if child.result.cost > 0 else 1.0
-        if not ratio > 1.0 + self.rule.margin:
-            return False
-        text = self.reduced.pop(child.name, "its reduction")
-        why = (
-            f"not reduced: {text.split(':')[0]} raises the identification RMSE by "
-            f"{100 * (ratio - 1):.0f} % (more than the {100 * self.rule.margin:.0f} % margin)"
-        )
-        self.refuted[child.name] = why
-        self.nodes[case.name].update(status="refuted", why=why, criterion=math.inf)
-        child.notes.append(why)
-        self.say(f"  {child.name}: {why}")
-        return True
 
     def step(self, children: list[tuple[Case, Case | None]], depth: int):
         """Identify and judge ``children`` in one batched call, then reduce what only vanishing
@@ -558,9 +525,6 @@ class _Search:
             if not fresh:
                 break
             self.identify([c for c, _ in fresh], depth)
-            fresh = [(c, ref) for c, ref in fresh if not self.refutes(c)]
-            if not fresh:
-                break
             children = children + fresh
             winners = self.judge(children)
         return winners, children
@@ -652,9 +616,7 @@ class _Search:
 
     def choose(self) -> Case | None:
         """The accepted model (:func:`_accept`), and every candidate's final status."""
-        cases = [
-            self.gb.cases[n] for n, node in self.nodes.items() if node.get("status") != "refuted"
-        ]
+        cases = [self.gb.cases[n] for n in self.nodes]
         accepted = _accept([c for c in cases if c.done and c.is_valid], self.rule)
         for name, node in self.nodes.items():
             node.setdefault("criterion", math.inf)

@@ -542,3 +542,31 @@ def test_a_pinned_initial_temperature_is_narrowed_from_the_data(building):
     assert 5.0 < hi < 37.0 and lo > -3.0  # the span of the temperatures around the envelope
     run_cases([retry])
     assert retry.done and any("narrowed" in n for n in retry.notes)
+
+
+def test_a_window_of_many_short_steps_gets_a_note_on_resampling(building, monkeypatch):
+    """More than FINE_SAMPLES samples at most FINE_STEP apart: the search says that means
+    over an hour search faster, with the option in each interface's terms."""
+    import jaxbox.fit
+    from jaxbox.cli._common import cli_message
+    from jaxbox.fit import FitError
+    from jaxbox.select import _search
+
+    assert _search.fine_sampling_note(building.ident) is None  # 120 samples: nothing to say
+    monkeypatch.setattr(_search, "FINE_SAMPLES", 50)
+    monkeypatch.setattr(_search, "FINE_STEP", building.ident.step)
+    note = _search.fine_sampling_note(building.ident)
+    n, minutes = len(building.ident), f"{building.ident.step / 60:.3g}"
+    assert note.startswith(f"note: {n} samples at a {minutes}-minute step"), note
+    assert note.endswith("resample='1h' (command line: --resample 1h)")
+    assert cli_message(note).endswith(
+        "show and search several times faster (twin house N2: "
+        "the same accepted model at 10 minutes and hourly, "
+        "benchmarks/VARIANTS.md): --resample 1h"
+    )
+    monkeypatch.setattr(  # the fits fail at once: the search's opening lines alone
+        jaxbox.fit, "fit_batch", lambda requests, **kw: [FitError("test") for _ in requests]
+    )
+    lines = []
+    structure_search(GreyBox(building.data, name="fine"), starts=2, progress=lines.append)
+    assert lines[0].startswith("structure search") and lines[1] == note, lines[:2]

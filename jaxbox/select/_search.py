@@ -343,6 +343,28 @@ def _coupling_cut(case: Case) -> bool:
 
 #: how many times a step reduces what its reductions left invalid (each round one batched call)
 REDUCTION_ROUNDS = 3
+#: identification windows with more samples than this, at a step of at most FINE_STEP [s], get a
+#: note that means over a longer step search faster
+FINE_SAMPLES = 2000
+FINE_STEP = 1200.0
+
+
+def fine_sampling_note(ident) -> str | None:
+    """A note for an identification window of many short steps (more than
+    :data:`FINE_SAMPLES` samples at most :data:`FINE_STEP` apart): every candidate is fitted
+    to all of them, so the search's fits take time in proportion; hourly means keep what the
+    grammar's slow modes show. ``None`` otherwise."""
+    n, step = len(ident), float(getattr(ident, "step", math.nan))
+    if n <= FINE_SAMPLES or not step <= FINE_STEP:
+        return None
+    minutes = f"{step / 60:.3g}-minute"
+    return (
+        f"note: {n} samples at a {minutes} step: every candidate is fitted to all of them, and "
+        "the fits take time in proportion; hourly means keep what the building's slower modes "
+        "show and search several times faster (twin house N2: the same accepted model at 10 "
+        "minutes and hourly, benchmarks/VARIANTS.md): resample='1h' (command line: "
+        "--resample 1h)"
+    )
 
 
 class _Search:
@@ -548,6 +570,9 @@ class _Search:
             f"structure search ({self.rule.criterion}, beam {self.beam}) from "
             + ", ".join(s.name for s in first)
         )
+        note = fine_sampling_note(self.gb.ident)
+        if note is not None:
+            self.say(note)
         winners, children = self.step([(self.declare(s, None, "root", 0), None) for s in first], 0)
         grown = list(winners)
         for c, _ in children:

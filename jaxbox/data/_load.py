@@ -365,7 +365,7 @@ def _renaming(
     combine: dict[str, list[str]] = {}
     used: dict[str, str] = {}
     for canonical, given in columns.items():
-        several = isinstance(given, (list, tuple))
+        several = not isinstance(given, (str, bytes)) and hasattr(given, "__iter__")
         users = list(dict.fromkeys(given)) if several else [given]
         if several and not users:
             raise DataError(f"columns maps {canonical!r} to no column; name one or more.")

@@ -284,3 +284,37 @@ def test_rooms_and_heaters_that_all_fit_are_listed_with_the_mapping_that_combine
         "; several columns could be Q_hea: one of them, or all: "
         "--map 'Q_hea=Heater 1 [W]' --map 'Q_hea=Heater 2 [W]' for their sum"
     )
+
+
+def test_a_raw_twin_house_header_gives_the_living_room_and_the_heaters():
+    """The raw header of a twin house (IEA EBC Annex 58): the living room's air temperature
+    at three heights (``AT``) listed for their mean, the heaters for their sum; the facades'
+    and the diffuse and longwave irradiances, the ground and the humidity left out."""
+    cols = [
+        "N2_attic_east_AT",
+        "N2_cellar_AT",
+        "N2_living_AT_h67cm",
+        "N2_living_AT_h125cm",
+        "N2_living_AT_h187cm",
+        "N2_kitchen_AT",
+        "N2_living_rH_h125cm",
+        "N2_westfacade_S_IS_T",
+        "N2_heat_elP_living_room",
+        "N2_heat_elP_kitchen",
+        "N2_vent_ODA_AT",
+        "Ambient_temperature",
+        "Solar_radiation_global_horizontal",
+        "Solar_radiation_diffuse_horizontal",
+        "Solar_radiation_global_vertical_south",
+        "Longwave_radiation_horizontal",
+        "Relative_humidity",
+        "Ground_temperature_50cm",
+    ]
+    assert suggestion_text(["T_zon", "T_amb"], cols, also=["Q_hea", "I_glo_hor"]) == (
+        "; by their names, perhaps columns={'T_amb': 'Ambient_temperature', "
+        "'I_glo_hor': 'Solar_radiation_global_horizontal'}"
+        "; several columns could be T_zon: one of them, or all: columns={'T_zon': "
+        "['N2_living_AT_h67cm', 'N2_living_AT_h125cm', 'N2_living_AT_h187cm']} for their mean"
+        "; several columns could be Q_hea: one of them, or all: columns={'Q_hea': "
+        "['N2_heat_elP_living_room', 'N2_heat_elP_kitchen']} for their sum"
+    )

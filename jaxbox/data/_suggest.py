@@ -16,8 +16,9 @@ not read in.
 The words read (in English, lower case; a name is cut at every non-alphanumeric character,
 between a word and a capitalised one and before digits):
 
-* the zone's air ``T_zon``: *indoor, inside, interior, internal, room, zone, living*, or a
-  code ``Ti``, ``Tin``, ``Tz``, ``Tzone``, ``Tint``, ``yTi``;
+* the zone's air ``T_zon``: *indoor, inside, interior, internal, room, zone, living* with a
+  word for a temperature (*temp*, *air*, *AT*) or its unit, or a code ``Ti``, ``Tin``,
+  ``Tz``, ``Tzone``, ``Tint``, ``yTi``;
 * the outdoor air ``T_amb``: *outdoor, outside, ambient, exterior, external, weather*, or a code
   ``Ta``, ``Tamb``, ``Tout``, ``Text``, ``To``, ``Toa``, ``OAT``;
 * the global horizontal irradiance ``I_glo_hor``: *solar, irradiance, irradiation, radiation,
@@ -62,15 +63,20 @@ _SIGNALS: dict[str, tuple[frozenset, frozenset, str]] = {
 }
 #: words that rule a signal out whatever else the name says
 _NOT = {
-    "T_zon": frozenset({"setpoint", "set", "sp", "target", "supply", "return", "flow", "humidity"}),
+    "T_zon": frozenset(
+        {"setpoint", "set", "sp", "target", "supply", "return", "flow", "humidity", "rh"}
+    ),
     "T_amb": frozenset({"setpoint", "unit", "humidity", "rh", "wind", "speed", "dew"}),
-    "I_glo_hor": frozenset({"direct", "diffuse", "dni", "dhi", "vertical", "facade", "beam"}),
+    "I_glo_hor": frozenset(
+        {"direct", "diffuse", "dni", "dhi", "vertical", "facade", "beam", "longwave", "infrared"}
+    ),
     "Q_hea": frozenset(
         {"setpoint", "temp", "temperature", "energy", "kwh", "wh", "cop", "status", "mode", "flux"}
     ),
 }
-#: words that name a temperature (a name with a zone word and no unit also needs one of these)
-_TEMPERATURE_WORDS = frozenset({"temp", "temperature", "tmp", "t", "air"})
+#: words that name a temperature (a name with a zone word and no unit also needs one of these;
+#: ``at``: air temperature, as loggers abbreviate it, ``N2_living_AT_h67cm``)
+_TEMPERATURE_WORDS = frozenset({"temp", "temperature", "tmp", "t", "air", "at"})
 #: unit spelled in a name -> (the unit as ``units=`` takes it, its kind); ``None``: jaxbox's own
 _POWER_UNITS = {"w": (None, "power"), "kw": ("kW", "power"), "mw": ("MW", "power")}
 _TEMPERATURE_UNITS = {

@@ -7,6 +7,7 @@ of two candidates that disagree.
 """
 
 import dataclasses
+import math
 import types
 
 import numpy as np
@@ -365,3 +366,35 @@ def _interval(result, data):
 
 def _offset_warnings(result, data):
     return [w for w in _interval(result, data).warnings if "offset" in w]
+
+
+def test_an_interval_wider_than_the_value_says_the_data_hardly_determine_the_hlc(
+    coloured_fits, monkeypatch
+):
+    """The rule every parameter's verdict applies (an interval beyond ±100 % of the value):
+    the HLC is then reported as not determined, in the JSON, the text and a warning."""
+    import jaxbox.validate._verdict as verdict
+    from jaxbox.cli._select import _hlc_text
+    from jaxbox.validate import HlcInterval
+
+    wide = HlcInterval(value=100.0, ci95=(0.0, 350.0), level=0.95, method=HAC, models=())
+    assert wide.half_width == pytest.approx(1.75) and not wide.determined
+    assert wide.to_dict()["determined"] is False
+    assert (
+        wide.text()
+        .split("\n")[0]
+        .endswith("; not determined by these data: quote the interval, not the value")
+    )
+    narrow = dataclasses.replace(wide, ci95=(50.0, 150.0))
+    assert narrow.determined and narrow.to_dict()["determined"] is True
+    assert "not determined" not in narrow.text()
+    assert not dataclasses.replace(wide, ci95=(0.0, math.inf)).determined
+    sel = _selection([_Case("a", coloured_fits[0], 0.1)])
+    got = hlc_interval(sel)
+    assert got.determined and not any("hardly determine" in w for w in got.warnings)
+    monkeypatch.setattr(verdict, "MAX_REL_CI", 0.25 * got.half_width)
+    got = hlc_interval(sel)
+    assert not got.determined
+    (why,) = [w for w in got.warnings if "hardly determine" in w]
+    assert why.startswith(f"the interval is ±{100 * got.half_width:.0f} % of the HLC")
+    assert "not determined by these data" in _hlc_text(got.to_dict())

@@ -328,6 +328,8 @@ def _hlc_text(hlc: dict) -> str:
         f"heat-loss coefficient {hlc['value']:.4g} W/K, {round(100 * hlc['level'])} % interval "
         f"{shown} ({hlc['method']})"
     ]
+    if hlc.get("determined") is False:
+        lines[0] += "; not determined by these data: quote the interval, not the value"
     if hlc.get("outdoor"):
         from ..validate._hlc import _outdoor_text
 

@@ -61,7 +61,8 @@ class HlcInterval:
         method: how the interval was made, in words.
         models: per near-best model (the accepted one first): ``{"model", "value", "ci95",
             "criterion"}``.
-        warnings: what the interval cannot vouch for.
+        warnings: what the interval cannot vouch for (one where the interval is wider than
+            ±100 % of the value: :attr:`determined` false).
         outdoor: the accepted model's HLC referenced to the outdoor air, its measured boundaries
             as they behave in the data (:func:`~jaxbox.validate.outdoor_hlc`; ``None`` where it
             does not apply).
@@ -75,12 +76,30 @@ class HlcInterval:
     warnings: tuple[str, ...] = ()
     outdoor: OutdoorHLC | None = None
 
+    @property
+    def half_width(self) -> float:
+        """Half the interval's width relative to the value (``inf`` where either is not
+        finite or the value is 0)."""
+        lo, hi = self.ci95
+        if not (math.isfinite(lo) and math.isfinite(hi) and math.isfinite(self.value)):
+            return math.inf
+        return 0.5 * (hi - lo) / abs(self.value) if self.value else math.inf
+
+    @property
+    def determined(self) -> bool:
+        """Whether the data determine the HLC: its interval no wider than ±``MAX_REL_CI``
+        (100 %) of its value, the rule the verdicts apply to every parameter."""
+        from ._verdict import MAX_REL_CI
+
+        return self.half_width <= MAX_REL_CI
+
     def to_dict(self) -> dict:
         fin = all(math.isfinite(v) for v in self.ci95)
         return {
             "value": self.value if math.isfinite(self.value) else None,
             "unit": "W/K",
             "ci95": [float(v) for v in self.ci95] if fin else None,
+            "determined": self.determined,
             "level": self.level,
             "method": self.method,
             "models": [dict(m) for m in self.models],
@@ -96,6 +115,8 @@ class HlcInterval:
         lines = [
             f"heat-loss coefficient {self.value:.4g} W/K, {pct} % interval {ci} ({self.method})"
         ]
+        if not self.determined:
+            lines[0] += "; not determined by these data: quote the interval, not the value"
         if self.outdoor is not None:
             lines.append("  " + _outdoor_text(self.outdoor.to_dict(), pct))
         lines += [f"  warning: {w}" for w in self.warnings]
@@ -272,7 +293,7 @@ def hlc_interval(
             "below; reported from 0"
         )
         lo = 0.0
-    return HlcInterval(
+    out = HlcInterval(
         value=float(models[0]["value"]),
         ci95=(float(lo), float(hi)),
         level=float(level),
@@ -281,6 +302,15 @@ def hlc_interval(
         warnings=tuple(warns),
         outdoor=_outdoor(selection, cases[0], level, first_uncertainty),
     )
+    if out.determined:
+        return out
+    from ._verdict import MAX_REL_CI
+
+    undetermined = (
+        f"the interval is ±{100 * out.half_width:.0f} % of the HLC (more than "
+        f"±{100 * MAX_REL_CI:.0f} %): the data hardly determine it"
+    )
+    return dataclasses.replace(out, warnings=(*out.warnings, undetermined))
 
 
 #: the least mean difference [K] between the zone and a boundary for which an offset is read as

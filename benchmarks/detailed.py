@@ -176,6 +176,21 @@ def run_one(b, settings: dict, commit: str = "") -> dict:
     return row
 
 
+def _undetermined(rows: list[dict]) -> str:
+    """How often the reported HLC is marked not determined (its interval wider than ±100 % of
+    its value, :attr:`jaxbox.validate.HlcInterval.determined`), and its error there and
+    elsewhere."""
+    marked = [abs(r["hlc_error"]) for r in rows if r.get("half_width", 0.0) > 1.0]
+    other = [abs(r["hlc_error"]) for r in rows if 0.0 <= r.get("half_width", -1.0) <= 1.0]
+    if not marked:
+        return "No HLC is marked not determined (an interval wider than ±100 % of its value)."
+    return (
+        f"The HLC is marked not determined (its interval wider than ±100 % of its value) on "
+        f"{len(marked)} of {len(rows)}: median |error| {100 * np.median(marked):.0f} % there, "
+        f"{100 * np.median(other):.0f} % on the other {len(other)}."
+    )
+
+
 def gains(b) -> dict:
     """Mean unmeasured occupancy gain [W] and mean measured heating [W] over the building's
     data, the gain's share of the two (a model without the gain explains the warmth it brings
@@ -264,6 +279,8 @@ def markdown(doc: dict) -> str:
             f"HLC error |reported/true − 1|: median {100 * np.median(errs):.1f} %, 90th "
             f"percentile {100 * np.percentile(errs, 90):.1f} %, worst {100 * max(errs):.1f} %; "
             f"median search {np.median([r['search_s'] for r in rows]):.0f} s.",
+            "",
+            _undetermined(rows),
             "",
             "| group | buildings | median signed HLC error | HLC within ±15 % | interval covers |",
             "|---|---:|---:|---:|---:|",

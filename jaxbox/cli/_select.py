@@ -322,6 +322,8 @@ def _print_table(gb, sel, hlc: dict | None = None) -> None:
 
 def _hlc_text(hlc: dict) -> str:
     """The HLC line of the text output (and its warnings)."""
+    from ..validate._hlc import NOT_DETERMINED, _outdoor_text
+
     ci = hlc["ci95"]
     shown = "[-]" if ci is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
     lines = [
@@ -329,10 +331,8 @@ def _hlc_text(hlc: dict) -> str:
         f"{shown} ({hlc['method']})"
     ]
     if hlc.get("determined") is False:
-        lines[0] += "; not determined by these data: quote the interval, not the value"
+        lines[0] += NOT_DETERMINED
     if hlc.get("outdoor"):
-        from ..validate._hlc import _outdoor_text
-
         lines.append("  " + _outdoor_text(hlc["outdoor"], round(100 * hlc["level"])))
     return "\n".join(lines + [f"  warning: {w}" for w in hlc["warnings"]])
 

@@ -36,6 +36,8 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable, Sequence
 
+from ._units import _KIND as _KIND_OF_UNIT
+
 __all__ = ["suggest_columns", "name_unit", "suggestion_text", "stated_unit_notes"]
 
 #: signal -> (words naming it, code names that are the whole name, kind of unit it takes)
@@ -165,7 +167,12 @@ def suggest_columns(
     it and no other signal claims that column; and the units their names state where these are
     not jaxbox's own. Returns ``(columns, units)``: ``{signal: column}``, ``{signal: unit}``
     (ready for ``jaxbox.data.load(..., columns=…, units=…)``, keyed by the canonical names)."""
-    fits = _fitting(columns, signals)
+    return _unique(_fitting(columns, signals))
+
+
+def _unique(fits: dict[str, list[str]]) -> tuple[dict[str, str], dict[str, str]]:
+    """``(signal -> its one fitting column, signal -> the unit that column's name states)``
+    of :func:`_fitting`'s answer (the units only where they are not jaxbox's own)."""
     mapping = {s: f[0] for s, f in fits.items() if len(f) == 1}
     units = {}
     for s, c in mapping.items():
@@ -185,13 +192,14 @@ def suggestion_text(
     missing = list(missing)
     wanted = list(dict.fromkeys([*missing, *(s for s in also if s not in columns)]))
     own = [c for c in columns if c not in wanted and c not in _SIGNALS]
-    mapping, units = suggest_columns(own, wanted)
+    fits = _fitting(own, wanted)
+    mapping, units = _unique(fits)
     text = ""
     if any(s in mapping for s in missing):
         text = f"; by their names, perhaps columns={mapping!r}"
         units = {s: u for s, u in units.items() if s in mapping}
         text += f" with units={units!r}" if units else ""
-    for signal, found in _fitting(own, wanted).items():
+    for signal, found in fits.items():
         # rooms, heaters: one of them, or all of them together
         if signal not in mapping and 1 < len(found) <= _MAX_SEVERAL:
             how = "sum" if _SIGNALS[signal][2] == "power" else "mean"
@@ -204,9 +212,6 @@ def suggestion_text(
 
 #: the most columns that fit one signal listed as its candidates (more: no suggestion)
 _MAX_SEVERAL = 12
-
-
-_KIND_OF_UNIT = {"°C": "temperature", "W": "power", "W/m²": "irradiance"}
 
 
 def stated_unit_notes(

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from . import _verdict
 from ._hlc_hac import HAC
 
 if TYPE_CHECKING:
@@ -37,6 +38,8 @@ if TYPE_CHECKING:
 
 __all__ = ["HlcInterval", "hlc_interval", "near_best", "NEAR_BEST"]
 
+#: what the HLC's line says where its interval is wider than the verdicts allow a parameter's
+NOT_DETERMINED = "; not determined by these data: quote the interval, not the value"
 #: relative criterion margin of the near-best candidates (the structure search's default margin)
 NEAR_BEST = 0.02
 #: criteria closer than this (relative) are of the same model (a component that vanished)
@@ -89,9 +92,7 @@ class HlcInterval:
     def determined(self) -> bool:
         """Whether the data determine the HLC: its interval no wider than ±``MAX_REL_CI``
         (100 %) of its value, the rule the verdicts apply to every parameter."""
-        from ._verdict import MAX_REL_CI
-
-        return self.half_width <= MAX_REL_CI
+        return self.half_width <= _verdict.MAX_REL_CI
 
     def to_dict(self) -> dict:
         fin = all(math.isfinite(v) for v in self.ci95)
@@ -116,7 +117,7 @@ class HlcInterval:
             f"heat-loss coefficient {self.value:.4g} W/K, {pct} % interval {ci} ({self.method})"
         ]
         if not self.determined:
-            lines[0] += "; not determined by these data: quote the interval, not the value"
+            lines[0] += NOT_DETERMINED
         if self.outdoor is not None:
             lines.append("  " + _outdoor_text(self.outdoor.to_dict(), pct))
         lines += [f"  warning: {w}" for w in self.warnings]
@@ -304,11 +305,9 @@ def hlc_interval(
     )
     if out.determined:
         return out
-    from ._verdict import MAX_REL_CI
-
     undetermined = (
         f"the interval is ±{100 * out.half_width:.0f} % of the HLC (more than "
-        f"±{100 * MAX_REL_CI:.0f} %): the data hardly determine it"
+        f"±{100 * _verdict.MAX_REL_CI:.0f} %): the data hardly determine it"
     )
     return dataclasses.replace(out, warnings=(*out.warnings, undetermined))
 

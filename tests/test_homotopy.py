@@ -216,3 +216,36 @@ def test_a_trapped_parameter_is_released_towards_the_guess(building):
     j = problem.free.index("C_wal")
     expected = tr.to_internal(np.where(np.arange(len(guess)) == j, 3e6, guess))[j]
     assert anchors[j] == pytest.approx(expected)
+
+
+def test_the_continuation_for_the_first_starts_only(building, fits):
+    """``continued=k``: the first ``k`` starts of a request take both routes, the others the
+    output-error route alone; each start's result is that of the call that gives it those
+    routes, and the skipped routes cost no steps. The same compiled program serves any ``k``."""
+    from jaxbox.fit import compile_cache_info, fit_batch
+
+    cont, plain = fits
+    common = dict(model="ZonWalIntInf", data=building, starts=12, seed=1, max_steps=200)
+    before = compile_cache_info()["compiles"]
+    part, none = (fit_batch([dict(common, continued=k)])[0] for k in (4, 0))
+    assert compile_cache_info()["compiles"] == before
+    assert part.settings["continued"] == 4
+    np.testing.assert_array_equal(part.starts.cost[:4], cont.starts.cost[:4])
+    np.testing.assert_array_equal(part.starts.steps[:4], cont.starts.steps[:4])
+    # the others: the output-error route alone, whatever k (the same program)
+    np.testing.assert_array_equal(part.starts.cost[4:], none.starts.cost[4:])
+    np.testing.assert_array_equal(part.starts.steps[4:], none.starts.steps[4:])
+    # … which is the plain fit's (another program: the same to rounding, but for a start that
+    # ends in a flat valley, where rounding moves its end)
+    same = np.abs(none.starts.cost / plain.starts.cost - 1) < 1e-9
+    assert same.sum() >= 10
+    np.testing.assert_array_equal(none.starts.steps[same], plain.starts.steps[same])
+    assert none.starts.steps.sum() < part.starts.steps.sum() < cont.starts.steps.sum()
+
+
+@pytest.mark.parametrize("value", [-1, 1.5, True, "2"])
+def test_bad_continued_is_refused(building, value):
+    from jaxbox.fit import fit_batch
+
+    with pytest.raises(jaxbox.FitError, match="continued must be None or a whole number"):
+        fit_batch([dict(model="Zon", data=building, continued=value)])

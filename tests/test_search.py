@@ -219,6 +219,30 @@ def test_a_case_may_skip_the_continuation(building, tmp_path):
         structure_search(building, starts=2, max_depth=1, homotopy=(0.2, 0.5))
 
 
+def test_grown_candidates_may_continue_from_their_first_starts_only(building, search):
+    """``continued=1``: a grown candidate solves its first start (its parent's optimum) along
+    the continuation as well, its other starts along the output error alone, and takes fewer
+    steps; the roots keep both routes for every start. By default every start takes both."""
+    full, _ = search
+    s = structure_search(GreyBox(building.data, name="grown"), starts=4, max_depth=2, continued=1)
+    assert s.accepted == full.accepted
+    grown = [c for c in s.greybox.cases.values() if c.parent]
+    assert grown and all(c.settings["continued"] == 1 for c in grown)
+    assert all("continued" not in c.settings for c in s.greybox.cases.values() if not c.parent)
+    assert all("continued" not in c.settings for c in full.greybox.cases.values())
+    steps = {
+        name: int(np.sum(c.result.starts.steps))
+        for name, c in full.greybox.cases.items()
+        if c.parent and c.result is not None
+    }
+    fewer = [
+        np.sum(c.result.starts.steps) < steps[name]
+        for name, c in s.greybox.cases.items()
+        if name in steps and c.result is not None
+    ]
+    assert fewer and all(fewer)
+
+
 def test_search_finds_the_true_structure(search):
     s, _ = search
     assert s.accepted == "Zon+Wal"
@@ -368,6 +392,7 @@ def test_search_counts_refuse_bools_and_fractions_by_name(building, option, erro
         ({"seed": 1.5}, TypeError, "seed must be"),
         ({"max_steps": 0}, ValueError, "max_steps must be"),
         ({"progress": "log.txt"}, TypeError, "progress must be a function"),
+        ({"continued": -1}, ValueError, "continued must be None or a whole number"),
     ],
 )
 def test_search_options_refused_before_any_case(building, option, error, words):

@@ -22,6 +22,7 @@ from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
 from ..models import get_model
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
 from ._fit import (
+    _continued,
     _problem_key,
     bucket_samples,
     check_homotopy,
@@ -222,6 +223,9 @@ _DEFAULTS = {
     for name, p in inspect.signature(fit_model).parameters.items()
     if p.kind is inspect.Parameter.KEYWORD_ONLY and name not in ("slots", "method")
 }
+#: a request's own: how many of its starts (the first ones) take the continuation as well as
+#: the output error (``None``: all; see :func:`~jaxbox.fit.solve_jobs`)
+_DEFAULTS["continued"] = None
 #: the problem arguments, the solver settings (requests solved together share them) and the
 #: start arguments of a request
 _PROBLEM = ("free", "fixed", "bounds", "guess", "weights", "simulator", "sim_options")
@@ -347,7 +351,9 @@ def fit_batch(
     A request is a mapping with ``model`` and ``data`` and any of the keyword arguments of
     :func:`~jaxbox.fit.fit_model` (``free``, ``fixed``, ``bounds``, ``guess``, ``starts``, ``seed``,
     ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
-    ``atol``, ``solver``, ``homotopy``, ``release``, ``max_gap``). Requests with the same number
+    ``atol``, ``solver``, ``homotopy``, ``release``, ``max_gap``) and ``continued``, how many of
+    its starts (the first ones) are solved along the continuation as well (``None``: all; the
+    others along the output-error route alone). Requests with the same number
     of free parameters, data of the same shape and the same solver settings are solved in one
     batch (with the exact simulator even when their model structures, numbers of states,
     parameters and inputs differ, provided they measure the same states: the smaller ones are
@@ -396,14 +402,17 @@ def fit_batch(
                 check_homotopy(arg["homotopy"]),
                 _release(arg["release"]),
             )
-            prepared.append((i, problem, data, x0, problem_arrays(problem, data), solver))
+            continued = _continued(arg["continued"], 1)[0]
+            prepared.append(
+                (i, problem, data, x0, problem_arrays(problem, data), solver, continued)
+            )
         except FitError as err:
             if errors == "raise":
                 raise
             outcomes[i] = err
     groups: dict = {}
     for item in prepared:
-        _, problem, _, x0, arrays, solver = item
+        _, problem, _, x0, arrays, solver, _ = item
         shape = (
             x0.shape[1],
             len(problem.fixed),
@@ -430,7 +439,7 @@ def fit_batch(
     for members in groups.values():
         max_steps, rtol, atol, solver, homotopy, release = members[0][5]
         out = solve_jobs(
-            [(problem, x0, arrays) for _, problem, _, x0, arrays, _ in members],
+            [(problem, x0, arrays) for _, problem, _, x0, arrays, _, _ in members],
             max_steps=max_steps,
             rtol=rtol,
             atol=atol,
@@ -439,6 +448,7 @@ def fit_batch(
             homotopy=homotopy,
             release=release,
             bucket=bucket,
+            continued=[m[6] for m in members],
         )
         timing = {
             "compile_s": out["compile_s"],
@@ -448,7 +458,7 @@ def fit_batch(
             "parts": out["parts"],
         }
         first = 0
-        for i, problem, data, x0, _, _ in members:
+        for i, problem, data, x0, _, _, continued in members:
             sl = slice(first, first + len(x0))
             first += len(x0)
             settings = {
@@ -457,6 +467,7 @@ def fit_batch(
                 "atol": atol,
                 "homotopy": homotopy,
                 "release": release,
+                "continued": continued,
                 "seed": requests[i].get("seed", _DEFAULTS["seed"]),
                 "slots": slots,
                 "max_gap": duration_seconds(requests[i].get("max_gap", _DEFAULTS["max_gap"])),

@@ -179,6 +179,7 @@ def _multistart(
     routes: Sequence[Sequence[float]] = ((),),
     release=None,
     count=None,
+    routed=None,
 ):
     """Every start of ``z0`` [S, p] through ``solver``, a fixed number of *slots* at a time.
 
@@ -204,7 +205,9 @@ def _multistart(
 
     ``count`` (a traced integer, with a single group): only the first ``count`` starts are
     solved; the others are padding of a bucketed batch (see :func:`solve_jobs`), never loaded
-    into a slot, and their results are NaN.
+    into a slot, and their results are NaN. ``routed`` (a traced bool [S]): the starts solved
+    along every route; the others along the first route only (their other routes are never
+    loaded into a slot, and count no steps).
 
     A slot whose route has ended takes the next (start, route) of its group (``slot_counts``
     slots for each group of ``start_counts`` consecutive starts), so the batch stays busy until
@@ -244,7 +247,29 @@ def _multistart(
         if n_groups != 1:
             raise ValueError("count needs a single group of starts")
         end = jnp.minimum(end, count * n_routes)
-    idx0 = np.asarray(first[group] + np.arange(batch) - slot_first[group])
+    # the queue: position i of a group's queue holds member order[i]. The longer routes (the
+    # continuation's stages) go first, so that none of them starts near the end of the queue and
+    # leaves the other slots idle while it runs; the members a start skips (``routed``) go
+    # last, past the group's end
+    order = jnp.arange(n_members)
+    if n_routes > 1:
+        member = np.arange(n_members)
+        member_group = np.repeat(np.arange(n_groups), member_counts)
+        active = jnp.ones(n_members, bool)
+        if count is not None:  # the padding starts of a bucketed batch: never loaded
+            active = jnp.asarray(member) < count * n_routes
+        if routed is not None:
+            active = active & (
+                (member % n_routes == 0) | jnp.asarray(routed, bool)[member // n_routes]
+            )
+        rank = (~active).astype(jnp.int32) * 2 + (member % n_routes == 0)
+        order = jnp.argsort(member_group * 4 + rank, stable=True)
+        n_active = jax.ops.segment_sum(
+            active.astype(jnp.int32), jnp.asarray(member_group), num_segments=n_groups
+        )
+        end = jnp.minimum(end, jnp.asarray(first) + n_active)
+    pos0 = np.asarray(first[group] + np.arange(batch) - slot_first[group])
+    idx0 = order[pos0]
     tags = frozenset()
 
     # the stages before a route's last end at a looser tolerance: their optimum is a waypoint
@@ -283,17 +308,17 @@ def _multistart(
     rounds = -(-np.asarray(member_counts) // np.asarray(slot_counts))
     cap = int((max_steps + 1) * stages * rounds.max() + 1)
     zeros = jnp.zeros((batch,), jnp.int32)
-    start0 = jnp.asarray(idx0 // n_routes, jnp.int32)
+    start0 = (idx0 // n_routes).astype(jnp.int32)
     carry = dict(
-        idx=jnp.asarray(idx0, jnp.int32),
+        idx=idx0.astype(jnp.int32),
         y=z0[start0],
         state=jax.vmap(init)(z0[start0]),
-        stage=first_stage[jnp.asarray(idx0 % n_routes)].astype(jnp.int32),
+        stage=first_stage[idx0 % n_routes].astype(jnp.int32),
         before=zeros,  # steps of the earlier stages of each slot's route
         saved_y=jnp.full((batch, p), jnp.nan, dtype),  # where a route stood before its release
         saved_cost=jnp.full((batch,), jnp.inf, dtype),
         saved_code=zeros,
-        live=jnp.asarray(idx0) < end[group],
+        live=jnp.asarray(pos0) < end[group],
         nxt=jnp.asarray(first + np.asarray(slot_counts), jnp.int32),
         out_z=jnp.full((n_members, p), jnp.nan, dtype),
         out_cost=jnp.full((n_members,), jnp.nan, dtype),
@@ -339,10 +364,10 @@ def _multistart(
         # the freed slots take the next members of their group
         onehot = (group[:, None] == np.arange(n_groups)[None, :]) & finished[:, None]
         rank = jnp.cumsum(onehot, axis=0)[jnp.arange(batch), group] - 1
-        new_idx = c["nxt"][group] + rank
-        load = finished & (new_idx < end[group])
+        new_pos = c["nxt"][group] + rank
+        load = finished & (new_pos < end[group])
         nxt = jnp.minimum(c["nxt"] + jnp.sum(onehot, axis=0), end).astype(jnp.int32)
-        new_idx = jnp.where(load, new_idx, 0)
+        new_idx = order[jnp.where(load, new_pos, 0)]
         released = y if release is None else jnp.where(edge, release_to[start], y)
         y_new = jnp.where(
             load[:, None], z0[new_idx // n_routes], jnp.where(go_release[:, None], released, y)
@@ -667,7 +692,7 @@ def _build(
         raise FitError("model variants batched together must measure the same states")
     style = groups[0][0].transform.style
 
-    def solve(z0, bounded, anchor, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
+    def solve(z0, bounded, routed, anchor, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
         per_member = u.shape[1] != 1
         count = None
         if bucketed:  # the number of real starts, then the networks
@@ -718,6 +743,7 @@ def _build(
             # the continuation needs the observer of the exact route
             routes=((), homotopy) if homotopy and exact else ((),),
             release=(bounded, lambda Z: position_in_bounds(style, Z), anchor) if release else None,
+            routed=routed,
         )
 
     return jit(solve, lean=True)
@@ -733,7 +759,7 @@ def _build_generic(groups, max_steps: int, solver):
         )
     prob = groups[0][0]
 
-    def solve(z0, bounded, anchor, fixed, lo, hi, sc, dt, t, u, y, w):
+    def solve(z0, bounded, routed, anchor, fixed, lo, hi, sc, dt, t, u, y, w):
         per_member = u.shape[1] != 1
 
         def one(z, f, a, b, c, tt, uu, yy, ww):
@@ -803,6 +829,20 @@ def _run_parts(compiled, calls):
         return list(pool.map(lambda a: jax.block_until_ready(compiled(*a)), calls))
 
 
+def _continued(value, n_jobs: int) -> list[int | None]:
+    """``continued=`` of :func:`solve_jobs` as one value per job: ``None`` or a whole number
+    from 0."""
+    values = list(value) if isinstance(value, Sequence) else [value] * n_jobs
+    if len(values) != n_jobs:
+        raise FitError(f"continued needs one value per job ({n_jobs}), got {len(values)}")
+    for v in values:
+        if v is not None and (
+            isinstance(v, bool) or not isinstance(v, int | np.integer) or int(v) < 0
+        ):
+            raise FitError(f"continued must be None or a whole number of starts from 0, got {v!r}")
+    return [None if v is None else int(v) for v in values]
+
+
 def solve_jobs(
     jobs: Sequence[tuple[Problem, Float[np.ndarray, "starts free"], tuple]],
     *,
@@ -814,6 +854,7 @@ def solve_jobs(
     homotopy: Sequence[float] = DEFAULT_HOMOTOPY,
     release: bool = True,
     bucket: bool | Mapping[str, int] = False,
+    continued: Sequence[int | None] | int | None = None,
 ) -> dict:
     """Run a least-squares solver for several jobs in one compiled, batched call.
 
@@ -829,6 +870,9 @@ def solve_jobs(
     continuation ``homotopy`` (observer gains, see :func:`check_homotopy`; ``()``: none), and a
     route that ends with coordinates on their bounds is retried with them released
     (``release``); the better route is the start's result (see :func:`_multistart`).
+    ``continued`` (one per job, or one for all): how many of a job's starts, the first ones,
+    take the continuation as well (``None``: all; the others the output-error route alone). It
+    is an argument of the compiled program, not part of its key.
 
     With ``bucket`` (jaxbox's solver on the exact simulator, networks in array form), every
     size of the batch is rounded up (:data:`BUCKETS`: parameters, states, inputs, edges; the
@@ -851,6 +895,7 @@ def solve_jobs(
     if not jobs:
         raise FitError("no job to solve")
     homotopy = check_homotopy(homotopy)
+    continued = _continued(continued, len(jobs))
     problems, z0s, counts, members, datas, edges, anchors = [], [], [], [], [], [], []
     for prob, starts, arrays in jobs:
         starts = np.atleast_2d(np.asarray(starts, dtype=float))
@@ -908,6 +953,10 @@ def solve_jobs(
     anchor = np.concatenate(
         [np.pad(a, ((0, 0), (0, z0.shape[1] - a.shape[1]))) for a in anchors], axis=0
     )
+    # the starts that take every route
+    routed = np.concatenate(
+        [np.arange(c) < (c if k is None else k) for c, k in zip(counts, continued, strict=True)]
+    )
     member_arrays = tuple(np.concatenate(parts, axis=0) for parts in zip(*members, strict=True))
     if len(jobs) == 1 or _same_data(datas):
         data = tuple(a[:, None] for a in datas[0])  # shared by every start: [N, 1, …]
@@ -944,10 +993,10 @@ def solve_jobs(
         n_rows = len(rows)
         if split:
             rows = rows[np.minimum(np.arange(size), n_rows - 1)]
-        own = (z0, bounded, anchor, *member_arrays)
+        own = (z0, bounded, routed, anchor, *member_arrays)
         own = tuple(np.asarray(a)[rows] for a in own) if split else own
         put = [
-            jax.device_put(np.asarray(a, dtype=bool if k == 1 else float))
+            jax.device_put(np.asarray(a, dtype=bool if k in (1, 2) else float))
             for k, a in enumerate(own)
         ]
         put += [

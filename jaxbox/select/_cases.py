@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..fit import DEFAULT_STARTS
-from ..fit._fit import check_homotopy
+from ..fit._fit import _continued, check_homotopy
 from ..models import RCModel
 from ._guess import Guess, lhs_starts
 
@@ -49,6 +49,7 @@ FIT_SETTINGS = (
     "simulator",
     "max_gap",
     "homotopy",
+    "continued",
 )
 #: Settings of a case: the solver's, and ``postsim``, the post-simulation method of its
 #: validation (``"diffrax"``, adaptive, by default; ``"exact"``, the matrix exponential).
@@ -95,7 +96,8 @@ def _tolerance(value, name: str) -> float:
 def check_settings(settings: Mapping) -> dict:
     """The settings of a case (:data:`SETTINGS`), checked before anything is declared or run:
     unknown names, and ``max_steps``, ``rtol``, ``atol``, ``concentration``, ``simulator``,
-    ``postsim`` and ``homotopy`` of the wrong type or out of range, name the setting
+    ``postsim``, ``homotopy`` and ``continued`` of the wrong type or out of range, name the
+    setting
     (``weights`` and ``max_gap`` are checked with the estimation problem and the data)."""
     bad = [str(k) for k in settings if k not in SETTINGS]
     if bad:
@@ -113,6 +115,8 @@ def check_settings(settings: Mapping) -> dict:
             )
     if "homotopy" in out:  # a FitError (a ValueError) naming the setting
         out["homotopy"] = check_homotopy(out["homotopy"])
+    if "continued" in out:
+        out["continued"] = _continued(out["continued"], 1)[0]
     return out
 
 
@@ -141,7 +145,8 @@ class Case:
         starts: number of starts (the guess plus Latin-hypercube samples), fitted in one call.
         seed: seed of the Latin hypercube.
         settings: solver settings (``max_steps``, ``rtol``, ``atol``, ``concentration``,
-            ``weights``, ``simulator``, ``max_gap``, ``homotopy``; ``postsim``).
+            ``weights``, ``simulator``, ``max_gap``, ``homotopy``, ``continued``: how many
+            starts, the first, take the continuation as well; ``postsim``).
         parent: name of the case the guess was inherited from.
         notes: what happened on the way (a retry with narrowed bounds, …).
         result: the :class:`~jaxbox.fit.FitResult` once run.

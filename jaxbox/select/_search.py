@@ -341,6 +341,13 @@ def _coupling_cut(case: Case) -> bool:
 
 # ---- the search ---------------------------------------------------------------------------------
 
+#: how many starts of a grown candidate (the first ones; the first is its parent's optimum) are
+#: solved along the continuation as well as the output error, the others along the output
+#: error alone (``None``: all; a root's starts take both routes). The search's ``continued=``
+#: setting. ``1`` halves the fits' time of the twin houses' searches with the same accepted
+#: models, but one of the 40 detailed buildings then accepts a worse model (0.240 K against
+#: 0.170 K; ``benchmarks/NOTES.md``): all by default
+GROWN_CONTINUED = None
 #: how many times a step reduces what its reductions left invalid (each round one batched call)
 REDUCTION_ROUNDS = 3
 #: identification windows with more samples than this, at a step of at most FINE_STEP [s], get a
@@ -394,15 +401,19 @@ class _Search:
         model = structure.build(self.grammar)
         tree_parent = problem.pop("tree_parent", None if parent is None else parent.name)
         start = problem.pop("start", None)
+        kw = dict(self.kw)
+        grown = kw.pop("continued", GROWN_CONTINUED)  # for the grown candidates only
         if parent is None:
-            case = self.gb.add_case(model, **problem, **self.kw)
+            case = self.gb.add_case(model, **problem, **kw)
         elif start:  # the parent's optimum, some values moved (a merged node's capacity)
             moved = {**parent.result.params, **start}
             guess = parent_guess(model, self.gb.ident, moved, parent.name)
-            case = self.gb.add_case(model, guess=guess, **problem, **self.kw)
+            case = self.gb.add_case(model, guess=guess, **problem, **kw)
         else:
-            case = self.gb.add_case(model, guess="parent", parent=parent.name, **problem, **self.kw)
+            case = self.gb.add_case(model, guess="parent", parent=parent.name, **problem, **kw)
         case.settings.setdefault("postsim", "exact")
+        if parent is not None and grown is not None:
+            case.settings["continued"] = grown
         self.seen.add(structure.name)
         self.nodes[case.name] = dict(
             case=case.name, structure=structure.name, parent=tree_parent, added=added, depth=depth
@@ -684,7 +695,13 @@ def structure_search(
             mass); 0 stops at once.
         grammar: what the data can drive (default: from the data's columns).
         progress: called with one line of text per step and per candidate.
-        settings: solver settings for the fits (``max_steps``…).
+        settings: solver settings for the fits (``max_steps``…); ``continued=k``: a grown
+            candidate's first ``k`` starts (its parent's optimum first) take the continuation
+            as well as the output error, the others the output error alone (default all,
+            :data:`GROWN_CONTINUED`; a root's starts take both routes). ``continued=1`` halves
+            the fits' time of a search on the twin houses (same accepted models), at the risk
+            of a grown candidate's better optimum found only by the continuation from another
+            start.
 
     Returns:
         :class:`Search` (the cases are in ``search.greybox.cases``).

@@ -341,12 +341,13 @@ def _coupling_cut(case: Case) -> bool:
 
 # ---- the search ---------------------------------------------------------------------------------
 
-#: how many starts of a grown candidate (the first ones; the first is its parent's optimum) are
-#: solved along the continuation as well as the output error, the others along the output
-#: error alone (``None``: all; a root's starts take both routes). The search's ``continued=``
-#: setting. ``1`` halves the fits' time of the twin houses' searches with the same accepted
-#: models, but one of the 40 detailed buildings then accepts a worse model (0.240 K against
-#: 0.170 K; ``benchmarks/NOTES.md``): all by default
+#: how many of a grown candidate's starts (the first ones; the first is its parent's optimum)
+#: are solved along the continuation as well as the output error, the others along the output
+#: error alone (a root's starts take both routes): the default of the search's ``continued=``,
+#: ``None`` for all. Fewer save steps but lose models the continuation finds from the other
+#: starts: one start halves the twin houses' fits with the same accepted models, yet a detailed
+#: building then accepts a worse model (0.240 K against 0.170 K), and half of the starts lose a
+#: two-zone zoo building's true structure (``benchmarks/NOTES.md``)
 GROWN_CONTINUED = None
 #: how many times a step reduces what its reductions left invalid (each round one batched call)
 REDUCTION_ROUNDS = 3
@@ -414,7 +415,7 @@ class _Search:
         else:
             case = self.gb.add_case(model, guess="parent", parent=parent.name, **problem, **kw)
         case.settings.setdefault("postsim", "exact")
-        if parent is not None and grown is not None:
+        if parent is not None and grown is not None and grown < case.starts:
             case.settings["continued"] = grown
         self.seen.add(structure.name)
         self.nodes[case.name] = dict(
@@ -709,11 +710,11 @@ def structure_search(
         progress: called with one line of text per step and per candidate.
         settings: solver settings for the fits (``max_steps``…); ``continued=k``: a grown
             candidate's first ``k`` starts (its parent's optimum first) take the continuation
-            as well as the output error, the others the output error alone (default all,
+            as well as the output error, the others the output error alone (default: all,
             :data:`GROWN_CONTINUED`; a root's starts take both routes). ``continued=1`` halves
-            the fits' time of a search on the twin houses (same accepted models), at the risk
-            of a grown candidate's better optimum found only by the continuation from another
-            start.
+            the fits' time of a search on the twin houses (the same accepted models), at the
+            risk of a grown candidate's better optimum that only the continuation from another
+            start finds.
 
     Returns:
         :class:`Search` (the cases are in ``search.greybox.cases``).

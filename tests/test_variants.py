@@ -109,30 +109,6 @@ def test_bucketed_calls_of_neighbouring_sizes_share_one_program(bucketed, togeth
         np.testing.assert_allclose(a.starts.steps[done], b.starts.steps[done], rtol=0.02, atol=2)
 
 
-def test_smaller_calls_padded_to_given_sizes_run_the_larger_program(
-    data, bucketed, together_and_alone
-):
-    """``bucket`` with sizes to pad to (a structure search's largest so far): the one- and
-    two-state structures, padded to the sizes of ``Zon+Wal+Int``, run the program compiled for
-    it, and each fit is the one of the plain call."""
-    out, _ = bucketed
-    g = Grammar.from_columns(data.columns)
-    models = [parse_structure(n).build(g) for n in VARIANTS]
-    big = models[2]
-    sizes = dict(big.array_sizes(), free=len(big.param_names), inputs=len(big.inputs))
-    before = _compiled.info("fit")["entries"]
-    reqs = [dict(model=m, data=data, starts=4, seed=2) for m in models[:2]]
-    small = fit_batch(reqs, bucket={**sizes, "inputs": len({u for m in models for u in m.inputs})})
-    assert _compiled.info("fit")["entries"] == before
-    together, _, _ = together_and_alone
-    for a, b in zip(small, together[:2], strict=True):
-        assert a.problem.free == b.problem.free
-        done = a.starts.converged & b.starts.converged
-        assert done.sum() >= 1
-        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-5)
-        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-5)
-
-
 def test_parts_side_by_side_solve_each_start_as_alone(data, monkeypatch):
     """A bucketed batch dealt to three parts run by threads (and its padding starts, never
     solved) gives each start the result of one part alone."""

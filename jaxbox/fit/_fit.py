@@ -524,18 +524,15 @@ def _input_layout(problems, datas, bucket: bool = False, least: int = 0):
     return {"union": None, "inputs": m}, padded
 
 
-def _pad_members(problems, z0s, members, bucket: bool = False, least=None):
-    """Starts and per-member arrays padded to the widest variant (``bucket``: to its width, at
-    least ``least["free"]`` and ``least["fixed"]``, rounded up, see :data:`BUCKETS`): inert
-    coordinates (zero, in bounds [0, 1], scale 1) that no residual depends on, so the solver
-    leaves them where they are (their column of J is zero: see
-    :class:`~jaxbox.fit.LevenbergMarquardt`)."""
+def _pad_members(problems, z0s, members, bucket: bool = False):
+    """Starts and per-member arrays padded to the widest variant (``bucket``: to its width
+    rounded up, see :data:`BUCKETS`): inert coordinates (zero, in bounds [0, 1], scale 1) that
+    no residual depends on, so the solver leaves them where they are (their column of J is
+    zero: see :class:`~jaxbox.fit.LevenbergMarquardt`)."""
     p = max(z.shape[1] for z in z0s)
     q = max(m[0].shape[1] for m in members)
     if bucket:
-        least = least or {}
-        p = _round_up(max(p, least.get("free", 0)), BUCKETS["free"])
-        q = _round_up(max(q, least.get("fixed", 0)), BUCKETS["fixed"])
+        p, q = _round_up(p, BUCKETS["free"]), _round_up(q, BUCKETS["fixed"])
 
     def pad(a, width, value):
         return np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=value)
@@ -627,13 +624,11 @@ def _array_form(problems) -> bool:
     )
 
 
-def _rc_members(
-    problems, counts, layout, width: int, fixed_width: int, bucket: bool = False, least=None
-):
+def _rc_members(problems, counts, layout, width: int, fixed_width: int, bucket: bool = False):
     """Per member (start) ``(kinds [B, p], *arrays)`` of every variant's network in array form
     (:meth:`~jaxbox.models.RCModel.rc_arrays`), padded to the batch's largest (``bucket``: its
-    sizes, at least those of ``least``, rounded up, see :data:`BUCKETS`); ``None`` when a
-    network has no array form (a constant node)."""
+    sizes rounded up, see :data:`BUCKETS`); ``None`` when a network has no array form (a
+    constant node)."""
     from ..models._network import ModelError
 
     if not _array_form(problems):
@@ -642,8 +637,7 @@ def _rc_members(
     each = [p.model.array_sizes() for p in problems]
     sizes = {k: max(e[k] for e in each) for k in each[0]}
     if bucket:
-        least = least or {}
-        sizes = {k: _round_up(max(v, least.get(k, 0)), BUCKETS.get(k, 1)) for k, v in sizes.items()}
+        sizes = {k: _round_up(v, BUCKETS.get(k, 1)) for k, v in sizes.items()}
     sizes["states"] = layout["states"]
     parts = []
     for prob, c in zip(problems, counts, strict=True):
@@ -886,11 +880,9 @@ def solve_jobs(
     of slots, so that calls of neighbouring sizes — the steps of a structure search, one job or
     many — run one compiled program instead of one each. The results are those of the call
     without ``bucket``, to rounding. A mapping instead of ``True`` sets sizes to pad to at
-    least (``{"inputs": 12}``: the input columns of the largest call to come; also ``free``,
-    ``fixed``, ``states`` and the network's ``edges``, ``sources``, ``factors``, see
-    :meth:`~jaxbox.models.RCModel.array_sizes`). On a CPU the starts of a bucketed batch, or
-    of a batch of one problem (one structure) with jaxbox's solver, are dealt to
-    :func:`parallel_parts` that run side by side.
+    least (``{"inputs": 12}``: the input columns of the largest call to come). On a CPU the
+    starts of a bucketed batch, or of a batch of one problem (one structure) with jaxbox's
+    solver, are dealt to :func:`parallel_parts` that run side by side.
 
     Returns a dict with per member (all starts of all jobs, in order): ``job`` [B], ``z``, ``p``
     [B, p], ``code`` [B], ``steps``, ``cost``; and ``compile_s``, ``fit_s`` [s] and
@@ -943,9 +935,8 @@ def solve_jobs(
     if (variants or bucket) and paddable:
         layout, datas = _input_layout(problems, datas, bucket, least.get("inputs", 0))
         n_states = max(len(p.model.states) for p in problems)
-        n_states = max(n_states, least.get("states", 0)) if bucket else n_states
         layout["states"] = _round_up(n_states, BUCKETS["states"]) if bucket else n_states
-        z0s, members = _pad_members(problems, z0s, members, bucket, least)
+        z0s, members = _pad_members(problems, z0s, members, bucket)
     else:
         layout = None
     shapes = {(np.shape(z)[1], *(np.shape(a) for a in d)) for z, d in zip(z0s, datas, strict=True)}
@@ -981,9 +972,7 @@ def solve_jobs(
     pads = None if layout is None else tuple(_pad_spec(p, layout) for p, _ in groups)
     rc = None
     if layout is not None:
-        rc = _rc_members(
-            problems, counts, layout, z0.shape[1], member_arrays[0].shape[1], bucket, least
-        )
+        rc = _rc_members(problems, counts, layout, z0.shape[1], member_arrays[0].shape[1], bucket)
     n_real = len(z0)
     bucket = bucket and rc is not None
     parts = [np.arange(n_real)]

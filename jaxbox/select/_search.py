@@ -390,9 +390,7 @@ class _Search:
         self.nodes: dict[str, dict] = {}  # case name -> SearchNode fields
         self.seen: set[str] = set()  # structures (and reduced problems) declared
         self.reduced: dict[str, str] = {}  # case name -> what it was reduced to, in words
-        # the largest sizes of a step so far (input columns, parameters, states, the network's
-        # array sizes): later steps pad to them, so that they share the compiled fit
-        self.widest: dict[str, int] = {}
+        self.widest = 0  # the most input columns of a step so far: later steps pad to it
 
     # ---- propose --------------------------------------------------------------------------------
 
@@ -447,25 +445,10 @@ class _Search:
 
     # ---- identify, judge, reduce ----------------------------------------------------------------
 
-    def widen(self, models, n_fixed: int = 0) -> None:
-        """Raise :attr:`widest` to the sizes of ``models`` (each with all its parameters free
-        but ``n_fixed``)."""
-        for model in models:
-            n = len(model.param_names)
-            sizes = dict(
-                model.array_sizes(), free=n - n_fixed, fixed=n_fixed, inputs=len(model.inputs)
-            )
-            for k, v in sizes.items():
-                self.widest[k] = max(self.widest.get(k, 0), int(v))
-
     def identify(self, cases: list[Case], depth: int) -> None:
         self.say(f"step {depth}: {len(cases)} candidate(s) in one batched call")
-        for c in cases:
-            self.widen([c.model], len(c.fixed or {}))
-        self.widest["inputs"] = max(
-            self.widest.get("inputs", 0), len({u for c in cases for u in c.model.inputs})
-        )
-        run_cases(cases, self.say, catch=True, judge=False, sizes=self.widest)
+        self.widest = max(self.widest, len({u for c in cases for u in c.model.inputs}))
+        run_cases(cases, self.say, catch=True, judge=False, inputs=self.widest)
 
     def judge(self, children: list[tuple[Case, Case | None]]) -> list[Case]:
         """The criterion of every child, the verdict of those that could improve (lazily); the
@@ -583,13 +566,18 @@ class _Search:
     # ---- the loop -------------------------------------------------------------------------------
 
     def start(self) -> list[Case]:
-        """Identify the roots (padded to their children's sizes, so that the first two steps
-        share one compiled program); every root is grown, valid or not (the simplest structure
-        of a set of zones is often too simple to be valid)."""
+        """Identify the roots (padded to their children's input columns, so that the first two
+        steps share one compiled program); every root is grown, valid or not (the simplest
+        structure of a set of zones is often too simple to be valid)."""
         first = roots(self.grammar)
-        children = [c.build(self.grammar) for s in first for _, c in extensions(s, self.grammar)]
-        self.widen(children)
-        self.widest["inputs"] = len({u for c in children for u in c.inputs})
+        self.widest = len(
+            {
+                u
+                for s in first
+                for _, c in extensions(s, self.grammar)
+                for u in c.build(self.grammar).inputs
+            }
+        )
         self.say(
             f"structure search ({self.rule.criterion}, beam {self.beam}) from "
             + ", ".join(s.name for s in first)

@@ -146,6 +146,8 @@ def test_fit_with_periods_fix_and_bounds(csv_file, capsys):
         (["fit", "{csv}", "--model", "Zon", *MAP, "--bounds", "R_wal=1:0.1"], "below"),
         (["fit", "{csv}", "--model", "Zon", *MAP, "--train", "2024-01-01"], "START..END"),
         (["fit", "{csv}", "--model", "Zon", "--map", "T_zon=nothere"], "nothere"),
+        (["select", "{csv}", *MAP, "--continued", "-1"], "--continued must be at least 0"),
+        (["select", "{csv}", *MAP, "--method", "ml", "--continued", "1"], "output-error fits"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(csv_file, capsys, args, words):
@@ -248,6 +250,20 @@ def test_select_writes_its_outputs_at_once(csv_file, capsys, tmp_path):
     assert doc["files"]["report"] == str(out / "report.html")
     back = GreyBox.load(out / "greybox")
     assert list(back.cases) == [row["case"] for row in doc["table"]]
+
+
+def test_select_continued_reaches_every_case(csv_file, capsys, tmp_path):
+    """select --continued K: each model's first K starts also follow the continuation (a
+    setting of every case of a forward selection, kept in the saved GreyBox)."""
+    from jaxbox.select import GreyBox
+
+    out = tmp_path / "out"
+    args = ["select", str(csv_file), "--models", "Zon", "--starts", "2", "--continued", "1"]
+    code = main([*args, *MAP, "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    back = GreyBox.load(out / "greybox")
+    assert [c.settings["continued"] for c in back.cases.values()] == [1]
+    assert back.cases["Zon"].result.settings["continued"] == 1
 
 
 def test_a_warning_is_given_once_per_command(capsys):

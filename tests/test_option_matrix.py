@@ -78,6 +78,7 @@ VALUES: dict[str, tuple] = {
     "--homotopy": ("none", "2,x"),
     "--criterion": ("aic", "r2"),
     "--beam": ("2", "0"),
+    "--continued": ("1", "-1"),
     "--margin": ("0.05", "-1"),
     "--patience": ("0", "-1"),
     "--plots": ("{out}/plots", "{file}"),

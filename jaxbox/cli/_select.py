@@ -23,6 +23,7 @@ from ._common import (
     fit_json,
     float_option,
     int_option,
+    integer,
     print_json,
     progress,
 )
@@ -76,6 +77,16 @@ def add_select_arguments(p) -> None:
         type=int_option,
         default=1,
         help="search: how many of the best structures each step grows (default 1)",
+    )
+    p.add_argument(
+        "--continued",
+        type=int_option,
+        default=None,
+        metavar="K",
+        help="how many starts of each model (the first; in a search, of each grown candidate) "
+        "also follow the continuation, the others the output error alone (default all; 1 "
+        "halves the fits of a search, at the risk of a model only the others' continuation "
+        "finds)",
     )
     _common(p)
     p.add_argument("--out", metavar="DIR", help="save the GreyBox, the table and a report in DIR")
@@ -185,6 +196,8 @@ def _run_selection(
         ]
     # --margin left out: each method's own default (0.02 for the search, 0 for the chains)
     common = dict(starts=args.starts, seed=args.seed, max_steps=args.max_steps)
+    if args.continued is not None:
+        common["continued"] = args.continued
     if args.margin is not None:
         common["margin"] = args.margin
     if candidates == "search":
@@ -344,6 +357,8 @@ def select_command(args) -> int:
     if getattr(args, "method", "oe") == "ml":
         return _ml_select(args)
     check_run_options(args)
+    if args.continued is not None:
+        integer(args.continued, "--continued", 0)
     opts = DataOptions(args)
     out = check_output_folders(args.out, "--out", opts.specs)
     sets = [
@@ -391,6 +406,11 @@ def _ml_select(args) -> int:
         args.models = "bacher-madsen"
     if args.out:
         raise UsageError("--out is not available with --method ml; use --json")
+    if args.continued is not None:
+        raise UsageError(
+            "--continued is for output-error fits (the continuation is theirs); leave it out "
+            "with --method ml"
+        )
     if args.max_steps is None:
         args.max_steps = DEFAULT_ML_MAX_STEPS
     check_run_options(args)

@@ -13,6 +13,7 @@ import pytest
 from jaxbox.cli._main import main
 from jaxbox.datasets import make_fleet
 from jaxbox.fleet import FleetError, load_config, read_results, run_fleet
+from jaxbox.models import get_model
 from jaxbox.validate import kpi_values
 from jaxbox.validate._hlc_hac import HAC
 
@@ -207,6 +208,10 @@ def test_config_from_toml(tmp_path):
     path.write_text("[identify]\nstart = 3\n", encoding="utf-8")
     with pytest.raises(FleetError, match="unknown key 'start' in \\[identify\\]"):
         load_config(path)
+    path.write_text("[identify]\ncontinued = 1\n", encoding="utf-8")
+    assert load_config(path).continued == 1 and load_config().continued is None
+    with pytest.raises(FleetError, match="identify.continued must be an integer ≥ 0"):
+        load_config(continued=-1)
     path.write_text("[identify]\ncriterion = 'aic'\n", encoding="utf-8")
     with pytest.raises(FleetError, match="criterion"):
         load_config(path)
@@ -305,3 +310,21 @@ def test_a_structure_name_is_built_for_each_buildings_columns(tmp_path):
     assert "bad_data" not in set(rows["status"]), rows["status"]
     sunny, dark = (json.loads((out / "fits" / f"{b}.json").read_text()) for b in ("b0", "b1"))
     assert "gA" in sunny["params"] and "gA" not in dark["params"]
+
+
+def test_continued_reaches_the_search_and_the_selection(monkeypatch):
+    """``[identify] continued`` is passed to each building's structure search and to the
+    forward selection (their fits' setting), and left out when not given."""
+    import jaxbox.fleet._work as work
+    import jaxbox.select as select
+
+    seen = []
+    monkeypatch.setattr(select, "structure_search", lambda gb, **kw: seen.append(kw))
+    monkeypatch.setattr(
+        select, "forward_selection_many", lambda boxes, names, **kw: seen.append(kw)
+    )
+    work._selections("search", ["house"], load_config(continued=1))
+    work._selections("search", ["house"], load_config())
+    work._selections([get_model("Zon")], ["house"], load_config(continued=2))
+    assert seen[0]["continued"] == 1 and "continued" not in seen[1]
+    assert seen[2]["continued"] == 2

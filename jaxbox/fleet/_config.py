@@ -88,6 +88,9 @@ class FleetConfig:
         models: ``"search"`` (the structure search, default), one model name (fitted as
             given), several names, a family or ``"all"`` (forward selection among them).
         starts, seed, max_steps: multistart settings per fit.
+        continued: how many starts of each model (the first; in a search, of each grown
+            candidate) also follow the continuation (``None``: all; ``1`` halves a search's
+            fits, at the risk of a model only the other starts' continuation finds).
         criterion: selection criterion (``"se_cross"``).
         margin: the relative improvement of the validation SE a selection step needs
             (``None``: 0.02 for the search, 0 for a forward selection).
@@ -115,6 +118,7 @@ class FleetConfig:
     starts: int = dataclasses.field(default_factory=lambda: _selection_default("starts"))
     seed: int = 0
     max_steps: int | None = None
+    continued: int | None = None
     criterion: str = "se_cross"
     margin: float | None = None
     patience: int = 1
@@ -150,6 +154,9 @@ class FleetConfig:
             not isinstance(steps, int) or isinstance(steps, bool) or steps < 1
         ):
             raise FleetError(f"identify.max_steps must be a positive integer, got {steps!r}")
+        k = self.continued
+        if k is not None and (not isinstance(k, int) or isinstance(k, bool) or k < 0):
+            raise FleetError(f"identify.continued must be an integer ≥ 0, got {k!r}")
         if self.criterion not in CRITERIA:
             raise FleetError(
                 f"identify.criterion {self.criterion!r} is not known; use one of "
@@ -351,7 +358,16 @@ _TABLES = {
         "thousands",
     ),
     "windows": ("fraction", "train", "valid"),
-    "identify": ("models", "starts", "seed", "max_steps", "criterion", "margin", "patience"),
+    "identify": (
+        "models",
+        "starts",
+        "seed",
+        "max_steps",
+        "continued",
+        "criterion",
+        "margin",
+        "patience",
+    ),
     "run": ("partition_size", "reports"),
 }
 

@@ -204,6 +204,8 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
 
     names = list(checked)
     extra = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
+    if cfg.continued is not None:
+        extra["continued"] = cfg.continued
 
     def request(n):
         return {
@@ -259,6 +261,8 @@ def _selections(models, boxes, cfg: FleetConfig) -> list:
     from ..select import forward_selection_many, structure_search
 
     settings = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
+    if cfg.continued is not None:
+        settings["continued"] = cfg.continued
     if cfg.margin is not None:  # else each method's own default
         settings["margin"] = cfg.margin
     if models == "search":

@@ -249,3 +249,26 @@ def test_bad_continued_is_refused(building, value):
 
     with pytest.raises(jaxbox.FitError, match="continued must be None or a whole number"):
         fit_batch([dict(model="Zon", data=building, continued=value)])
+
+
+def test_continued_per_request_in_a_bucketed_batch(building):
+    """Requests of other structures batched and bucketed (padding starts never solved), each
+    with its own ``continued``: every start's result is the one of its request's batch with
+    every start along both routes, or along the output error alone, as its place says."""
+    from jaxbox.fit import fit_batch
+
+    def batch(ks, **kw):
+        reqs = [
+            dict(model=m, data=building, starts=6, seed=4, max_steps=100, continued=k, **kw)
+            for m, k in zip(("Zon+Wal", "ZonWalIntInf"), ks, strict=True)
+        ]
+        return fit_batch(reqs, bucket=True)
+
+    mixed = batch((2, 0))
+    both = batch((None, None))
+    plain = batch((0, 0))
+    np.testing.assert_array_equal(mixed[0].starts.cost[:2], both[0].starts.cost[:2])
+    np.testing.assert_array_equal(mixed[0].starts.cost[2:], plain[0].starts.cost[2:])
+    np.testing.assert_array_equal(mixed[1].starts.cost, plain[1].starts.cost)
+    np.testing.assert_array_equal(mixed[1].starts.steps, plain[1].starts.steps)
+    assert mixed[0].settings["continued"] == 2 and both[0].settings["continued"] is None

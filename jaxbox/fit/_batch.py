@@ -22,9 +22,9 @@ from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
 from ..models import get_model
 from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
 from ._fit import (
-    _continued,
     _problem_key,
     bucket_samples,
+    check_continued,
     check_homotopy,
     make_starts,
     result_from,
@@ -402,7 +402,7 @@ def fit_batch(
                 check_homotopy(arg["homotopy"]),
                 _release(arg["release"]),
             )
-            continued = _continued(arg["continued"], 1)[0]
+            continued = check_continued(arg["continued"], 1)[0]
             prepared.append(
                 (i, problem, data, x0, problem_arrays(problem, data), solver, continued)
             )

@@ -829,7 +829,7 @@ def _run_parts(compiled, calls):
         return list(pool.map(lambda a: jax.block_until_ready(compiled(*a)), calls))
 
 
-def _continued(value, n_jobs: int) -> list[int | None]:
+def check_continued(value, n_jobs: int) -> list[int | None]:
     """``continued=`` of :func:`solve_jobs` as one value per job: ``None`` or a whole number
     from 0."""
     values = list(value) if isinstance(value, Sequence) else [value] * n_jobs
@@ -895,7 +895,7 @@ def solve_jobs(
     if not jobs:
         raise FitError("no job to solve")
     homotopy = check_homotopy(homotopy)
-    continued = _continued(continued, len(jobs))
+    continued = check_continued(continued, len(jobs))
     problems, z0s, counts, members, datas, edges, anchors = [], [], [], [], [], [], []
     for prob, starts, arrays in jobs:
         starts = np.atleast_2d(np.asarray(starts, dtype=float))

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..fit import DEFAULT_STARTS
-from ..fit._fit import _continued, check_homotopy
+from ..fit._fit import check_continued, check_homotopy
 from ..models import RCModel
 from ._guess import Guess, lhs_starts
 
@@ -116,7 +116,7 @@ def check_settings(settings: Mapping) -> dict:
     if "homotopy" in out:  # a FitError (a ValueError) naming the setting
         out["homotopy"] = check_homotopy(out["homotopy"])
     if "continued" in out:
-        out["continued"] = _continued(out["continued"], 1)[0]
+        out["continued"] = check_continued(out["continued"], 1)[0]
     return out
 
 

@@ -23,7 +23,6 @@ from ._common import (
     fit_json,
     float_option,
     int_option,
-    integer,
     print_json,
     progress,
 )
@@ -357,8 +356,6 @@ def select_command(args) -> int:
     if getattr(args, "method", "oe") == "ml":
         return _ml_select(args)
     check_run_options(args)
-    if args.continued is not None:
-        integer(args.continued, "--continued", 0)
     opts = DataOptions(args)
     out = check_output_folders(args.out, "--out", opts.specs)
     sets = [

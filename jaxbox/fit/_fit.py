@@ -262,8 +262,8 @@ def _multistart(
             active = active & (
                 (member % n_routes == 0) | jnp.asarray(routed, bool)[member // n_routes]
             )
-        rank = (~active).astype(jnp.int32) * 2 + (member % n_routes == 0)
-        order = jnp.argsort(member_group * 4 + rank, stable=True)
+        late = (~active).astype(jnp.int32) * 2 + (member % n_routes == 0)
+        order = jnp.argsort(member_group * 4 + late, stable=True)
         n_active = jax.ops.segment_sum(
             active.astype(jnp.int32), jnp.asarray(member_group), num_segments=n_groups
         )

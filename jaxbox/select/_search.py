@@ -386,7 +386,10 @@ class _Search:
     def __init__(self, gb, grammar: Grammar, judge: _Judge, *, beam, lookahead, max_depth, kw, say):
         self.gb, self.grammar, self.rule = gb, grammar, judge
         self.beam, self.lookahead, self.max_depth = beam, lookahead, max_depth
-        self.kw, self.say = kw, say
+        # ``continued`` applies to the grown candidates only (a root's starts take both routes)
+        self.grown = kw.get("continued", GROWN_CONTINUED)
+        self.kw = {k: v for k, v in kw.items() if k != "continued"}
+        self.say = say
         self.nodes: dict[str, dict] = {}  # case name -> SearchNode fields
         self.seen: set[str] = set()  # structures (and reduced problems) declared
         self.reduced: dict[str, str] = {}  # case name -> what it was reduced to, in words
@@ -402,19 +405,17 @@ class _Search:
         model = structure.build(self.grammar)
         tree_parent = problem.pop("tree_parent", None if parent is None else parent.name)
         start = problem.pop("start", None)
-        kw = dict(self.kw)
-        grown = kw.pop("continued", GROWN_CONTINUED)  # for the grown candidates only
         if parent is None:
-            case = self.gb.add_case(model, **problem, **kw)
+            case = self.gb.add_case(model, **problem, **self.kw)
         elif start:  # the parent's optimum, some values moved (a merged node's capacity)
             moved = {**parent.result.params, **start}
             guess = parent_guess(model, self.gb.ident, moved, parent.name)
-            case = self.gb.add_case(model, guess=guess, **problem, **kw)
+            case = self.gb.add_case(model, guess=guess, **problem, **self.kw)
         else:
-            case = self.gb.add_case(model, guess="parent", parent=parent.name, **problem, **kw)
+            case = self.gb.add_case(model, guess="parent", parent=parent.name, **problem, **self.kw)
         case.settings.setdefault("postsim", "exact")
-        if parent is not None and grown is not None and grown < case.starts:
-            case.settings["continued"] = grown
+        if parent is not None and self.grown is not None and self.grown < case.starts:
+            case.settings["continued"] = self.grown
         self.seen.add(structure.name)
         self.nodes[case.name] = dict(
             case=case.name, structure=structure.name, parent=tree_parent, added=added, depth=depth

@@ -148,6 +148,8 @@ def test_fit_with_periods_fix_and_bounds(csv_file, capsys):
         (["fit", "{csv}", "--model", "Zon", "--map", "T_zon=nothere"], "nothere"),
         (["select", "{csv}", *MAP, "--continued", "-1"], "--continued must be at least 0"),
         (["select", "{csv}", *MAP, "--method", "ml", "--continued", "1"], "output-error fits"),
+        (["select", "{csv}", *MAP, "--polish", "-1"], "--polish must be at least 0"),
+        (["select", "{csv}", *MAP, "--method", "ml", "--polish", "1"], "output-error fits"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(csv_file, capsys, args, words):
@@ -264,6 +266,21 @@ def test_select_continued_reaches_every_case(csv_file, capsys, tmp_path):
     back = GreyBox.load(out / "greybox")
     assert [c.settings["continued"] for c in back.cases.values()] == [1]
     assert back.cases["Zon"].result.settings["continued"] == 1
+
+
+@pytest.mark.parametrize(("value", "polish"), [("1", 1), ("0", None)])
+def test_select_polish_reaches_every_case(csv_file, capsys, tmp_path, value, polish):
+    """select --polish K: each model's K best starts are solved on to the full tolerance (a
+    setting of every case, kept in the saved GreyBox); 0: every start to it."""
+    from jaxbox.select import GreyBox
+
+    out = tmp_path / "out"
+    args = ["select", str(csv_file), "--models", "Zon", "--starts", "2", "--polish", value]
+    code = main([*args, *MAP, "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    back = GreyBox.load(out / "greybox")
+    assert [c.settings["polish"] for c in back.cases.values()] == [polish]
+    assert back.cases["Zon"].result.settings["polish"] == polish
 
 
 def test_a_warning_is_given_once_per_command(capsys):

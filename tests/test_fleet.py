@@ -212,6 +212,10 @@ def test_config_from_toml(tmp_path):
     assert load_config(path).continued == 1 and load_config().continued is None
     with pytest.raises(FleetError, match="identify.continued must be an integer ≥ 0"):
         load_config(continued=-1)
+    path.write_text("[identify]\npolish = 0\n", encoding="utf-8")
+    assert load_config(path).polish == 0 and load_config().polish is None
+    with pytest.raises(FleetError, match="identify.polish must be an integer ≥ 0"):
+        load_config(polish=-1)
     path.write_text("[identify]\ncriterion = 'aic'\n", encoding="utf-8")
     with pytest.raises(FleetError, match="criterion"):
         load_config(path)
@@ -328,3 +332,22 @@ def test_continued_reaches_the_search_and_the_selection(monkeypatch):
     work._selections([get_model("Zon")], ["house"], load_config(continued=2))
     assert seen[0]["continued"] == 1 and "continued" not in seen[1]
     assert seen[2]["continued"] == 2
+
+
+def test_polish_reaches_the_search_and_the_selection(monkeypatch):
+    """``[identify] polish``: ``k`` is passed to the search and the forward selection, ``0``
+    as ``None`` (every start to the full tolerance); left out when not given (the search's
+    own default)."""
+    import jaxbox.fleet._work as work
+    import jaxbox.select as select
+
+    seen = []
+    monkeypatch.setattr(select, "structure_search", lambda gb, **kw: seen.append(kw))
+    monkeypatch.setattr(
+        select, "forward_selection_many", lambda boxes, names, **kw: seen.append(kw)
+    )
+    work._selections("search", ["house"], load_config(polish=3))
+    work._selections("search", ["house"], load_config())
+    work._selections([get_model("Zon")], ["house"], load_config(polish=0))
+    assert seen[0]["polish"] == 3 and "polish" not in seen[1]
+    assert "polish" in seen[2] and seen[2]["polish"] is None

@@ -243,6 +243,55 @@ def test_the_continuation_for_the_first_starts_only(building, fits):
     assert none.starts.steps.sum() < part.starts.steps.sum() < cont.starts.steps.sum()
 
 
+def test_polish_solves_the_best_starts_on(building, fits):
+    """``polish=k``: every start is solved to :data:`POLISH_RTOL` (its result the one of a fit
+    at that tolerance), then the ``k`` best on from where they ended; the best reaches the
+    full fit's optimum (to 1e-8 of its cost: the polishing pass stops a hundred times tighter
+    than ``rtol``), for fewer steps in all. One compiled program serves both passes, the full
+    fit and the loose one (the tolerance is an argument)."""
+    from jaxbox.fit import compile_cache_info, fit_batch
+    from jaxbox.fit._fit import POLISH_RTOL
+
+    cont, _ = fits
+    common = dict(model="ZonWalIntInf", data=building, starts=12, seed=1, max_steps=200)
+    before = compile_cache_info()["compiles"]
+    polished = fit_batch([dict(common, polish=2)])[0]
+    loose = fit_batch([dict(common, rtol=POLISH_RTOL)])[0]
+    assert compile_cache_info()["compiles"] == before
+    assert polished.settings["polish"] == 2 and cont.settings["polish"] is None
+    # the two best of the loose fit went on; the other ten are the loose fit's starts
+    on = np.argsort(loose.starts.cost, kind="stable")[:2]
+    rest = np.setdiff1d(np.arange(12), on)
+    np.testing.assert_array_equal(polished.starts.cost[rest], loose.starts.cost[rest])
+    np.testing.assert_array_equal(polished.starts.steps[rest], loose.starts.steps[rest])
+    assert np.all(polished.starts.cost[on] <= loose.starts.cost[on])
+    assert np.all(polished.starts.steps[on] > loose.starts.steps[on])
+    # the best: the full fit's optimum, to its tolerance, and its parameters with it
+    assert polished.best in on
+    assert polished.cost == pytest.approx(cont.cost, rel=1e-8)
+    for name, value in cont.params.items():
+        assert polished.params[name] == pytest.approx(value, rel=1e-3, abs=1e-9), name
+    assert polished.starts.steps.sum() < cont.starts.steps.sum()
+
+
+@pytest.mark.parametrize("value", [0, -1, 1.5, True, "2"])
+def test_bad_polish_is_refused(building, value):
+    from jaxbox.fit import fit_batch
+
+    with pytest.raises(jaxbox.FitError, match="polish must be None or a whole number"):
+        fit_batch([dict(model="Zon", data=building, polish=value)])
+
+
+def test_polish_needs_jaxbox_solver(building):
+    import optimistix as optx
+
+    from jaxbox.fit import fit_batch
+
+    solver = optx.Dogleg(rtol=1e-6, atol=1e-9)
+    with pytest.raises(jaxbox.FitError, match="polish needs jaxbox.LevenbergMarquardt"):
+        fit_batch([dict(model="Zon", data=building, solver=solver, polish=1)])
+
+
 @pytest.mark.parametrize("value", [-1, 1.5, True, "2"])
 def test_bad_continued_is_refused(building, value):
     from jaxbox.fit import fit_batch

@@ -79,6 +79,7 @@ VALUES: dict[str, tuple] = {
     "--criterion": ("aic", "r2"),
     "--beam": ("2", "0"),
     "--continued": ("1", "-1"),
+    "--polish": ("1", "-1"),
     "--margin": ("0.05", "-1"),
     "--patience": ("0", "-1"),
     "--plots": ("{out}/plots", "{file}"),

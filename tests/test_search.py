@@ -243,6 +243,27 @@ def test_grown_candidates_continue_from_their_first_starts_only(building, search
     assert fewer and all(fewer)
 
 
+def test_a_search_polishes_the_best_starts_of_each_candidate(building, search):
+    """By default every candidate's starts are solved to a looser tolerance and its two best
+    on to the fit's (``polish``, :data:`SEARCH_POLISH`); ``polish=None`` solves every start
+    to the fit's tolerance, for more steps and the same accepted model and optimum."""
+    from jaxbox.select._search import SEARCH_POLISH
+
+    polished, _ = search
+    full = structure_search(GreyBox(building.data, name="full"), starts=4, max_depth=2, polish=None)
+    assert SEARCH_POLISH == 2
+    assert all(c.settings["polish"] == 2 for c in polished.greybox.cases.values())
+    assert all(c.settings["polish"] is None for c in full.greybox.cases.values())
+    assert full.accepted == polished.accepted
+    a, b = full.case.result, polished.case.result
+    assert b.cost == pytest.approx(a.cost, rel=1e-8)
+
+    def steps(s):
+        return sum(int(np.sum(c.result.starts.steps)) for c in s.greybox if c.result is not None)
+
+    assert steps(polished) < steps(full)
+
+
 def test_search_finds_the_true_structure(search):
     s, _ = search
     assert s.accepted == "Zon+Wal"
@@ -393,6 +414,7 @@ def test_search_counts_refuse_bools_and_fractions_by_name(building, option, erro
         ({"max_steps": 0}, ValueError, "max_steps must be"),
         ({"progress": "log.txt"}, TypeError, "progress must be a function"),
         ({"continued": -1}, ValueError, "continued must be None or a whole number"),
+        ({"polish": 0}, ValueError, "polish must be None or a whole number"),
     ],
 )
 def test_search_options_refused_before_any_case(building, option, error, words):

@@ -481,7 +481,7 @@ def homotopy_option(text: str | None) -> tuple[float, ...]:
 
 def check_run_options(args) -> None:
     """``--starts``, ``--seed``, ``--max-steps`` (and ``--margin``, ``--patience``, ``--beam``,
-    ``--continued`` where the command has them) in range."""
+    ``--continued``, ``--polish`` where the command has them) in range."""
     integer(args.starts, "--starts", 1, MAX_STARTS)
     integer(args.seed, "--seed", 0, 2**63 - 1)
     if args.max_steps is None:
@@ -495,6 +495,8 @@ def check_run_options(args) -> None:
         integer(args.beam, "--beam", 1, 64)
     if getattr(args, "continued", None) is not None:
         integer(args.continued, "--continued", 0)
+    if getattr(args, "polish", None) is not None:
+        integer(args.polish, "--polish", 0)
     margin = getattr(args, "margin", None)
     if margin is not None and not 0.0 <= margin < 1.0:  # nan fails too
         raise UsageError(

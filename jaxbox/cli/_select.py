@@ -87,6 +87,15 @@ def add_select_arguments(p) -> None:
         "halves the fits of a search, at the risk of a model only the others' continuation "
         "finds)",
     )
+    p.add_argument(
+        "--polish",
+        type=int_option,
+        default=None,
+        metavar="K",
+        help="how many of each candidate's best starts are solved on to the full tolerance "
+        "after every start was solved to a looser one (default 2 in a search; 0: every start "
+        "to the full tolerance)",
+    )
     _common(p)
     p.add_argument("--out", metavar="DIR", help="save the GreyBox, the table and a report in DIR")
 
@@ -197,6 +206,8 @@ def _run_selection(
     common = dict(starts=args.starts, seed=args.seed, max_steps=args.max_steps)
     if args.continued is not None:
         common["continued"] = args.continued
+    if args.polish is not None:
+        common["polish"] = args.polish or None
     if args.margin is not None:
         common["margin"] = args.margin
     if candidates == "search":
@@ -408,6 +419,8 @@ def _ml_select(args) -> int:
             "--continued is for output-error fits (the continuation is theirs); leave it out "
             "with --method ml"
         )
+    if args.polish is not None:
+        raise UsageError("--polish is for output-error fits; leave it out with --method ml")
     if args.max_steps is None:
         args.max_steps = DEFAULT_ML_MAX_STEPS
     check_run_options(args)

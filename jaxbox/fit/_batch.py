@@ -26,6 +26,7 @@ from ._fit import (
     bucket_samples,
     check_continued,
     check_homotopy,
+    check_polish,
     make_starts,
     result_from,
     solve_jobs,
@@ -226,6 +227,10 @@ _DEFAULTS = {
 #: a request's own: how many of its starts (the first ones) take the continuation as well as
 #: the output error (``None``: all; see :func:`~jaxbox.fit.solve_jobs`)
 _DEFAULTS["continued"] = None
+#: a request's own: how many of its best starts are polished to ``rtol`` after every start was
+#: solved to :data:`~jaxbox.fit._fit.POLISH_RTOL` (``None``: every start to ``rtol``; see
+#: :func:`~jaxbox.fit.solve_jobs`)
+_DEFAULTS["polish"] = None
 #: the problem arguments, the solver settings (requests solved together share them) and the
 #: start arguments of a request
 _PROBLEM = ("free", "fixed", "bounds", "guess", "weights", "simulator", "sim_options")
@@ -353,7 +358,9 @@ def fit_batch(
     ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
     ``atol``, ``solver``, ``homotopy``, ``release``, ``max_gap``) and ``continued``, how many of
     its starts (the first ones) are solved along the continuation as well (``None``: all; the
-    others along the output-error route alone). Requests with the same number
+    others along the output-error route alone), and ``polish``, how many of its best starts are
+    solved on to ``rtol`` after every start was solved to a looser tolerance (``None``: every
+    start to ``rtol``; see :func:`~jaxbox.fit.solve_jobs`). Requests with the same number
     of free parameters, data of the same shape and the same solver settings are solved in one
     batch (with the exact simulator even when their model structures, numbers of states,
     parameters and inputs differ, provided they measure the same states: the smaller ones are
@@ -403,8 +410,9 @@ def fit_batch(
                 _release(arg["release"]),
             )
             continued = check_continued(arg["continued"], 1)[0]
+            polish = check_polish(arg["polish"], 1)[0]
             prepared.append(
-                (i, problem, data, x0, problem_arrays(problem, data), solver, continued)
+                (i, problem, data, x0, problem_arrays(problem, data), solver, continued, polish)
             )
         except FitError as err:
             if errors == "raise":
@@ -412,7 +420,7 @@ def fit_batch(
             outcomes[i] = err
     groups: dict = {}
     for item in prepared:
-        _, problem, _, x0, arrays, solver, _ = item
+        _, problem, _, x0, arrays, solver, _, _ = item
         shape = (
             x0.shape[1],
             len(problem.fixed),
@@ -439,7 +447,7 @@ def fit_batch(
     for members in groups.values():
         max_steps, rtol, atol, solver, homotopy, release = members[0][5]
         out = solve_jobs(
-            [(problem, x0, arrays) for _, problem, _, x0, arrays, _, _ in members],
+            [(problem, x0, arrays) for _, problem, _, x0, arrays, *_ in members],
             max_steps=max_steps,
             rtol=rtol,
             atol=atol,
@@ -449,6 +457,7 @@ def fit_batch(
             release=release,
             bucket=bucket,
             continued=[m[6] for m in members],
+            polish=[m[7] for m in members],
         )
         timing = {
             "compile_s": out["compile_s"],
@@ -458,7 +467,7 @@ def fit_batch(
             "parts": out["parts"],
         }
         first = 0
-        for i, problem, data, x0, _, _, continued in members:
+        for i, problem, data, x0, _, _, continued, polish in members:
             sl = slice(first, first + len(x0))
             first += len(x0)
             settings = {
@@ -468,6 +477,7 @@ def fit_batch(
                 "homotopy": homotopy,
                 "release": release,
                 "continued": continued,
+                "polish": polish,
                 "seed": requests[i].get("seed", _DEFAULTS["seed"]),
                 "slots": slots,
                 "max_gap": duration_seconds(requests[i].get("max_gap", _DEFAULTS["max_gap"])),

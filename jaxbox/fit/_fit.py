@@ -77,6 +77,12 @@ __all__ = [
 
 #: relative tolerance of the stages of a continuation before the last (see :func:`_multistart`)
 STAGE_RTOL = 1e-3
+#: the tolerance to which ``polish=k`` (:func:`solve_jobs`) solves every start before its k
+#: best go on; they go on to the fit's own ``rtol`` times POLISH_TIGHTER: a solve restarted near
+#: an optimum stops at the first steps that gain less than ``rtol`` (its damping starts afresh),
+#: short of where the solve that came the whole way stops
+POLISH_RTOL = 1e-3
+POLISH_TIGHTER = 1e-2
 #: a bounded coordinate this close to a bound (as a fraction of the bounds) is released
 EDGE = 1e-3
 
@@ -178,8 +184,9 @@ def _multistart(
     slot_counts: Sequence[int] | None = None,
     routes: Sequence[Sequence[float]] = ((),),
     release=None,
-    count=None,
+    active=None,
     routed=None,
+    rtol=None,
 ):
     """Every start of ``z0`` [S, p] through ``solver``, a fixed number of *slots* at a time.
 
@@ -203,11 +210,13 @@ def _multistart(
     freezes a coordinate near its bound, and the data may want it elsewhere.
     The route ends at the better of the two.
 
-    ``count`` (a traced integer, with a single group): only the first ``count`` starts are
-    solved; the others are padding of a bucketed batch (see :func:`solve_jobs`), never loaded
-    into a slot, and their results are NaN. ``routed`` (a traced bool [S]): the starts solved
-    along every route; the others along the first route only (their other routes are never
-    loaded into a slot, and count no steps).
+    ``active`` (a traced bool [S]): the starts solved; the others (the padding of a bucketed
+    batch, or the starts a polishing pass leaves, see :func:`solve_jobs`) are never loaded into
+    a slot, and their results are NaN. ``routed`` (a traced bool [S]): the starts solved along
+    every route; the others along the first route only (their other routes are never loaded
+    into a slot, and count no steps). ``rtol`` (traced [S]): each start's relative tolerance
+    (default ``solver.rtol``): its routes' last stages end at it, the stages before at it or
+    :data:`STAGE_RTOL`, whichever is looser.
 
     A slot whose route has ended takes the next (start, route) of its group (``slot_counts``
     slots for each group of ``start_counts`` consecutive starts), so the batch stays busy until
@@ -243,44 +252,43 @@ def _multistart(
     first = np.concatenate([[0], np.cumsum(member_counts)[:-1]])
     slot_first = np.concatenate([[0], np.cumsum(slot_counts)[:-1]])
     end = jnp.asarray(first + np.asarray(member_counts))
-    if count is not None:
-        if n_groups != 1:
-            raise ValueError("count needs a single group of starts")
-        end = jnp.minimum(end, count * n_routes)
     # the queue: position i of a group's queue holds member order[i]. The longer routes (the
     # continuation's stages) go first, so that none of them starts near the end of the queue and
-    # leaves the other slots idle while it runs; the members a start skips (``routed``) go
-    # last, past the group's end
+    # leaves the other slots idle while it runs; the members not solved (``active``, ``routed``)
+    # go last, past the group's end
     order = jnp.arange(n_members)
-    if n_routes > 1:
+    if n_routes > 1 or active is not None:
         member = np.arange(n_members)
         member_group = np.repeat(np.arange(n_groups), member_counts)
-        active = jnp.ones(n_members, bool)
-        if count is not None:  # the padding starts of a bucketed batch: never loaded
-            active = jnp.asarray(member) < count * n_routes
-        if routed is not None:
-            active = active & (
+        solved = jnp.ones(n_members, bool)
+        if active is not None:
+            solved = jnp.asarray(active, bool)[member // n_routes]
+        if routed is not None and n_routes > 1:
+            solved = solved & (
                 (member % n_routes == 0) | jnp.asarray(routed, bool)[member // n_routes]
             )
-        late = (~active).astype(jnp.int32) * 2 + (member % n_routes == 0)
+        late = (~solved).astype(jnp.int32) * 2 + ((member % n_routes == 0) & (n_routes > 1))
         order = jnp.argsort(member_group * 4 + late, stable=True)
-        n_active = jax.ops.segment_sum(
-            active.astype(jnp.int32), jnp.asarray(member_group), num_segments=n_groups
+        n_solved = jax.ops.segment_sum(
+            solved.astype(jnp.int32), jnp.asarray(member_group), num_segments=n_groups
         )
-        end = jnp.minimum(end, jnp.asarray(first) + n_active)
+        end = jnp.minimum(end, jnp.asarray(first) + n_solved)
     pos0 = np.asarray(first[group] + np.arange(batch) - slot_first[group])
     idx0 = order[pos0]
     tags = frozenset()
 
-    # the stages before a route's last end at a looser tolerance: their optimum is a waypoint
-    rtol_of = jnp.where(gain_of > 0, max(solver.rtol, STAGE_RTOL), solver.rtol).astype(dtype)
+    # each start's tolerance; the stages before a route's last end at a looser one (their
+    # optimum is a waypoint)
+    if rtol is None:
+        rtol = jnp.full((n_starts,), solver.rtol, dtype)
+    rtol = jnp.asarray(rtol, dtype)
 
     def init(z):
         return solver.init(None, z, None, _FROM_BATCH, None, None, tags)
 
-    def step(y, state, evaluation, stage):
-        # the tolerance is a leaf of the solver: each slot steps with its stage's
-        own = eqx.tree_at(lambda s: s.rtol, solver, rtol_of[stage]) if continued else solver
+    def step(y, state, evaluation, tol):
+        # the tolerance is a leaf of the solver: each slot steps with its own
+        own = eqx.tree_at(lambda s: s.rtol, solver, tol)
         return own.step(None, y, evaluation, _FROM_BATCH, state, tags)[:2]
 
     def terminate(y, state):
@@ -335,7 +343,8 @@ def _multistart(
         start, route = idx // n_routes, idx % n_routes
         gain = gain_of[stage] if continued else None
         cost, g, H = lin(c["state"].y_eval, start, gain)
-        y, state = jax.vmap(step)(c["y"], c["state"], (0.5 * cost, g, H), stage)
+        tol = jnp.where(gain_of[stage] > 0, jnp.maximum(rtol[start], STAGE_RTOL), rtol[start])
+        y, state = jax.vmap(step)(c["y"], c["state"], (0.5 * cost, g, H), tol)
         done, result = jax.vmap(terminate)(y, state)
         steps = c["before"] + state.num_steps
         diverged = done & (result == optx.RESULTS.nonlinear_divergence)
@@ -681,7 +690,6 @@ def _build(
     rc: bool = False,
     homotopy=(),
     release: bool = True,
-    bucketed: bool = False,
 ):
     if not isinstance(solver, LevenbergMarquardt):
         return _build_generic(groups, max_steps, solver)
@@ -692,11 +700,9 @@ def _build(
         raise FitError("model variants batched together must measure the same states")
     style = groups[0][0].transform.style
 
-    def solve(z0, bounded, routed, anchor, fixed, lo, hi, sc, dt, t, u, y, w, *structure):
+    def solve(z0, bounded, routed, active, anchor, rtol, fixed, lo, hi, sc, dt, t, u, y, w, *rc):
         per_member = u.shape[1] != 1
-        count = None
-        if bucketed:  # the number of real starts, then the networks
-            count, structure = structure[0], structure[1:]
+        structure = rc
 
         def lin(Z, idx, gain):
             members = tuple(a[idx] for a in (fixed, lo, hi, sc, dt))
@@ -739,7 +745,8 @@ def _build(
             max_steps=max_steps,
             start_counts=tuple(c for _, c in groups),
             slot_counts=slot_counts,
-            count=count,
+            active=active,
+            rtol=rtol,
             # the continuation needs the observer of the exact route
             routes=((), homotopy) if homotopy and exact else ((),),
             release=(bounded, lambda Z: position_in_bounds(style, Z), anchor) if release else None,
@@ -759,7 +766,7 @@ def _build_generic(groups, max_steps: int, solver):
         )
     prob = groups[0][0]
 
-    def solve(z0, bounded, routed, anchor, fixed, lo, hi, sc, dt, t, u, y, w):
+    def solve(z0, bounded, routed, active, anchor, rtol, fixed, lo, hi, sc, dt, t, u, y, w):
         per_member = u.shape[1] != 1
 
         def one(z, f, a, b, c, tt, uu, yy, ww):
@@ -843,6 +850,35 @@ def check_continued(value, n_jobs: int) -> list[int | None]:
     return [None if v is None else int(v) for v in values]
 
 
+def check_polish(value, n_jobs: int) -> list[int | None]:
+    """``polish=`` of :func:`solve_jobs` as one value per job: ``None`` or a whole number from
+    1."""
+    values = list(value) if isinstance(value, Sequence) else [value] * n_jobs
+    if len(values) != n_jobs:
+        raise FitError(f"polish needs one value per job ({n_jobs}), got {len(values)}")
+    for v in values:
+        if v is not None and (
+            isinstance(v, bool) or not isinstance(v, int | np.integer) or int(v) < 1
+        ):
+            raise FitError(f"polish must be None or a whole number of starts from 1, got {v!r}")
+    return [None if v is None else int(v) for v in values]
+
+
+def _polished(cost, counts, polish) -> np.ndarray:
+    """Which starts a polishing pass takes on: the ``k`` of lowest finite cost of each job
+    with ``polish`` ``k`` (ties: the earlier start)."""
+    chosen = np.zeros(len(cost), bool)
+    first = 0
+    for c, k in zip(counts, polish, strict=True):
+        if k is not None:
+            own = cost[first : first + c]
+            finite = np.flatnonzero(np.isfinite(own))
+            best = finite[np.argsort(own[finite], kind="stable")[:k]]
+            chosen[first + best] = True
+        first += c
+    return chosen
+
+
 def solve_jobs(
     jobs: Sequence[tuple[Problem, Float[np.ndarray, "starts free"], tuple]],
     *,
@@ -855,6 +891,7 @@ def solve_jobs(
     release: bool = True,
     bucket: bool | Mapping[str, int] = False,
     continued: Sequence[int | None] | int | None = None,
+    polish: Sequence[int | None] | int | None = None,
 ) -> dict:
     """Run a least-squares solver for several jobs in one compiled, batched call.
 
@@ -873,6 +910,12 @@ def solve_jobs(
     ``continued`` (one per job, or one for all): how many of a job's starts, the first ones,
     take the continuation as well (``None``: all; the others the output-error route alone). It
     is an argument of the compiled program, not part of its key.
+    ``polish`` (one per job, or one for all; jaxbox's solver): ``k`` solves every start of the
+    job to the looser tolerance :data:`POLISH_RTOL` (or ``rtol`` where that is looser), then
+    its ``k`` best starts on to ``rtol``, along the output error from where they ended (a
+    second call of the same program); ``None`` (default) every start to ``rtol``. For a job of
+    which only the best start counts (a structure search's candidate) it spares the steps that
+    bring the other starts from near their optima to the last digits.
 
     With ``bucket`` (jaxbox's solver on the exact simulator, networks in array form), every
     size of the batch is rounded up (:data:`BUCKETS`: parameters, states, inputs, edges; the
@@ -896,6 +939,7 @@ def solve_jobs(
         raise FitError("no job to solve")
     homotopy = check_homotopy(homotopy)
     continued = check_continued(continued, len(jobs))
+    polish = check_polish(polish, len(jobs))
     problems, z0s, counts, members, datas, edges, anchors = [], [], [], [], [], [], []
     for prob, starts, arrays in jobs:
         starts = np.atleast_2d(np.asarray(starts, dtype=float))
@@ -958,6 +1002,22 @@ def solve_jobs(
         [np.arange(c) < (c if k is None else k) for c, k in zip(counts, continued, strict=True)]
     )
     member_arrays = tuple(np.concatenate(parts, axis=0) for parts in zip(*members, strict=True))
+    if solver is None:
+        solver = LevenbergMarquardt(rtol=rtol, atol=atol)
+    elif not isinstance(solver, optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser):
+        raise FitError(
+            f"solver must be an optimistix least-squares solver or minimiser (e.g. "
+            f"jaxbox.LevenbergMarquardt(), optimistix.Dogleg(rtol, atol)), got {solver!r}"
+        )
+    fused = isinstance(solver, LevenbergMarquardt)
+    if any(k is not None for k in polish) and not fused:
+        raise FitError("polish needs jaxbox.LevenbergMarquardt as the solver")
+    # each start's tolerance (an argument of the program: the solver's own is not in its key)
+    tight = solver.rtol if fused else rtol
+    loose = max(POLISH_RTOL, tight)
+    tolerance = np.concatenate(
+        [np.full(c, tight if k is None else loose) for c, k in zip(counts, polish, strict=True)]
+    )
     if len(jobs) == 1 or _same_data(datas):
         data = tuple(a[:, None] for a in datas[0])  # shared by every start: [N, 1, …]
     else:
@@ -987,24 +1047,31 @@ def solve_jobs(
     # data shared by every start go to the device once, for every part
     shared = [jax.device_put(np.asarray(a, float)) if a.shape[1] == 1 else None for a in data]
 
-    def arguments(rows):
-        """The compiled solve's arguments for the starts ``rows`` (bucketed: padded with
-        copies of the last, never solved)."""
+    def arguments(rows, polishing=None):
+        """The compiled solve's arguments for the starts ``rows`` (split: padded with copies of
+        the last, never solved); ``polishing``: ``(z [S, p], chosen [S])``, the starts to
+        polish from ``z``."""
         n_rows = len(rows)
         if split:
             rows = rows[np.minimum(np.arange(size), n_rows - 1)]
-        own = (z0, bounded, routed, anchor, *member_arrays)
-        own = tuple(np.asarray(a)[rows] for a in own) if split else own
+        if polishing is None:
+            z_in, edge, both, on, tol = z0, bounded, routed, np.ones(len(z0), bool), tolerance
+        else:  # the chosen starts from where they ended, along the output error alone, unreleased
+            z_in, on = polishing
+            edge, both = np.zeros_like(bounded), np.zeros(len(z0), bool)
+            tol = np.full(len(z0), tight * POLISH_TIGHTER)
+        own = (z_in, edge, both, on, anchor, tol, *member_arrays)
+        if split:
+            own = tuple(np.asarray(a)[rows] for a in own)
+            own[3][n_rows:] = False  # the copies that pad a part: never solved
         put = [
-            jax.device_put(np.asarray(a, dtype=bool if k in (1, 2) else float))
+            jax.device_put(np.asarray(a, dtype=bool if k in (1, 2, 3) else float))
             for k, a in enumerate(own)
         ]
         put += [
             d if d is not None else jax.device_put(np.asarray(a[:, rows] if split else a, float))
             for a, d in zip(data, shared, strict=True)
         ]
-        if split:
-            put.append(jax.device_put(np.int32(n_rows)))
         if rc is not None:
             put.extend(jax.device_put(np.asarray(a)[rows] if split else np.asarray(a)) for a in rc)
         return tuple(put)
@@ -1022,13 +1089,8 @@ def solve_jobs(
     else:
         n_slots = max(1, int(slots))
     slot_counts = tuple(min(c, max(1, round(n_slots * c / n_total))) for _, c in groups)
-    if solver is None:
-        solver = LevenbergMarquardt(rtol=rtol, atol=atol)
-    elif not isinstance(solver, optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser):
-        raise FitError(
-            f"solver must be an optimistix least-squares solver or minimiser (e.g. "
-            f"jaxbox.LevenbergMarquardt(), optimistix.Dogleg(rtol, atol)), got {solver!r}"
-        )
+    if fused:  # the tolerance is an argument: one program serves every rtol
+        solver = eqx.tree_at(lambda s: s.rtol, solver, 0.0)
     key = (
         "fit",
         "bucket" if bucket else ("parts" if split else None),
@@ -1045,7 +1107,7 @@ def solve_jobs(
 
     def build():
         jitted = _build(
-            groups, slot_counts, max_steps, solver, pads, rc is not None, homotopy, release, split
+            groups, slot_counts, max_steps, solver, pads, rc is not None, homotopy, release
         )
         return compile_program("fit", key, jitted, args)
 
@@ -1058,7 +1120,6 @@ def solve_jobs(
         memory = -1
     t0 = time.perf_counter()
     outs = _run_parts(compiled, calls)
-    fit_s = time.perf_counter() - t0
     z, cost, code, steps = (
         np.empty((n_real, *np.shape(a)[1:]), dtype=np.asarray(a).dtype) for a in outs[0][:4]
     )
@@ -1067,6 +1128,28 @@ def solve_jobs(
     for rows, out in zip(parts, outs, strict=True):
         for whole, part in zip((z, cost, code, steps), out[:4], strict=True):
             whole[rows] = np.asarray(part)[: len(rows)]
+    chosen = _polished(cost, counts, polish)
+    if chosen.any():  # the best starts of the polished jobs on to the full tolerance
+        picked = np.flatnonzero(chosen)
+        if split:
+            # side by side as the first pass, at least 8 a part, no more than a part holds
+            n_p = max(-(-len(picked) // size), min(len(parts), len(picked) // 8), 1)
+            rows_p = [picked[j::n_p] for j in range(n_p)]
+        else:
+            rows_p = [np.arange(n_real)]
+        outs = _run_parts(compiled, [arguments(r, (z, chosen)) for r in rows_p])
+        iterations += [int(out[4]) for out in outs if len(out) > 4]
+        for rows, out in zip(rows_p, outs, strict=True):
+            keep = chosen[rows]
+            rows = rows[keep]
+            z_p, cost_p, code_p, steps_p = (np.asarray(a)[: len(keep)][keep] for a in out[:4])
+            # the polished end, where it is finite (it is never worse than where it began)
+            ok = np.isfinite(cost_p) & (cost_p <= cost[rows])
+            z[rows] = np.where(ok[:, None], z_p, z[rows])
+            cost[rows] = np.where(ok, cost_p, cost[rows])
+            code[rows] = np.where(ok, code_p, code[rows])
+            steps[rows] = steps[rows] + steps_p
+    fit_s = time.perf_counter() - t0
     p_parts, start = [], 0
     width = z.shape[1]
     for prob, c in zip(problems, counts, strict=True):

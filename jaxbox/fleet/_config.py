@@ -91,6 +91,10 @@ class FleetConfig:
         continued: how many starts of each model (the first; in a search, of each grown
             candidate) also follow the continuation (``None``: all; ``1`` halves a search's
             fits, at the risk of a model only the other starts' continuation finds).
+        polish: how many of each model's best starts are solved on to the full tolerance after
+            every start was solved to a looser one (``None``: the search's default, 2, and
+            every start to the full tolerance for a forward selection or a given model; ``0``:
+            every start to the full tolerance).
         criterion: selection criterion (``"se_cross"``).
         margin: the relative improvement of the validation SE a selection step needs
             (``None``: 0.02 for the search, 0 for a forward selection).
@@ -119,6 +123,7 @@ class FleetConfig:
     seed: int = 0
     max_steps: int | None = None
     continued: int | None = None
+    polish: int | None = None
     criterion: str = "se_cross"
     margin: float | None = None
     patience: int = 1
@@ -157,6 +162,9 @@ class FleetConfig:
         k = self.continued
         if k is not None and (not isinstance(k, int) or isinstance(k, bool) or k < 0):
             raise FleetError(f"identify.continued must be an integer ≥ 0, got {k!r}")
+        k = self.polish
+        if k is not None and (not isinstance(k, int) or isinstance(k, bool) or k < 0):
+            raise FleetError(f"identify.polish must be an integer ≥ 0, got {k!r}")
         if self.criterion not in CRITERIA:
             raise FleetError(
                 f"identify.criterion {self.criterion!r} is not known; use one of "
@@ -364,6 +372,7 @@ _TABLES = {
         "seed",
         "max_steps",
         "continued",
+        "polish",
         "criterion",
         "margin",
         "patience",

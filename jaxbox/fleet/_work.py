@@ -206,6 +206,8 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
     extra = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
     if cfg.continued is not None:
         extra["continued"] = cfg.continued
+    if cfg.polish is not None:
+        extra["polish"] = cfg.polish or None
 
     def request(n):
         return {
@@ -263,6 +265,8 @@ def _selections(models, boxes, cfg: FleetConfig) -> list:
     settings = {} if cfg.max_steps is None else {"max_steps": cfg.max_steps}
     if cfg.continued is not None:
         settings["continued"] = cfg.continued
+    if cfg.polish is not None:
+        settings["polish"] = cfg.polish or None
     if cfg.margin is not None:  # else each method's own default
         settings["margin"] = cfg.margin
     if models == "search":

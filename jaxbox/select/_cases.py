@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..fit import DEFAULT_STARTS
-from ..fit._fit import check_continued, check_homotopy
+from ..fit._fit import check_continued, check_homotopy, check_polish
 from ..models import RCModel
 from ._guess import Guess, lhs_starts
 
@@ -50,6 +50,7 @@ FIT_SETTINGS = (
     "max_gap",
     "homotopy",
     "continued",
+    "polish",
 )
 #: Settings of a case: the solver's, and ``postsim``, the post-simulation method of its
 #: validation (``"diffrax"``, adaptive, by default; ``"exact"``, the matrix exponential).
@@ -96,8 +97,8 @@ def _tolerance(value, name: str) -> float:
 def check_settings(settings: Mapping) -> dict:
     """The settings of a case (:data:`SETTINGS`), checked before anything is declared or run:
     unknown names, and ``max_steps``, ``rtol``, ``atol``, ``concentration``, ``simulator``,
-    ``postsim``, ``homotopy`` and ``continued`` of the wrong type or out of range, name the
-    setting
+    ``postsim``, ``homotopy``, ``continued`` and ``polish`` of the wrong type or out of range,
+    name the setting
     (``weights`` and ``max_gap`` are checked with the estimation problem and the data)."""
     bad = [str(k) for k in settings if k not in SETTINGS]
     if bad:
@@ -117,6 +118,8 @@ def check_settings(settings: Mapping) -> dict:
         out["homotopy"] = check_homotopy(out["homotopy"])
     if "continued" in out:
         out["continued"] = check_continued(out["continued"], 1)[0]
+    if "polish" in out:
+        out["polish"] = check_polish(out["polish"], 1)[0]
     return out
 
 
@@ -146,7 +149,9 @@ class Case:
         seed: seed of the Latin hypercube.
         settings: solver settings (``max_steps``, ``rtol``, ``atol``, ``concentration``,
             ``weights``, ``simulator``, ``max_gap``, ``homotopy``, ``continued``: how many
-            starts, the first, take the continuation as well; ``postsim``).
+            starts, the first, take the continuation as well; ``polish``: how many of the best
+            starts are solved to ``rtol`` after all were solved to a looser tolerance;
+            ``postsim``).
         parent: name of the case the guess was inherited from.
         notes: what happened on the way (a retry with narrowed bounds, …).
         result: the :class:`~jaxbox.fit.FitResult` once run.

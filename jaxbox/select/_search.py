@@ -349,6 +349,13 @@ def _coupling_cut(case: Case) -> bool:
 #: building then accepts a worse model (0.240 K against 0.170 K), and half of the starts lose a
 #: two-zone zoo building's true structure (``benchmarks/NOTES.md``)
 GROWN_CONTINUED = None
+#: how many of each candidate's best starts are solved on to the fit's tolerance after every
+#: start was solved to a looser one (:data:`~jaxbox.fit._fit.POLISH_RTOL`; see
+#: :func:`~jaxbox.fit.solve_jobs`): the default of the search's ``polish=``, ``None`` for every
+#: start to the fit's tolerance. A candidate is judged by its best start; the others' last
+#: digits are steps the search does not need (twin house N2: the same accepted model for 51 k
+#: Levenberg–Marquardt steps instead of 113 k, ``benchmarks/NOTES.md``)
+SEARCH_POLISH = 2
 #: how many times a step reduces what its reductions left invalid (each round one batched call)
 REDUCTION_ROUNDS = 3
 #: identification windows with more samples than this, at a step of at most FINE_STEP [s], get a
@@ -703,7 +710,9 @@ def structure_search(
             :data:`GROWN_CONTINUED`; a root's starts take both routes). ``continued=1`` halves
             the fits' time of a search on the twin houses (the same accepted models), at the
             risk of a grown candidate's better optimum that only the continuation from another
-            start finds.
+            start finds. ``polish=k``: every start of a candidate is solved to a looser
+            tolerance, then its ``k`` best on to the fit's own (default
+            :data:`SEARCH_POLISH`; ``None``: every start to the fit's tolerance).
 
     Returns:
         :class:`Search` (the cases are in ``search.greybox.cases``).
@@ -812,7 +821,7 @@ def _checked(
             f"grammar must be a jaxbox.models.Grammar (or None: from the data's columns), got "
             f"{type(grammar).__name__}"
         )
-    settings = check_run(starts, seed, settings, progress)
+    settings = check_run(starts, seed, {"polish": SEARCH_POLISH, **settings}, progress)
     gb = _as_greybox(greybox, "structure_search")
     try:
         grammar = grammar or Grammar.from_columns(gb.data.columns)

@@ -316,9 +316,10 @@ def test_a_structure_name_is_built_for_each_buildings_columns(tmp_path):
     assert "gA" in sunny["params"] and "gA" not in dark["params"]
 
 
-def test_continued_reaches_the_search_and_the_selection(monkeypatch):
-    """``[identify] continued`` is passed to each building's structure search and to the
-    forward selection (their fits' setting), and left out when not given."""
+@pytest.fixture
+def selections_seen(monkeypatch):
+    """The fleet's selection step with the search and the forward selection replaced by
+    recorders: ``(_selections, the keywords each call got)``."""
     import jaxbox.fleet._work as work
     import jaxbox.select as select
 
@@ -327,27 +328,27 @@ def test_continued_reaches_the_search_and_the_selection(monkeypatch):
     monkeypatch.setattr(
         select, "forward_selection_many", lambda boxes, names, **kw: seen.append(kw)
     )
-    work._selections("search", ["house"], load_config(continued=1))
-    work._selections("search", ["house"], load_config())
-    work._selections([get_model("Zon")], ["house"], load_config(continued=2))
+    return work._selections, seen
+
+
+def test_continued_reaches_the_search_and_the_selection(selections_seen):
+    """``[identify] continued`` is passed to each building's structure search and to the
+    forward selection (their fits' setting), and left out when not given."""
+    selections, seen = selections_seen
+    selections("search", ["house"], load_config(continued=1))
+    selections("search", ["house"], load_config())
+    selections([get_model("Zon")], ["house"], load_config(continued=2))
     assert seen[0]["continued"] == 1 and "continued" not in seen[1]
     assert seen[2]["continued"] == 2
 
 
-def test_polish_reaches_the_search_and_the_selection(monkeypatch):
+def test_polish_reaches_the_search_and_the_selection(selections_seen):
     """``[identify] polish``: ``k`` is passed to the search and the forward selection, ``0``
     as ``None`` (every start to the full tolerance); left out when not given (the search's
     own default)."""
-    import jaxbox.fleet._work as work
-    import jaxbox.select as select
-
-    seen = []
-    monkeypatch.setattr(select, "structure_search", lambda gb, **kw: seen.append(kw))
-    monkeypatch.setattr(
-        select, "forward_selection_many", lambda boxes, names, **kw: seen.append(kw)
-    )
-    work._selections("search", ["house"], load_config(polish=3))
-    work._selections("search", ["house"], load_config())
-    work._selections([get_model("Zon")], ["house"], load_config(polish=0))
+    selections, seen = selections_seen
+    selections("search", ["house"], load_config(polish=3))
+    selections("search", ["house"], load_config())
+    selections([get_model("Zon")], ["house"], load_config(polish=0))
     assert seen[0]["polish"] == 3 and "polish" not in seen[1]
     assert "polish" in seen[2] and seen[2]["polish"] is None

@@ -700,9 +700,10 @@ def _build(
         raise FitError("model variants batched together must measure the same states")
     style = groups[0][0].transform.style
 
-    def solve(z0, bounded, routed, active, anchor, rtol, fixed, lo, hi, sc, dt, t, u, y, w, *rc):
+    def solve(
+        z0, bounded, routed, active, anchor, rtol, fixed, lo, hi, sc, dt, t, u, y, w, *structure
+    ):
         per_member = u.shape[1] != 1
-        structure = rc
 
         def lin(Z, idx, gain):
             members = tuple(a[idx] for a in (fixed, lo, hi, sc, dt))
@@ -836,32 +837,32 @@ def _run_parts(compiled, calls):
         return list(pool.map(lambda a: jax.block_until_ready(compiled(*a)), calls))
 
 
+def _starts_per_job(value, n_jobs: int, name: str, least: int) -> list[int | None]:
+    """A per-job count of starts of :func:`solve_jobs` (one value, or one per job): ``None``
+    or a whole number from ``least``, refused by ``name`` otherwise."""
+    values = list(value) if isinstance(value, Sequence) else [value] * n_jobs
+    if len(values) != n_jobs:
+        raise FitError(f"{name} needs one value per job ({n_jobs}), got {len(values)}")
+    for v in values:
+        if v is not None and (
+            isinstance(v, bool) or not isinstance(v, int | np.integer) or int(v) < least
+        ):
+            raise FitError(
+                f"{name} must be None or a whole number of starts from {least}, got {v!r}"
+            )
+    return [None if v is None else int(v) for v in values]
+
+
 def check_continued(value, n_jobs: int) -> list[int | None]:
     """``continued=`` of :func:`solve_jobs` as one value per job: ``None`` or a whole number
     from 0."""
-    values = list(value) if isinstance(value, Sequence) else [value] * n_jobs
-    if len(values) != n_jobs:
-        raise FitError(f"continued needs one value per job ({n_jobs}), got {len(values)}")
-    for v in values:
-        if v is not None and (
-            isinstance(v, bool) or not isinstance(v, int | np.integer) or int(v) < 0
-        ):
-            raise FitError(f"continued must be None or a whole number of starts from 0, got {v!r}")
-    return [None if v is None else int(v) for v in values]
+    return _starts_per_job(value, n_jobs, "continued", 0)
 
 
 def check_polish(value, n_jobs: int) -> list[int | None]:
     """``polish=`` of :func:`solve_jobs` as one value per job: ``None`` or a whole number from
     1."""
-    values = list(value) if isinstance(value, Sequence) else [value] * n_jobs
-    if len(values) != n_jobs:
-        raise FitError(f"polish needs one value per job ({n_jobs}), got {len(values)}")
-    for v in values:
-        if v is not None and (
-            isinstance(v, bool) or not isinstance(v, int | np.integer) or int(v) < 1
-        ):
-            raise FitError(f"polish must be None or a whole number of starts from 1, got {v!r}")
-    return [None if v is None else int(v) for v in values]
+    return _starts_per_job(value, n_jobs, "polish", 1)
 
 
 def _polished(cost, counts, polish) -> np.ndarray:

@@ -203,6 +203,22 @@ def test_the_steps_of_a_search_share_compiled_fits(search):
     assert 1 <= _FIT_PROGRAMS["search"] < calls
 
 
+def test_a_search_pads_its_batches_to_the_largest_sizes_so_far(search):
+    """Every batch of a search is padded to at least :data:`SEARCH_SIZES` and to the sizes of
+    every batch before it: the sizes its fits ran at never shrink from one case to the next
+    (in the order the search fitted them), so a step of smaller candidates (a reduction)
+    reuses a program the search already compiled."""
+    from jaxbox.select._search import SEARCH_SIZES
+
+    s, _ = search
+    sizes = [c.result.timing["sizes"] for c in s.greybox.cases.values() if c.result is not None]
+    assert len(sizes) >= 3
+    for name, least in SEARCH_SIZES.items():
+        assert sizes[0][name] >= least
+    for before, after in zip(sizes, sizes[1:], strict=False):
+        assert all(after[k] >= before[k] for k in before), (before, after)
+
+
 def test_a_case_may_skip_the_continuation(building, tmp_path):
     """``homotopy`` is a setting of a case (and of a search, passed to its cases): ``()`` fits
     the output error from every start directly, and the fit reports it (and a saved GreyBox

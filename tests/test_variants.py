@@ -109,6 +109,47 @@ def test_bucketed_calls_of_neighbouring_sizes_share_one_program(bucketed, togeth
         np.testing.assert_allclose(a.starts.steps[done], b.starts.steps[done], rtol=0.02, atol=2)
 
 
+def test_a_bucketed_batch_pads_to_the_sizes_asked_and_a_later_one_reuses_its_program(
+    data, together_and_alone
+):
+    """``bucket={"free": …, "states": …}``: a batch padded to at least those sizes (a
+    structure search's earlier, larger batch) reports the sizes it ran at, and a call of a
+    larger structure within them runs the same compiled program; the fits are the plain
+    call's, to rounding. A size that is no size of a batch, or not a whole number, is refused
+    by name."""
+    g = Grammar.from_columns(data.columns)
+    models = [parse_structure(n).build(g) for n in VARIANTS]
+    widest = len({u for m in models for u in m.inputs})
+    small = fit_batch([dict(model=models[0], data=data, starts=4, seed=2)], bucket=True)[0]
+    assert small.timing["sizes"]["free"] == 8 and small.timing["sizes"]["states"] == 2
+    before = _compiled.info("fit")["entries"]
+    wide = fit_batch(
+        [dict(model=models[0], data=data, starts=4, seed=2)],
+        bucket={"inputs": widest, "free": 12, "states": 3},
+    )[0]
+    sizes = wide.timing["sizes"]
+    assert sizes["free"] == 16 and sizes["states"] == 4 and sizes["inputs"] >= widest
+    assert set(sizes) == set(jaxbox.fit._fit.SIZES)
+    after = _compiled.info("fit")["entries"]
+    big = fit_batch([dict(model=models[2], data=data, starts=4, seed=2)], bucket=sizes)[0]
+    assert _compiled.info("fit")["entries"] == after  # Zon+Wal+Int within the sizes: no compile
+    assert after - before <= 1
+    assert big.timing["sizes"] == sizes
+    together, _, _ = together_and_alone
+    for a, b in ((wide, together[0]), (big, together[2])):
+        done = a.starts.converged & b.starts.converged
+        assert done.sum() >= 1
+        np.testing.assert_allclose(a.starts.cost[done], b.starts.cost[done], rtol=1e-5)
+        np.testing.assert_allclose(a.cost, b.cost, rtol=1e-5)
+    assert fit_batch([dict(model=models[0], data=data, starts=2)])[0].timing.get("sizes") is None
+    req = [dict(model=models[0], data=data, starts=2)]
+    with pytest.raises(jaxbox.FitError, match="'nodes'.*free, fixed, states"):
+        fit_batch(req, bucket={"nodes": 4})
+    for bad in (-1, 2.5, True):
+        with pytest.raises(jaxbox.FitError, match="bucket size 'free'"):
+            fit_batch(req, bucket={"free": bad})
+
+
 def test_parts_side_by_side_solve_each_start_as_alone(data, monkeypatch):
     """A bucketed batch dealt to three parts run by threads (and its padding starts, never
     solved) gives each start the result of one part alone."""

@@ -378,11 +378,13 @@ def fit_batch(
         bucket: round each batch's sizes up (see :func:`~jaxbox.fit.solve_jobs`), so that
             later calls with batches of neighbouring sizes reuse its compiled program (the steps
             of a structure search). The results are the same, to rounding. A mapping sets
-            sizes to pad to at least (``{"inputs": 12}``).
+            sizes to pad to at least (``{"inputs": 12}``; a result's ``timing["sizes"]``, the
+            sizes its bucketed batch was padded to, makes a later call reuse that program).
 
     Returns:
         One :class:`FitResult` (or :class:`FitError`) per request, in order; ``timing`` is that
-        of the request's batch (``batch``: the number of requests in it).
+        of the request's batch (``batch``: the number of requests in it; ``sizes``, where the
+        batch was bucketed: the sizes it was padded to).
     """
     require_x64()
     if errors not in ("raise", "return"):
@@ -466,6 +468,8 @@ def fit_batch(
             "slots": out["slots"],
             "parts": out["parts"],
         }
+        if out["sizes"] is not None:  # a bucketed batch: the sizes a later call may pad to
+            timing["sizes"] = dict(out["sizes"])
         first = 0
         for i, problem, data, x0, _, _, continued, polish in members:
             sl = slice(first, first + len(x0))

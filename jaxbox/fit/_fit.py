@@ -472,6 +472,29 @@ def _same_data(datas) -> bool:
 BUCKETS = dict(free=8, fixed=4, states=2, inputs=4, edges=8, sources=8, factors=2, starts=128)
 
 
+#: the sizes a bucketed batch can be asked to pad to at least (``solve_jobs(bucket={...})``)
+SIZES = ("free", "fixed", "states", "inputs", "edges", "sources", "factors")
+
+
+def _least(bucket) -> dict[str, int]:
+    """The least sizes of ``solve_jobs(bucket=...)``: ``{}`` for ``True`` or ``False``; a
+    mapping's keys checked against :data:`SIZES`, its values whole numbers of at least 0."""
+    if not isinstance(bucket, Mapping):
+        return {}
+    unknown = sorted(set(bucket) - set(SIZES))
+    if unknown:
+        raise FitError(
+            f"bucket sizes {', '.join(map(repr, unknown))} are not sizes of a batch; "
+            f"use any of {', '.join(SIZES)}"
+        )
+    least = {}
+    for name, value in bucket.items():
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+            raise FitError(f"bucket size {name!r} must be a whole number ≥ 0, got {value!r}")
+        least[name] = int(value)
+    return least
+
+
 def _round_up(n: int, step: int) -> int:
     return step * max(1, -(-n // step))
 
@@ -533,15 +556,18 @@ def _input_layout(problems, datas, bucket: bool = False, least: int = 0):
     return {"union": None, "inputs": m}, padded
 
 
-def _pad_members(problems, z0s, members, bucket: bool = False):
-    """Starts and per-member arrays padded to the widest variant (``bucket``: to its width
-    rounded up, see :data:`BUCKETS`): inert coordinates (zero, in bounds [0, 1], scale 1) that
-    no residual depends on, so the solver leaves them where they are (their column of J is
-    zero: see :class:`~jaxbox.fit.LevenbergMarquardt`)."""
+def _pad_members(problems, z0s, members, bucket: bool = False, least=None):
+    """Starts and per-member arrays padded to the widest variant (``bucket``: to its width, at
+    least ``least["free"]`` and ``least["fixed"]``, rounded up, see :data:`BUCKETS`): inert
+    coordinates (zero, in bounds [0, 1], scale 1) that no residual depends on, so the solver
+    leaves them where they are (their column of J is zero: see
+    :class:`~jaxbox.fit.LevenbergMarquardt`)."""
+    least = least or {}
     p = max(z.shape[1] for z in z0s)
     q = max(m[0].shape[1] for m in members)
     if bucket:
-        p, q = _round_up(p, BUCKETS["free"]), _round_up(q, BUCKETS["fixed"])
+        p = _round_up(max(p, least.get("free", 0)), BUCKETS["free"])
+        q = _round_up(max(q, least.get("fixed", 0)), BUCKETS["fixed"])
 
     def pad(a, width, value):
         return np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=value)
@@ -633,20 +659,24 @@ def _array_form(problems) -> bool:
     )
 
 
-def _rc_members(problems, counts, layout, width: int, fixed_width: int, bucket: bool = False):
+def _rc_members(
+    problems, counts, layout, width: int, fixed_width: int, bucket: bool = False, least=None
+):
     """Per member (start) ``(kinds [B, p], *arrays)`` of every variant's network in array form
     (:meth:`~jaxbox.models.RCModel.rc_arrays`), padded to the batch's largest (``bucket``: its
-    sizes rounded up, see :data:`BUCKETS`); ``None`` when a network has no array form (a
-    constant node)."""
+    sizes, at least those of ``least``, rounded up, see :data:`BUCKETS`), and the sizes
+    (``edges``, ``sources``, ``factors``, ``states``); ``None`` when a network has no array
+    form (a constant node)."""
     from ..models._network import ModelError
 
     if not _array_form(problems):
         return None
+    least = least or {}
     names = layout["union"]
     each = [p.model.array_sizes() for p in problems]
     sizes = {k: max(e[k] for e in each) for k in each[0]}
     if bucket:
-        sizes = {k: _round_up(v, BUCKETS.get(k, 1)) for k, v in sizes.items()}
+        sizes = {k: _round_up(max(v, least.get(k, 0)), BUCKETS.get(k, 1)) for k, v in sizes.items()}
     sizes["states"] = layout["states"]
     parts = []
     for prob, c in zip(problems, counts, strict=True):
@@ -662,7 +692,7 @@ def _rc_members(problems, counts, layout, width: int, fixed_width: int, bucket: 
         kinds = np.asarray(list(prob.transform.kinds) + [1] * (width - len(prob.free)))
         one = (kinds, *(arrays[k] for k in _RC_KEYS))
         parts.append(tuple(np.broadcast_to(a, (c, *np.shape(a))) for a in one))
-    return tuple(np.concatenate(p, axis=0) for p in zip(*parts, strict=True))
+    return tuple(np.concatenate(p, axis=0) for p in zip(*parts, strict=True)), sizes
 
 
 def _rc_matrices(style: str):
@@ -924,7 +954,9 @@ def solve_jobs(
     of slots, so that calls of neighbouring sizes — the steps of a structure search, one job or
     many — run one compiled program instead of one each. The results are those of the call
     without ``bucket``, to rounding. A mapping instead of ``True`` sets sizes to pad to at
-    least (``{"inputs": 12}``: the input columns of the largest call to come). On a CPU the
+    least (any of :data:`SIZES`: ``{"inputs": 12}``, the input columns of the largest call to
+    come; the ``sizes`` an earlier call returned, so that this one reuses its compiled
+    program). On a CPU the
     starts of a bucketed batch, or of a batch of one problem (one structure) with jaxbox's
     solver, are dealt to :func:`parallel_parts` that run side by side.
 
@@ -934,7 +966,8 @@ def solve_jobs(
     backend does not report it); ``slots``, the starts iterated together in each of ``parts``
     queues that run side by side; ``iterations``, each part's iterations (jaxbox's solver: each
     advances every slot by one step, so ``slots × Σ iterations`` steps are computed for
-    ``Σ steps`` of use).
+    ``Σ steps`` of use); ``sizes``, the sizes a bucketed batch was padded to (a mapping of
+    :data:`SIZES`; ``None`` where the batch was not bucketed).
     """
     if not jobs:
         raise FitError("no job to solve")
@@ -969,7 +1002,7 @@ def solve_jobs(
         counts.append(s)
     variants = len({_problem_key(p) for p in problems}) > 1
     paddable = _paddable(problems, solver)
-    least = dict(bucket) if isinstance(bucket, Mapping) else {}
+    least = _least(bucket)
     bucket = bool(bucket) and paddable and _array_form(problems)
     lengths = {len(d[0]) for d in datas}
     if paddable and len(lengths) > 1:
@@ -980,8 +1013,10 @@ def solve_jobs(
     if (variants or bucket) and paddable:
         layout, datas = _input_layout(problems, datas, bucket, least.get("inputs", 0))
         n_states = max(len(p.model.states) for p in problems)
-        layout["states"] = _round_up(n_states, BUCKETS["states"]) if bucket else n_states
-        z0s, members = _pad_members(problems, z0s, members, bucket)
+        if bucket:
+            n_states = _round_up(max(n_states, least.get("states", 0)), BUCKETS["states"])
+        layout["states"] = n_states
+        z0s, members = _pad_members(problems, z0s, members, bucket, least)
     else:
         layout = None
     shapes = {(np.shape(z)[1], *(np.shape(a) for a in d)) for z, d in zip(z0s, datas, strict=True)}
@@ -1031,9 +1066,16 @@ def solve_jobs(
         )
     groups = _groups(problems, counts)
     pads = None if layout is None else tuple(_pad_spec(p, layout) for p, _ in groups)
-    rc = None
+    rc = sizes = None
     if layout is not None:
-        rc = _rc_members(problems, counts, layout, z0.shape[1], member_arrays[0].shape[1], bucket)
+        rc = _rc_members(
+            problems, counts, layout, z0.shape[1], member_arrays[0].shape[1], bucket, least
+        )
+    if rc is not None:
+        rc, network = rc
+        sizes = dict(
+            free=z0.shape[1], fixed=member_arrays[0].shape[1], inputs=layout["inputs"], **network
+        )
     n_real = len(z0)
     bucket = bucket and rc is not None
     parts = [np.arange(n_real)]
@@ -1177,6 +1219,7 @@ def solve_jobs(
         "slots": int(sum(slot_counts)),
         "parts": len(parts),
         "iterations": iterations,
+        "sizes": sizes if bucket else None,
     }
 
 

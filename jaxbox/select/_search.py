@@ -356,6 +356,13 @@ GROWN_CONTINUED = None
 #: digits are steps the search does not need (twin house N2: the same accepted model for 51 k
 #: Levenberg–Marquardt steps instead of 113 k, ``benchmarks/NOTES.md``)
 SEARCH_POLISH = 2
+#: the least sizes of the search's batched fits (:func:`~jaxbox.fit.solve_jobs`'s ``bucket``):
+#: the roots and first steps run the program of the second step's sizes instead of one of their
+#: own, and every batch pads to the largest sizes any batch of the search had so far, so that
+#: the search compiles one fit program per size it grows to and none for a step that shrinks.
+#: On twin house N2 four programs became two: 1.9–2.3 s of compilation each saved cold, 0.4 s of
+#: padded steps lost (``benchmarks/NOTES.md``)
+SEARCH_SIZES = {"free": 16, "states": 4}
 #: how many times a step reduces what its reductions left invalid (each round one batched call)
 REDUCTION_ROUNDS = 3
 #: identification windows with more samples than this, at a step of at most FINE_STEP [s], get a
@@ -401,6 +408,8 @@ class _Search:
         self.seen: set[str] = set()  # structures (and reduced problems) declared
         self.reduced: dict[str, str] = {}  # case name -> what it was reduced to, in words
         self.widest = 0  # the most input columns of a step so far: later steps pad to it
+        # the largest sizes a batch of the search was padded to: later batches pad to them
+        self.sizes = dict(SEARCH_SIZES)
 
     # ---- propose --------------------------------------------------------------------------------
 
@@ -456,7 +465,11 @@ class _Search:
     def identify(self, cases: list[Case], depth: int) -> None:
         self.say(f"step {depth}: {len(cases)} candidate(s) in one batched call")
         self.widest = max(self.widest, len({u for c in cases for u in c.model.inputs}))
-        run_cases(cases, self.say, catch=True, judge=False, inputs=self.widest)
+        run_cases(cases, self.say, catch=True, judge=False, inputs=self.widest, sizes=self.sizes)
+        for case in cases:
+            padded = case.result.timing.get("sizes") if case.result is not None else None
+            for name, size in (padded or {}).items():
+                self.sizes[name] = max(self.sizes.get(name, 0), int(size))
 
     def judge(self, children: list[tuple[Case, Case | None]]) -> list[Case]:
         """The criterion of every child, the verdict of those that could improve (lazily); the

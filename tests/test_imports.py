@@ -107,3 +107,35 @@ def test_the_exact_route_does_not_load_diffrax():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_help_and_a_malformed_command_line_load_no_jax():
+    """``jaxbox --help``, ``jaxbox select --help`` and a mistyped command line answer at once:
+    building the parser reads the fit's defaults from :mod:`jaxbox._defaults` and imports
+    neither JAX nor pandas (about 3 s of a process's start), nor does the error of a
+    malformed command line."""
+    import subprocess
+    import sys
+
+    code = (
+        "import contextlib, io, sys\n"
+        "from jaxbox.cli import main\n"
+        "codes = []\n"
+        "for argv in (['--help'], ['select', '--help'], ['select'], ['fit', 'x.csv']):\n"
+        "    with contextlib.redirect_stdout(io.StringIO()), "
+        "contextlib.redirect_stderr(io.StringIO()):\n"
+        "        try:\n"
+        "            codes.append(main(argv))\n"
+        "        except SystemExit as e:\n"
+        "            codes.append(e.code)\n"
+        "print(codes, sorted(m for m in ('jax', 'pandas', 'scipy') if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[0, 0, 2, 2] []"
+
+
+def test_the_export_formats_of_the_command_line_are_the_library_s():
+    from jaxbox.cli._export import _SUFFIX
+    from jaxbox.control import FORMATS
+
+    assert tuple(dict.fromkeys(_SUFFIX.values())) == FORMATS

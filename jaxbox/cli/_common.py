@@ -579,9 +579,11 @@ def data_info(spec, ident, valid) -> dict:
 
 
 def fit_default(name: str):
-    """A default of :func:`jaxbox.fit.fit_model` (the command line does not keep a copy)."""
-    import inspect
+    """A default of :func:`jaxbox.fit.fit_model` (``starts``, ``max_steps``, ``homotopy``).
 
-    from ..fit import fit_model
+    The command line keeps no copy: it reads the one :mod:`jaxbox._defaults` holds, which
+    ``fit_model`` takes its defaults from, without importing the fit, so that building the
+    parser (``jaxbox --help``, a mistyped option) loads no JAX."""
+    from .. import _defaults
 
-    return inspect.signature(fit_model).parameters[name].default
+    return getattr(_defaults, f"DEFAULT_{name.upper()}")

@@ -31,8 +31,6 @@ _SUFFIX = {".json": "json", ".npz": "npz", ".mo": "modelica", ".py": "python-con
 
 def add_export_arguments(p) -> None:
     """Declare the arguments of ``jaxbox export``."""
-    from ..control import FORMATS
-
     p.add_argument("fit", metavar="FIT.json", help="the JSON of `jaxbox fit --json`")
     p.add_argument("--model", "-m", help="model name (default: the fit file's)")
     p.add_argument(
@@ -40,7 +38,7 @@ def add_export_arguments(p) -> None:
     )
     p.add_argument(
         "--format",
-        choices=FORMATS,
+        choices=tuple(dict.fromkeys(_SUFFIX.values())),  # jaxbox.control.FORMATS (tested)
         help="json, npz, modelica or python-control (default from the suffix of --out: .json, "
         ".npz, .mo, .py)",
     )

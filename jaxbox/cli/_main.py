@@ -233,6 +233,11 @@ def main(argv: list[str] | None = None, *, exit_at_once: bool = False) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+    except SystemExit:  # --help, --version: argparse's own exit, before anything heavy loads
+        raise
+    except UsageError as err:  # a malformed command line: told without loading the library
+        _error(cli_message(str(err)))
+        return 2
     except _bad_input_errors() as err:
         if isinstance(err, OSError) and not isinstance(err, UsageError):
             _error(cli_message(_os_error(err)))

@@ -110,7 +110,7 @@ def add_demo_arguments(p) -> None:
 
 
 def _common(p, patience: int = 1) -> None:
-    starts = _selection_default("starts")
+    starts = fit_default("starts")  # forward_selection's and the search's too (one copy)
     p.add_argument(
         "--starts", type=int_option, default=starts, help=f"starts per model (default {starts})"
     )
@@ -135,15 +135,6 @@ def _common(p, patience: int = 1) -> None:
         help=f"LM iterations per start (default {fit_default('max_steps')})",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout (quiet)")
-
-
-def _selection_default(name: str):
-    """A default of :func:`jaxbox.select.forward_selection` (no copy kept here)."""
-    import inspect
-
-    from ..select import forward_selection
-
-    return inspect.signature(forward_selection).parameters[name].default
 
 
 def _candidates(text: str, data=None):

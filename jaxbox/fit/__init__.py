@@ -1,11 +1,11 @@
 """Estimation: output-error least squares, bound transforms, multistart Levenberg–Marquardt."""
 
+from .._defaults import DEFAULT_HOMOTOPY as DEFAULT_HOMOTOPY
+from .._defaults import DEFAULT_MAX_STEPS as DEFAULT_MAX_STEPS
+from .._defaults import DEFAULT_STARTS as DEFAULT_STARTS
 from ._batch import fit_batch as fit_batch
 from ._batch import fit_many as fit_many
 from ._batch import fit_model as fit_model
-from ._defaults import DEFAULT_HOMOTOPY as DEFAULT_HOMOTOPY
-from ._defaults import DEFAULT_MAX_STEPS as DEFAULT_MAX_STEPS
-from ._defaults import DEFAULT_STARTS as DEFAULT_STARTS
 from ._fit import clear_compile_cache as clear_compile_cache
 from ._fit import compile_cache_info as compile_cache_info
 from ._fit import solve_starts as solve_starts

@@ -16,11 +16,11 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Float
 
+from .._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
 from .._x64 import require_x64
 from ..data import DataError, Dataset, concat_periods, prepare_window
 from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
 from ..models import get_model
-from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
 from ._fit import (
     _problem_key,
     bucket_samples,

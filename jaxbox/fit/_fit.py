@@ -55,11 +55,11 @@ from jaxtyping import Float
 
 from .. import _compiled
 from .._compiled import jit
+from .._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS
 from .._derivatives import value_and_jacfwd
 from .._exported import compile_program
 from ..simulate._extend import extend_times, hold_rows
 from ..simulate._parallel import _PARALLEL_BATCH, normal_equations_auto, prefer_parallel
-from ._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS
 from ._problem import FitError, Problem
 from ._result import FitResult, StartReport
 from ._solver import LevenbergMarquardt

@@ -719,7 +719,7 @@ def fit_ml_many(
 def fit_ml_method(args: dict) -> MLResult:
     """``jaxbox.fit_model(..., method="ml")``: the output-error arguments that carry over to
     :func:`fit_ml`; output weights and simulator options do not apply to the likelihood."""
-    from ..fit._defaults import DEFAULT_MAX_STEPS
+    from .._defaults import DEFAULT_MAX_STEPS
 
     for name, default in (("weights", None), ("sim_options", None), ("solver", None)):
         if args.get(name) is not default:

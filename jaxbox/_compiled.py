@@ -35,25 +35,42 @@ _STATS = {"compiles": 0, "hits": 0, "evictions": 0}
 _MAX = [128]
 
 
+#: keys being built, each with the event its builder sets when done
+_BUILDING: dict[Hashable, threading.Event] = {}
+
+
 def cached(key: Hashable, build: Callable[[], Any]) -> tuple[Any, bool]:
     """The value stored under ``key``, built by ``build()`` on a miss.
 
     Returns ``(value, built)``: ``built`` is True when this call built it (a compilation).
     ``key`` should start with the name of the room that owns the entry (``("fit", …)``).
+    A key is built once: a call for a key another thread is building (a program compiled
+    ahead, in the background) waits for it, and builds it itself only if that build failed.
     """
-    with _LOCK:
-        if key in _ENTRIES:
+    while True:
+        with _LOCK:
+            if key in _ENTRIES:
+                _ENTRIES.move_to_end(key)
+                _STATS["hits"] += 1
+                return _ENTRIES[key], False
+            pending = _BUILDING.get(key)
+            if pending is None:
+                done = _BUILDING[key] = threading.Event()
+                break
+        pending.wait()  # then look again: stored, or (its build failed) ours to build
+    try:
+        value = build()  # outside the lock: compiling can take seconds
+        with _LOCK:
+            _ENTRIES[key] = value
             _ENTRIES.move_to_end(key)
-            _STATS["hits"] += 1
-            return _ENTRIES[key], False
-    value = build()  # outside the lock: compiling can take seconds
-    with _LOCK:
-        _ENTRIES[key] = value
-        _ENTRIES.move_to_end(key)
-        _STATS["compiles"] += 1
-        while len(_ENTRIES) > _MAX[0]:
-            _ENTRIES.popitem(last=False)
-            _STATS["evictions"] += 1
+            _STATS["compiles"] += 1
+            while len(_ENTRIES) > _MAX[0]:
+                _ENTRIES.popitem(last=False)
+                _STATS["evictions"] += 1
+    finally:
+        with _LOCK:
+            _BUILDING.pop(key, None)
+        done.set()
     return value, True
 
 

@@ -189,3 +189,52 @@ def test_a_level_set_in_xla_flags_is_not_raised_by_the_lean_option(monkeypatch) 
     monkeypatch.delenv("XLA_FLAGS")
     assert _compiled._options(lean=True)["xla_backend_optimization_level"] == 1
     assert "xla_backend_optimization_level" not in _compiled._options()
+
+
+def test_a_key_being_built_is_built_once_and_a_failed_build_is_taken_over() -> None:
+    """Two threads asking for one key (a program compiled ahead in the background, and the
+    batch that needs it): one builds it, the other waits and gets the same value; where the
+    build fails, the waiting caller builds it itself (and a failure reaches its own caller)."""
+    import threading
+    import time
+
+    calls = []
+
+    def slow():
+        calls.append(threading.current_thread().name)
+        time.sleep(0.3)
+        return object()
+
+    got = {}
+
+    def ask(name):
+        got[name] = _compiled.cached(("test", "once"), slow)
+
+    threads = [threading.Thread(target=ask, args=(n,), name=n) for n in ("a", "b")]
+    for t in threads:
+        t.start()
+        time.sleep(0.05)
+    for t in threads:
+        t.join()
+    assert len(calls) == 1
+    assert got["a"][0] is got["b"][0]
+    assert sorted(built for _, built in got.values()) == [False, True]
+
+    def failing():
+        time.sleep(0.3)
+        raise RuntimeError("no compiler")
+
+    errors = []
+
+    def first():
+        try:
+            _compiled.cached(("test", "taken over"), failing)
+        except RuntimeError as err:
+            errors.append(err)
+
+    t = threading.Thread(target=first)
+    t.start()
+    time.sleep(0.05)
+    value, built = _compiled.cached(("test", "taken over"), lambda: "second")
+    t.join()
+    assert (value, built) == ("second", True) and len(errors) == 1

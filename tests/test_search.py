@@ -219,6 +219,36 @@ def test_a_search_pads_its_batches_to_the_largest_sizes_so_far(search):
         assert all(after[k] >= before[k] for k in before), (before, after)
 
 
+def test_compiling_the_next_size_ahead_changes_when_not_what(building, search, monkeypatch):
+    """Where a step's candidates come near the edge of the sizes the batches run at, the
+    search compiles the next size in a background thread; the batch that outgrows the sizes
+    pads to that next size whether or not it was compiled ahead, so the search is the same
+    (here: compiled ahead after every step, against the fixture's search)."""
+    from jaxbox.select import _search
+
+    targets = []
+    original = _search._compile_ahead
+
+    def record(requests, sizes):
+        targets.append(dict(sizes))
+        original(requests, sizes)
+
+    monkeypatch.setattr(_search, "AHEAD_FREE", 1000)  # every step is near the edge
+    monkeypatch.setattr(_search, "_compile_ahead", record)
+    gb = GreyBox(building.data, name="ahead")
+    s = structure_search(gb, starts=4, max_depth=2)
+    full, _ = search
+    assert targets and targets[0]["free"] == _search.SEARCH_SIZES["free"] + 8
+    assert len({tuple(sorted(t.items())) for t in targets}) == len(targets)  # each size once
+    assert s.accepted == full.accepted
+    for name, case in full.greybox.cases.items():
+        other = s.greybox.cases[name]
+        assert (case.result is None) == (other.result is None)
+        if case.result is not None:
+            assert other.result.timing["sizes"] == case.result.timing["sizes"]
+            np.testing.assert_allclose(other.result.cost, case.result.cost, rtol=1e-12)
+
+
 def test_a_case_may_skip_the_continuation(building, tmp_path):
     """``homotopy`` is a setting of a case (and of a search, passed to its cases): ``()`` fits
     the output error from every start directly, and the fit reports it (and a saved GreyBox

@@ -150,6 +150,44 @@ def test_a_bucketed_batch_pads_to_the_sizes_asked_and_a_later_one_reuses_its_pro
             fit_batch(req, bucket={"free": bad})
 
 
+def test_a_sequence_of_sizes_pads_to_the_first_that_holds_the_batch_and_compiled_ahead(data):
+    """``bucket=[sizes, larger]``: a batch within ``sizes`` pads to them, one that outgrows
+    them to ``larger``, one that outgrows both to its own sizes (at least the last's).
+    :func:`~jaxbox.fit.compile_batch` builds a batch's program without solving, and the batch
+    that then needs it compiles nothing."""
+    from jaxbox.fit import compile_batch
+
+    g = Grammar.from_columns(data.columns)
+    small, mid = (parse_structure(n).build(g) for n in ("Zon", "Zon+Wal+Int"))
+    widest = len({u for m in (small, mid) for u in m.inputs})
+    sizes = [
+        {"inputs": widest, "free": 8, "states": 2},
+        {"inputs": widest, "free": 16, "states": 6},
+    ]
+    ahead = compile_batch([dict(model=mid, data=data, starts=1)], bucket=sizes[1])
+    assert len(ahead) == 1 and ahead[0]["sizes"]["free"] == 16 and ahead[0]["sizes"]["states"] == 6
+    again = compile_batch([dict(model=small, data=data, starts=3)], bucket=sizes[1])
+    assert not again[0]["built"] and again[0]["compile_s"] == 0.0  # the same program
+    before = _compiled.info("fit")["entries"]
+    fits = {
+        name: fit_batch([dict(model=m, data=data, starts=4, seed=2)], bucket=sizes)[0]
+        for name, m in (("small", small), ("mid", mid))
+    }
+    assert (
+        fits["small"].timing["sizes"]["free"] == 8 and fits["small"].timing["sizes"]["states"] == 2
+    )
+    assert fits["mid"].timing["sizes"] == ahead[0]["sizes"]  # Zon+Wal+Int: 3 states, 9 free
+    assert fits["mid"].timing["compile_s"] == 0.0
+    assert _compiled.info("fit")["entries"] - before <= 1  # at most Zon's (8, 2), if new
+    beyond = fit_batch(
+        [dict(model=mid, data=data, starts=2)], bucket=[{"free": 4, "states": 1}, {"free": 8}]
+    )[0]
+    assert beyond.timing["sizes"]["free"] == 16 and beyond.timing["sizes"]["states"] == 4
+    for bad in ([], [{"free": 8}, 3], "free"):
+        with pytest.raises(jaxbox.FitError, match="bucket must be"):
+            fit_batch([dict(model=small, data=data, starts=2)], bucket=bad)
+
+
 def test_parts_side_by_side_solve_each_start_as_alone(data, monkeypatch):
     """A bucketed batch dealt to three parts run by threads (and its padding starts, never
     solved) gives each start the result of one part alone."""

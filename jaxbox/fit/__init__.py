@@ -3,6 +3,7 @@
 from .._defaults import DEFAULT_HOMOTOPY as DEFAULT_HOMOTOPY
 from .._defaults import DEFAULT_MAX_STEPS as DEFAULT_MAX_STEPS
 from .._defaults import DEFAULT_STARTS as DEFAULT_STARTS
+from ._batch import compile_batch as compile_batch
 from ._batch import fit_batch as fit_batch
 from ._batch import fit_many as fit_many
 from ._batch import fit_model as fit_model

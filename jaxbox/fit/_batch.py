@@ -37,7 +37,7 @@ from ._problem import number as problem_number
 from ._result import FitResult
 from ._solver import LevenbergMarquardt
 
-__all__ = ["fit_model", "fit_many", "fit_batch", "fit_data"]
+__all__ = ["fit_model", "fit_many", "fit_batch", "compile_batch", "fit_data"]
 
 
 def data_columns(data) -> tuple[str, ...] | None:
@@ -344,51 +344,10 @@ def fit_many(
     return dict(zip(keys, results, strict=True)) if keys is not None else results
 
 
-def fit_batch(
-    requests: Sequence[Mapping],
-    *,
-    slots: int | None = None,
-    errors: str = "raise",
-    bucket: bool | Mapping[str, int] = False,
-) -> list[FitResult | FitError]:
-    """Several estimation problems solved together: one compiled call per compatible group.
-
-    A request is a mapping with ``model`` and ``data`` and any of the keyword arguments of
-    :func:`~jaxbox.fit.fit_model` (``free``, ``fixed``, ``bounds``, ``guess``, ``starts``, ``seed``,
-    ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
-    ``atol``, ``solver``, ``homotopy``, ``release``, ``max_gap``) and ``continued``, how many of
-    its starts (the first ones) are solved along the continuation as well (``None``: all; the
-    others along the output-error route alone), and ``polish``, how many of its best starts are
-    solved on to ``rtol`` after every start was solved to a looser tolerance (``None``: every
-    start to ``rtol``; see :func:`~jaxbox.fit.solve_jobs`). Requests with the same number
-    of free parameters, data of the same shape and the same solver settings are solved in one
-    batch (with the exact simulator even when their model structures, numbers of states,
-    parameters and inputs differ, provided they measure the same states: the smaller ones are
-    padded, and so are records of neighbouring lengths, see :func:`~jaxbox.fit.solve_jobs`;
-    with diffrax only for the same structure and length); the others in batches of their own.
-    Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request (to
-    rounding, where its record was padded or batched with others).
-
-    Args:
-        requests: the problems, in order.
-        slots: starts iterated together in each batch (default: from the batch size).
-        errors: ``"raise"`` (default) raises the first :class:`FitError` (a problem that cannot
-            be set up, or every start of a request failed); ``"return"`` puts it in the
-            request's place in the returned list and solves the others.
-        bucket: round each batch's sizes up (see :func:`~jaxbox.fit.solve_jobs`), so that
-            later calls with batches of neighbouring sizes reuse its compiled program (the steps
-            of a structure search). The results are the same, to rounding. A mapping sets
-            sizes to pad to at least (``{"inputs": 12}``; a result's ``timing["sizes"]``, the
-            sizes its bucketed batch was padded to, makes a later call reuse that program).
-
-    Returns:
-        One :class:`FitResult` (or :class:`FitError`) per request, in order; ``timing`` is that
-        of the request's batch (``batch``: the number of requests in it; ``sizes``, where the
-        batch was bucketed: the sizes it was padded to).
-    """
-    require_x64()
-    if errors not in ("raise", "return"):
-        raise FitError(f"errors must be 'raise' or 'return', got {errors!r}")
+def _batches(requests: Sequence[Mapping], errors: str) -> tuple[list, dict]:
+    """The requests prepared (problem, data, starts, arrays, solver settings) and grouped into
+    the batches :func:`fit_batch` solves together; a request that cannot be set up is its
+    :class:`FitError` in ``outcomes`` (``errors="return"``) or raises it."""
     unknown = sorted({k for r in requests for k in r} - {"model", "data", *_DEFAULTS})
     if unknown:
         raise FitError(f"unknown fit argument(s) in a request: {', '.join(unknown)}")
@@ -446,6 +405,55 @@ def fit_batch(
             )
         key = (*solver[:3], solver_key(solver[3]), *solver[4:])
         groups.setdefault((key, shape, problem.simulator, structure), []).append(item)
+    return outcomes, groups
+
+
+def fit_batch(
+    requests: Sequence[Mapping],
+    *,
+    slots: int | None = None,
+    errors: str = "raise",
+    bucket: bool | Mapping[str, int] = False,
+) -> list[FitResult | FitError]:
+    """Several estimation problems solved together: one compiled call per compatible group.
+
+    A request is a mapping with ``model`` and ``data`` and any of the keyword arguments of
+    :func:`~jaxbox.fit.fit_model` (``free``, ``fixed``, ``bounds``, ``guess``, ``starts``, ``seed``,
+    ``weights``, ``simulator``, ``sim_options``, ``concentration``, ``max_steps``, ``rtol``,
+    ``atol``, ``solver``, ``homotopy``, ``release``, ``max_gap``) and ``continued``, how many of
+    its starts (the first ones) are solved along the continuation as well (``None``: all; the
+    others along the output-error route alone), and ``polish``, how many of its best starts are
+    solved on to ``rtol`` after every start was solved to a looser tolerance (``None``: every
+    start to ``rtol``; see :func:`~jaxbox.fit.solve_jobs`). Requests with the same number
+    of free parameters, data of the same shape and the same solver settings are solved in one
+    batch (with the exact simulator even when their model structures, numbers of states,
+    parameters and inputs differ, provided they measure the same states: the smaller ones are
+    padded, and so are records of neighbouring lengths, see :func:`~jaxbox.fit.solve_jobs`;
+    with diffrax only for the same structure and length); the others in batches of their own.
+    Each result is the one :func:`~jaxbox.fit.fit_model` would return for its request (to
+    rounding, where its record was padded or batched with others).
+
+    Args:
+        requests: the problems, in order.
+        slots: starts iterated together in each batch (default: from the batch size).
+        errors: ``"raise"`` (default) raises the first :class:`FitError` (a problem that cannot
+            be set up, or every start of a request failed); ``"return"`` puts it in the
+            request's place in the returned list and solves the others.
+        bucket: round each batch's sizes up (see :func:`~jaxbox.fit.solve_jobs`), so that
+            later calls with batches of neighbouring sizes reuse its compiled program (the steps
+            of a structure search). The results are the same, to rounding. A mapping sets
+            sizes to pad to at least (``{"inputs": 12}``; a result's ``timing["sizes"]``, the
+            sizes its bucketed batch was padded to, makes a later call reuse that program).
+
+    Returns:
+        One :class:`FitResult` (or :class:`FitError`) per request, in order; ``timing`` is that
+        of the request's batch (``batch``: the number of requests in it; ``sizes``, where the
+        batch was bucketed: the sizes it was padded to).
+    """
+    require_x64()
+    if errors not in ("raise", "return"):
+        raise FitError(f"errors must be 'raise' or 'return', got {errors!r}")
+    outcomes, groups = _batches(requests, errors)
     for members in groups.values():
         max_steps, rtol, atol, solver, homotopy, release = members[0][5]
         out = solve_jobs(
@@ -493,3 +501,44 @@ def fit_batch(
                     raise
                 outcomes[i] = err
     return outcomes
+
+
+def compile_batch(
+    requests: Sequence[Mapping],
+    *,
+    slots: int | None = None,
+    bucket: bool | Mapping[str, int] = True,
+) -> list[dict]:
+    """The compiled programs :func:`fit_batch` would run for ``requests``, built and kept for
+    the calls to come, without solving anything (a structure search compiles the size it is
+    about to grow to in a background thread while it fits the current one).
+
+    Args: as :func:`fit_batch` (a request that cannot be set up raises its :class:`FitError`).
+
+    Returns:
+        Per batch: ``compile_s`` [s], ``built`` (whether this call compiled the program: not
+        where it was compiled or loaded before) and ``sizes`` (with ``bucket``: the sizes the
+        batch was padded to).
+    """
+    require_x64()
+    _, groups = _batches(requests, "raise")
+    out = []
+    for members in groups.values():
+        max_steps, rtol, atol, solver, homotopy, release = members[0][5]
+        out.append(
+            solve_jobs(
+                [(problem, x0, arrays) for _, problem, _, x0, arrays, *_ in members],
+                max_steps=max_steps,
+                rtol=rtol,
+                atol=atol,
+                slots=slots,
+                solver=solver,
+                homotopy=homotopy,
+                release=release,
+                bucket=bucket,
+                continued=[m[6] for m in members],
+                polish=[m[7] for m in members],
+                compile_only=True,
+            )
+        )
+    return out

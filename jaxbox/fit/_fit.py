@@ -476,23 +476,57 @@ BUCKETS = dict(free=8, fixed=4, states=2, inputs=4, edges=8, sources=8, factors=
 SIZES = ("free", "fixed", "states", "inputs", "edges", "sources", "factors")
 
 
-def _least(bucket) -> dict[str, int]:
-    """The least sizes of ``solve_jobs(bucket=...)``: ``{}`` for ``True`` or ``False``; a
-    mapping's keys checked against :data:`SIZES`, its values whole numbers of at least 0."""
-    if not isinstance(bucket, Mapping):
-        return {}
-    unknown = sorted(set(bucket) - set(SIZES))
-    if unknown:
+def _least(bucket) -> list[dict[str, int]]:
+    """The least sizes of ``solve_jobs(bucket=...)``, as a list of candidates: ``[{}]`` for
+    ``True`` or ``False``, one for a mapping, each of a sequence of mappings; their keys checked
+    against :data:`SIZES`, their values whole numbers of at least 0."""
+    if isinstance(bucket, bool) or bucket is None:
+        return [{}]
+    several = not isinstance(bucket, Mapping)
+    if several and not (
+        isinstance(bucket, Sequence) and bucket and all(isinstance(b, Mapping) for b in bucket)
+    ):
         raise FitError(
-            f"bucket sizes {', '.join(map(repr, unknown))} are not sizes of a batch; "
-            f"use any of {', '.join(SIZES)}"
+            "bucket must be True, False, a mapping of sizes or a sequence of such mappings, "
+            f"got {bucket!r}"
         )
-    least = {}
-    for name, value in bucket.items():
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
-            raise FitError(f"bucket size {name!r} must be a whole number ≥ 0, got {value!r}")
-        least[name] = int(value)
-    return least
+    out = []
+    for sizes in bucket if several else [bucket]:
+        unknown = sorted(set(sizes) - set(SIZES))
+        if unknown:
+            raise FitError(
+                f"bucket sizes {', '.join(map(repr, unknown))} are not sizes of a batch; "
+                f"use any of {', '.join(SIZES)}"
+            )
+        least = {}
+        for name, value in sizes.items():
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+                raise FitError(f"bucket size {name!r} must be a whole number ≥ 0, got {value!r}")
+            least[name] = int(value)
+        out.append(least)
+    return out
+
+
+def _bucketed_sizes(problems, z0s, members, datas) -> dict[str, int]:
+    """The sizes a bucketed batch of these jobs pads to on its own (:data:`BUCKETS`)."""
+    each = [p.model.array_sizes() for p in problems]
+    own = {k: max(e[k] for e in each) for k in ("edges", "sources", "factors")}
+    own.update(
+        free=max(z.shape[1] for z in z0s),
+        fixed=max(m[0].shape[1] for m in members),
+        states=max(len(p.model.states) for p in problems),
+        inputs=_input_layout(problems, datas, True)[0]["inputs"],
+    )
+    return {k: _round_up(v, BUCKETS.get(k, 1)) for k, v in own.items()}
+
+
+def _holding(candidates: list[dict[str, int]], own: dict[str, int]) -> dict[str, int]:
+    """The first of ``candidates`` whose sizes (rounded up) hold a batch of sizes ``own``; the
+    last where none does (the batch then pads to the larger of each)."""
+    for least in candidates:
+        if all(v <= _round_up(least.get(k, 0), BUCKETS.get(k, 1)) for k, v in own.items()):
+            return least
+    return candidates[-1]
 
 
 def _round_up(n: int, step: int) -> int:
@@ -923,6 +957,7 @@ def solve_jobs(
     bucket: bool | Mapping[str, int] = False,
     continued: Sequence[int | None] | int | None = None,
     polish: Sequence[int | None] | int | None = None,
+    compile_only: bool = False,
 ) -> dict:
     """Run a least-squares solver for several jobs in one compiled, batched call.
 
@@ -956,7 +991,10 @@ def solve_jobs(
     without ``bucket``, to rounding. A mapping instead of ``True`` sets sizes to pad to at
     least (any of :data:`SIZES`: ``{"inputs": 12}``, the input columns of the largest call to
     come; the ``sizes`` an earlier call returned, so that this one reuses its compiled
-    program). On a CPU the
+    program). A sequence of such mappings (ascending) pads the batch to the first that holds
+    it (each of the batch's own sizes, rounded up, within the mapping's), else to its own sizes
+    and the last's: ``[sizes, larger]`` runs an earlier batch's program, or the larger one
+    (compiled ahead, see ``compile_only``) once the batch outgrows it. On a CPU the
     starts of a bucketed batch, or of a batch of one problem (one structure) with jaxbox's
     solver, are dealt to :func:`parallel_parts` that run side by side.
 
@@ -968,6 +1006,9 @@ def solve_jobs(
     advances every slot by one step, so ``slots × Σ iterations`` steps are computed for
     ``Σ steps`` of use); ``sizes``, the sizes a bucketed batch was padded to (a mapping of
     :data:`SIZES`; ``None`` where the batch was not bucketed).
+
+    ``compile_only``: build the batch's compiled program (kept for the calls to come) without
+    solving; returns ``compile_s``, ``built`` (whether this call compiled it) and ``sizes``.
     """
     if not jobs:
         raise FitError("no job to solve")
@@ -1002,8 +1043,11 @@ def solve_jobs(
         counts.append(s)
     variants = len({_problem_key(p) for p in problems}) > 1
     paddable = _paddable(problems, solver)
-    least = _least(bucket)
+    candidates = _least(bucket)
     bucket = bool(bucket) and paddable and _array_form(problems)
+    least = candidates[0]
+    if bucket and len(candidates) > 1:
+        least = _holding(candidates, _bucketed_sizes(problems, z0s, members, datas))
     lengths = {len(d[0]) for d in datas}
     if paddable and len(lengths) > 1:
         # records of different lengths in one batch: padded at the end to the bucket of the
@@ -1156,6 +1200,8 @@ def solve_jobs(
 
     compiled, built = _compiled.cached(key, build)
     compile_s = time.perf_counter() - t0 if built else 0.0
+    if compile_only:
+        return {"compile_s": compile_s, "built": built, "sizes": sizes if bucket else None}
     try:
         mem = compiled.memory_analysis()
         memory = int(mem.temp_size_in_bytes + mem.argument_size_in_bytes + mem.output_size_in_bytes)

@@ -363,7 +363,7 @@ def run_cases(
     labels: Sequence[str] | None = None,
     judge: bool = True,
     inputs: int = 0,
-    sizes: Mapping[str, int] | None = None,
+    sizes: Mapping[str, int] | Sequence[Mapping[str, int]] | None = None,
 ) -> list[Case]:
     """Run several cases together: every start of every case in as few compiled calls as the
     shapes allow (one, for cases of the same shape — e.g. one model on several buildings).
@@ -380,7 +380,8 @@ def run_cases(
             that the calls share compiled programs; see :func:`jaxbox.fit.fit_batch`).
         sizes: other sizes to pad the batch to at least (free and fixed parameters, states,
             edges, …; an earlier batch's ``timing["sizes"]``, so that this one runs its
-            compiled program; see :func:`jaxbox.fit.solve_jobs`).
+            compiled program), or a sequence of such sizes, the first that holds the batch
+            (see :func:`jaxbox.fit.solve_jobs`).
 
     Returns:
         The cases, run (a failed one, with ``catch``, has no result).
@@ -401,9 +402,11 @@ def run_cases(
     t0 = time.perf_counter()
     # bucketed: the next call (a search's next step, a chain's next model) of neighbouring
     # sizes reuses this one's compiled program
-    least = dict(sizes or {})
-    least["inputs"] = max(int(inputs), int(least.get("inputs", 0)))
-    outcomes = fit_batch(requests, errors="return", bucket=least)
+    several = [sizes] if sizes is None or isinstance(sizes, Mapping) else list(sizes)
+    least = [
+        {**(m or {}), "inputs": max(int(inputs), int((m or {}).get("inputs", 0)))} for m in several
+    ]
+    outcomes = fit_batch(requests, errors="return", bucket=least[0] if len(least) == 1 else least)
     fit_s = (time.perf_counter() - t0) / max(1, len(cases))
     for case, outcome, told in zip(cases, outcomes, tell, strict=True):
         try:

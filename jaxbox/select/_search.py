@@ -65,6 +65,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import threading
 import time
 
 import numpy as np
@@ -363,6 +364,35 @@ SEARCH_POLISH = 2
 #: On twin house N2 four programs became two: 1.9–2.3 s of compilation each saved cold, 0.4 s of
 #: padded steps lost (``benchmarks/NOTES.md``)
 SEARCH_SIZES = {"free": 16, "states": 4}
+#: the search compiles the next size ahead (in a background thread, while it fits and judges
+#: the current one) once a step's candidates come within this many free parameters, or this
+#: many states, of the sizes its batches run at
+AHEAD_FREE, AHEAD_STATES = 4, 0
+
+
+def _ahead(sizes: dict[str, int]) -> dict[str, int]:
+    """The size a search's batches grow to once they outgrow ``sizes``: one bucket more free
+    parameters and states (:data:`~jaxbox.fit._fit.BUCKETS`), the other sizes kept."""
+    from ..fit._fit import BUCKETS
+
+    return {
+        **sizes,
+        "free": sizes.get("free", 0) + BUCKETS["free"],
+        "states": sizes.get("states", 0) + BUCKETS["states"],
+    }
+
+
+def _compile_ahead(requests: list[dict], sizes: dict[str, int]) -> None:
+    """The fit program of ``sizes`` compiled and kept (a background thread's work: a failure
+    is not reported here, the batch that needs the program compiles it and reports it)."""
+    from ..fit import compile_batch
+
+    try:
+        compile_batch(requests, bucket=sizes)
+    except Exception:  # noqa: BLE001 - compiled again, and reported, where it is needed
+        pass
+
+
 #: how many times a step reduces what its reductions left invalid (each round one batched call)
 REDUCTION_ROUNDS = 3
 #: identification windows with more samples than this, at a step of at most FINE_STEP [s], get a
@@ -408,8 +438,10 @@ class _Search:
         self.seen: set[str] = set()  # structures (and reduced problems) declared
         self.reduced: dict[str, str] = {}  # case name -> what it was reduced to, in words
         self.widest = 0  # the most input columns of a step so far: later steps pad to it
-        # the largest sizes a batch of the search was padded to: later batches pad to them
+        # the largest sizes a batch of the search was padded to: later batches pad to them, or
+        # to the next size (compiled ahead in a thread) once they outgrow them
         self.sizes = dict(SEARCH_SIZES)
+        self.ahead: list[tuple[dict, threading.Thread]] = []
 
     # ---- propose --------------------------------------------------------------------------------
 
@@ -465,11 +497,43 @@ class _Search:
     def identify(self, cases: list[Case], depth: int) -> None:
         self.say(f"step {depth}: {len(cases)} candidate(s) in one batched call")
         self.widest = max(self.widest, len({u for c in cases for u in c.model.inputs}))
-        run_cases(cases, self.say, catch=True, judge=False, inputs=self.widest, sizes=self.sizes)
+        sizes = [dict(self.sizes), _ahead(self.sizes)]
+        run_cases(cases, self.say, catch=True, judge=False, inputs=self.widest, sizes=sizes)
         for case in cases:
             padded = case.result.timing.get("sizes") if case.result is not None else None
             for name, size in (padded or {}).items():
                 self.sizes[name] = max(self.sizes.get(name, 0), int(size))
+        self.compile_ahead(cases)
+
+    def compile_ahead(self, cases: list[Case]) -> None:
+        """Start compiling the next size in a thread when ``cases`` (a step's candidates) come
+        near the edge of the sizes the batches run at: the step that outgrows them finds its
+        program compiled (the results are the same either way: only when it compiles
+        changes)."""
+        done = [c for c in cases if c.result is not None]
+        if not done or "free" not in self.sizes:
+            return
+        free = max(len(c.result.problem.free) for c in done)
+        states = max(len(c.model.states) for c in done)
+        near = (
+            free + AHEAD_FREE > self.sizes["free"] or states + AHEAD_STATES >= self.sizes["states"]
+        )
+        target = _ahead(self.sizes)
+        if not near or any(t == target for t, _ in self.ahead):
+            return
+        widest = max(done, key=lambda c: len(c.result.problem.free))
+        request = {**widest._request(), "starts": 1}
+        thread = threading.Thread(
+            target=_compile_ahead, args=([request], target), name="jaxbox-compile-ahead"
+        )
+        thread.daemon = True
+        thread.start()
+        self.ahead.append((target, thread))
+
+    def finish(self) -> None:
+        """Wait for the programs being compiled ahead (a process does not end inside XLA)."""
+        for _, thread in self.ahead:
+            thread.join()
 
     def judge(self, children: list[tuple[Case, Case | None]]) -> list[Case]:
         """The criterion of every child, the verdict of those that could improve (lazily); the
@@ -755,7 +819,10 @@ def structure_search(
     )
     t0 = time.perf_counter()
     search = _Search(gb, grammar, judge, kw=kw, say=say, **counts)
-    stopped = search.run()
+    try:
+        stopped = search.run()
+    finally:
+        search.finish()
     accepted = search.choose()
     rel = math.inf if accepted is None else _relative_rmse(accepted, set(_lineage(accepted)))
     choice = choose_form(

@@ -203,27 +203,30 @@ def test_the_steps_of_a_search_share_compiled_fits(search):
     assert 1 <= _FIT_PROGRAMS["search"] < calls
 
 
-def test_a_search_pads_its_batches_to_the_largest_sizes_so_far(search):
-    """Every batch of a search is padded to at least :data:`SEARCH_SIZES` and to the sizes of
-    every batch before it: the sizes its fits ran at never shrink from one case to the next
-    (in the order the search fitted them), so a step of smaller candidates (a reduction)
-    reuses a program the search already compiled."""
+def test_a_search_pads_its_batches_to_sizes_it_ran_before(search):
+    """Every batch of a search is padded to at least :data:`SEARCH_SIZES` and to sizes that
+    hold its candidates: the roots and the next steps share one program, and the search runs
+    fewer distinct sizes than it has candidates."""
+    from jaxbox.fit._fit import BUCKETS, _round_up
     from jaxbox.select._search import SEARCH_SIZES
 
     s, _ = search
-    sizes = [c.result.timing["sizes"] for c in s.greybox.cases.values() if c.result is not None]
+    done = [c for c in s.greybox.cases.values() if c.result is not None]
+    sizes = [c.result.timing["sizes"] for c in done]
     assert len(sizes) >= 3
     for name, least in SEARCH_SIZES.items():
-        assert sizes[0][name] >= least
-    for before, after in zip(sizes, sizes[1:], strict=False):
-        assert all(after[k] >= before[k] for k in before), (before, after)
+        assert all(sz[name] >= least for sz in sizes)
+    for case, sz in zip(done, sizes, strict=True):
+        assert sz["free"] >= _round_up(len(case.result.problem.free), BUCKETS["free"])
+        assert sz["states"] >= _round_up(len(case.model.states), BUCKETS["states"])
+    assert len({tuple(sorted(sz.items())) for sz in sizes}) < len(sizes)
 
 
-def test_compiling_the_next_size_ahead_changes_when_not_what(building, search, monkeypatch):
+def test_compiling_the_next_size_ahead_changes_when_not_what(building, monkeypatch):
     """Where a step's candidates come near the edge of the sizes the batches run at, the
     search compiles the next size in a background thread; the batch that outgrows the sizes
     pads to that next size whether or not it was compiled ahead, so the search is the same
-    (here: compiled ahead after every step, against the fixture's search)."""
+    with the thread as without it (here near after every step)."""
     from jaxbox.select import _search
 
     targets = []
@@ -234,15 +237,16 @@ def test_compiling_the_next_size_ahead_changes_when_not_what(building, search, m
         original(requests, sizes)
 
     monkeypatch.setattr(_search, "AHEAD_FREE", 1000)  # every step is near the edge
-    monkeypatch.setattr(_search, "_compile_ahead", record)
-    gb = GreyBox(building.data, name="ahead")
-    s = structure_search(gb, starts=4, max_depth=2)
-    full, _ = search
+    runs = {}
+    for name, compile_ahead in (("ahead", record), ("never", lambda requests, sizes: None)):
+        monkeypatch.setattr(_search, "_compile_ahead", compile_ahead)
+        runs[name] = structure_search(GreyBox(building.data, name=name), starts=4, max_depth=2)
     assert targets and targets[0]["free"] == _search.SEARCH_SIZES["free"] + 8
     assert len({tuple(sorted(t.items())) for t in targets}) == len(targets)  # each size once
-    assert s.accepted == full.accepted
-    for name, case in full.greybox.cases.items():
-        other = s.greybox.cases[name]
+    ahead, never = runs["ahead"], runs["never"]
+    assert ahead.accepted == never.accepted
+    for name, case in never.greybox.cases.items():
+        other = ahead.greybox.cases[name]
         assert (case.result is None) == (other.result is None)
         if case.result is not None:
             assert other.result.timing["sizes"] == case.result.timing["sizes"]

@@ -358,28 +358,36 @@ GROWN_CONTINUED = None
 #: Levenberg–Marquardt steps instead of 113 k, ``benchmarks/NOTES.md``)
 SEARCH_POLISH = 2
 #: the least sizes of the search's batched fits (:func:`~jaxbox.fit.solve_jobs`'s ``bucket``):
-#: the roots and first steps run the program of the second step's sizes instead of one of their
-#: own, and every batch pads to the largest sizes any batch of the search had so far, so that
-#: the search compiles one fit program per size it grows to and none for a step that shrinks.
-#: On twin house N2 four programs became two: 1.9–2.3 s of compilation each saved cold, 0.4 s of
-#: padded steps lost (``benchmarks/NOTES.md``)
-SEARCH_SIZES = {"free": 16, "states": 4}
+#: the roots and first steps run the program of the next steps' free parameters instead of one
+#: of their own (states, whose cost grows as their square, are not padded ahead of need); every
+#: later batch pads to the cheapest sizes a batch of the search ran at that hold it, so that the
+#: search compiles one fit program per size it grows to and none for a step that shrinks
+#: (``benchmarks/NOTES.md``)
+SEARCH_SIZES = {"free": 16, "states": 2}
 #: the search compiles the next size ahead (in a background thread, while it fits and judges
 #: the current one) once a step's candidates come within this many free parameters, or this
-#: many states, of the sizes its batches run at
+#: many states, of the sizes its batches run at (in that size only: one more bucket of free
+#: parameters, of states, or of both)
 AHEAD_FREE, AHEAD_STATES = 4, 0
 
 
-def _ahead(sizes: dict[str, int]) -> dict[str, int]:
+def _ahead(sizes: dict[str, int], free: bool, states: bool) -> dict[str, int]:
     """The size a search's batches grow to once they outgrow ``sizes``: one bucket more free
-    parameters and states (:data:`~jaxbox.fit._fit.BUCKETS`), the other sizes kept."""
+    parameters (``free``) and states (``states``, see :data:`~jaxbox.fit._fit.BUCKETS`), the
+    other sizes kept."""
     from ..fit._fit import BUCKETS
 
     return {
         **sizes,
-        "free": sizes.get("free", 0) + BUCKETS["free"],
-        "states": sizes.get("states", 0) + BUCKETS["states"],
+        "free": sizes.get("free", 0) + BUCKETS["free"] * free,
+        "states": sizes.get("states", 0) + BUCKETS["states"] * states,
     }
+
+
+def _cost(sizes: dict[str, int]) -> tuple[int, ...]:
+    """What a step of a batch of these sizes costs, to order them (the sensitivities: states²
+    × free parameters a sample)."""
+    return (sizes.get("states", 0) ** 2 * sizes.get("free", 0), *sorted(sizes.items()))
 
 
 def _compile_ahead(requests: list[dict], sizes: dict[str, int]) -> None:
@@ -438,9 +446,12 @@ class _Search:
         self.seen: set[str] = set()  # structures (and reduced problems) declared
         self.reduced: dict[str, str] = {}  # case name -> what it was reduced to, in words
         self.widest = 0  # the most input columns of a step so far: later steps pad to it
-        # the largest sizes a batch of the search was padded to: later batches pad to them, or
-        # to the next size (compiled ahead in a thread) once they outgrow them
+        # the sizes the search's batches were padded to (each a compiled program): a batch pads
+        # to the cheapest of them that holds it, or to the next size (compiled ahead in a
+        # thread) once it outgrows them all; ``sizes``: the largest of each
+        self.used: list[dict[str, int]] = []
         self.sizes = dict(SEARCH_SIZES)
+        self.next: dict[str, int] | None = None  # what they grow to (compiled ahead)
         self.ahead: list[tuple[dict, threading.Thread]] = []
 
     # ---- propose --------------------------------------------------------------------------------
@@ -497,29 +508,35 @@ class _Search:
     def identify(self, cases: list[Case], depth: int) -> None:
         self.say(f"step {depth}: {len(cases)} candidate(s) in one batched call")
         self.widest = max(self.widest, len({u for c in cases for u in c.model.inputs}))
-        sizes = [dict(self.sizes), _ahead(self.sizes)]
+        sizes = sorted(self.used, key=_cost) or [dict(SEARCH_SIZES)]
+        sizes += [self.next] if self.next is not None else []
         run_cases(cases, self.say, catch=True, judge=False, inputs=self.widest, sizes=sizes)
         for case in cases:
             padded = case.result.timing.get("sizes") if case.result is not None else None
+            if padded and padded not in self.used:
+                self.used.append(dict(padded))
             for name, size in (padded or {}).items():
                 self.sizes[name] = max(self.sizes.get(name, 0), int(size))
         self.compile_ahead(cases)
 
     def compile_ahead(self, cases: list[Case]) -> None:
-        """Start compiling the next size in a thread when ``cases`` (a step's candidates) come
-        near the edge of the sizes the batches run at: the step that outgrows them finds its
-        program compiled (the results are the same either way: only when it compiles
-        changes)."""
+        """The size the batches grow to next, from ``cases`` (a step's candidates): one bucket
+        more free parameters where they came within :data:`AHEAD_FREE` of the sizes the batches
+        run at, one more of states where within :data:`AHEAD_STATES`; its program compiled in
+        a thread, so that the step that outgrows the sizes finds it compiled. The batch pads to
+        it whether or not it was (the results do not depend on when it compiles)."""
         done = [c for c in cases if c.result is not None]
         if not done or "free" not in self.sizes:
             return
         free = max(len(c.result.problem.free) for c in done)
         states = max(len(c.model.states) for c in done)
-        near = (
-            free + AHEAD_FREE > self.sizes["free"] or states + AHEAD_STATES >= self.sizes["states"]
-        )
-        target = _ahead(self.sizes)
-        if not near or any(t == target for t, _ in self.ahead):
+        near_free = free + AHEAD_FREE > self.sizes["free"]
+        near_states = states + AHEAD_STATES >= self.sizes["states"]
+        self.next = None
+        if not (near_free or near_states):
+            return
+        self.next = target = _ahead(self.sizes, near_free, near_states)
+        if any(t == target for t, _ in self.ahead):
             return
         widest = max(done, key=lambda c: len(c.result.problem.free))
         request = {**widest._request(), "starts": 1}

@@ -358,12 +358,12 @@ GROWN_CONTINUED = None
 #: Levenberg–Marquardt steps instead of 113 k, ``benchmarks/NOTES.md``)
 SEARCH_POLISH = 2
 #: the least sizes of the search's batched fits (:func:`~jaxbox.fit.solve_jobs`'s ``bucket``):
-#: the roots and first steps run the program of the next steps' free parameters instead of one
-#: of their own (states, whose cost grows as their square, are not padded ahead of need); every
-#: later batch pads to the cheapest sizes a batch of the search ran at that hold it, so that the
-#: search compiles one fit program per size it grows to and none for a step that shrinks
-#: (``benchmarks/NOTES.md``)
-SEARCH_SIZES = {"free": 16, "states": 2}
+#: the roots and first steps run the program of the second step's sizes instead of one of their
+#: own (a compilation at the start, where nothing runs beside it, costs more than their padded
+#: steps); every later batch pads to the cheapest sizes a batch of the search ran at that hold
+#: it, so that the search compiles one fit program per size it grows to and none for a step
+#: that shrinks (``benchmarks/NOTES.md``)
+SEARCH_SIZES = {"free": 16, "states": 4}
 #: the search compiles the next size ahead (in a background thread, while it fits and judges
 #: the current one) once a step's candidates come within this many free parameters, or this
 #: many states, of the sizes its batches run at (in that size only: one more bucket of free

@@ -408,6 +408,26 @@ def _batches(requests: Sequence[Mapping], errors: str) -> tuple[list, dict]:
     return outcomes, groups
 
 
+def _solve(members: list, slots, bucket, compile_only: bool = False) -> dict:
+    """:func:`~jaxbox.fit.solve_jobs` for one batch of :func:`_batches` (its members share the
+    solver settings)."""
+    max_steps, rtol, atol, solver, homotopy, release = members[0][5]
+    return solve_jobs(
+        [(problem, x0, arrays) for _, problem, _, x0, arrays, *_ in members],
+        max_steps=max_steps,
+        rtol=rtol,
+        atol=atol,
+        slots=slots,
+        solver=solver,
+        homotopy=homotopy,
+        release=release,
+        bucket=bucket,
+        continued=[m[6] for m in members],
+        polish=[m[7] for m in members],
+        compile_only=compile_only,
+    )
+
+
 def fit_batch(
     requests: Sequence[Mapping],
     *,
@@ -455,20 +475,8 @@ def fit_batch(
         raise FitError(f"errors must be 'raise' or 'return', got {errors!r}")
     outcomes, groups = _batches(requests, errors)
     for members in groups.values():
-        max_steps, rtol, atol, solver, homotopy, release = members[0][5]
-        out = solve_jobs(
-            [(problem, x0, arrays) for _, problem, _, x0, arrays, *_ in members],
-            max_steps=max_steps,
-            rtol=rtol,
-            atol=atol,
-            slots=slots,
-            solver=solver,
-            homotopy=homotopy,
-            release=release,
-            bucket=bucket,
-            continued=[m[6] for m in members],
-            polish=[m[7] for m in members],
-        )
+        max_steps, rtol, atol, _, homotopy, release = members[0][5]
+        out = _solve(members, slots, bucket)
         timing = {
             "compile_s": out["compile_s"],
             "fit_s": out["fit_s"],
@@ -522,23 +530,4 @@ def compile_batch(
     """
     require_x64()
     _, groups = _batches(requests, "raise")
-    out = []
-    for members in groups.values():
-        max_steps, rtol, atol, solver, homotopy, release = members[0][5]
-        out.append(
-            solve_jobs(
-                [(problem, x0, arrays) for _, problem, _, x0, arrays, *_ in members],
-                max_steps=max_steps,
-                rtol=rtol,
-                atol=atol,
-                slots=slots,
-                solver=solver,
-                homotopy=homotopy,
-                release=release,
-                bucket=bucket,
-                continued=[m[6] for m in members],
-                polish=[m[7] for m in members],
-                compile_only=True,
-            )
-        )
-    return out
+    return [_solve(members, slots, bucket, compile_only=True) for members in groups.values()]

@@ -116,7 +116,8 @@ def _version() -> str:
 
 def _bad_input_errors() -> tuple[type[BaseException], ...]:
     """Errors that mean bad input (exit 2): the library's ``ValueError`` subclasses that name
-    what to fix, a file that cannot be read or written, a problem too big for the memory."""
+    what to fix, a file that cannot be read or written, a problem too big for the memory (a
+    malformed command line, :class:`UsageError`, is told before these are imported)."""
     from .._x64 import PrecisionError
     from ..data import DataError
     from ..fit import FitError
@@ -131,7 +132,6 @@ def _bad_input_errors() -> tuple[type[BaseException], ...]:
         ValidationError,
         PersistError,
         PrecisionError,
-        UsageError,
         OSError,
         MemoryError,
     )
@@ -239,7 +239,7 @@ def main(argv: list[str] | None = None, *, exit_at_once: bool = False) -> int:
         _error(cli_message(str(err)))
         return 2
     except _bad_input_errors() as err:
-        if isinstance(err, OSError) and not isinstance(err, UsageError):
+        if isinstance(err, OSError):
             _error(cli_message(_os_error(err)))
         elif isinstance(err, MemoryError):
             _error("out of memory; give fewer --starts or shorter periods")

@@ -476,6 +476,11 @@ BUCKETS = dict(free=8, fixed=4, states=2, inputs=4, edges=8, sources=8, factors=
 SIZES = ("free", "fixed", "states", "inputs", "edges", "sources", "factors")
 
 
+def _whole(value, least: int) -> bool:
+    """Whether ``value`` is a whole number (not a bool) of at least ``least``."""
+    return not isinstance(value, bool) and isinstance(value, int | np.integer) and value >= least
+
+
 def _least(bucket) -> list[dict[str, int]]:
     """The least sizes of ``solve_jobs(bucket=...)``, as a list of candidates: ``[{}]`` for
     ``True`` or ``False``, one for a mapping, each of a sequence of mappings; their keys checked
@@ -500,7 +505,7 @@ def _least(bucket) -> list[dict[str, int]]:
             )
         least = {}
         for name, value in sizes.items():
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
+            if not _whole(value, 0):
                 raise FitError(f"bucket size {name!r} must be a whole number ≥ 0, got {value!r}")
             least[name] = int(value)
         out.append(least)
@@ -908,9 +913,7 @@ def _starts_per_job(value, n_jobs: int, name: str, least: int) -> list[int | Non
     if len(values) != n_jobs:
         raise FitError(f"{name} needs one value per job ({n_jobs}), got {len(values)}")
     for v in values:
-        if v is not None and (
-            isinstance(v, bool) or not isinstance(v, int | np.integer) or int(v) < least
-        ):
+        if v is not None and not _whole(v, least):
             raise FitError(
                 f"{name} must be None or a whole number of starts from {least}, got {v!r}"
             )

@@ -448,9 +448,8 @@ class _Search:
         self.widest = 0  # the most input columns of a step so far: later steps pad to it
         # the sizes the search's batches were padded to (each a compiled program): a batch pads
         # to the cheapest of them that holds it, or to the next size (compiled ahead in a
-        # thread) once it outgrows them all; ``sizes``: the largest of each
+        # thread) once it outgrows them all
         self.used: list[dict[str, int]] = []
-        self.sizes = dict(SEARCH_SIZES)
         self.next: dict[str, int] | None = None  # what they grow to (compiled ahead)
         self.ahead: list[tuple[dict, threading.Thread]] = []
 
@@ -515,8 +514,6 @@ class _Search:
             padded = case.result.timing.get("sizes") if case.result is not None else None
             if padded and padded not in self.used:
                 self.used.append(dict(padded))
-            for name, size in (padded or {}).items():
-                self.sizes[name] = max(self.sizes.get(name, 0), int(size))
         self.compile_ahead(cases)
 
     def compile_ahead(self, cases: list[Case]) -> None:
@@ -526,16 +523,20 @@ class _Search:
         a thread, so that the step that outgrows the sizes finds it compiled. The batch pads to
         it whether or not it was (the results do not depend on when it compiles)."""
         done = [c for c in cases if c.result is not None]
-        if not done or "free" not in self.sizes:
+        if not done:
             return
+        largest = dict(SEARCH_SIZES)  # each size, the most of the batches so far
+        for sizes in self.used:
+            for name, size in sizes.items():
+                largest[name] = max(largest.get(name, 0), size)
         free = max(len(c.result.problem.free) for c in done)
         states = max(len(c.model.states) for c in done)
-        near_free = free + AHEAD_FREE > self.sizes["free"]
-        near_states = states + AHEAD_STATES >= self.sizes["states"]
+        near_free = free + AHEAD_FREE > largest["free"]
+        near_states = states + AHEAD_STATES >= largest["states"]
         self.next = None
         if not (near_free or near_states):
             return
-        self.next = target = _ahead(self.sizes, near_free, near_states)
+        self.next = target = _ahead(largest, near_free, near_states)
         if any(t == target for t, _ in self.ahead):
             return
         widest = max(done, key=lambda c: len(c.result.problem.free))

@@ -253,6 +253,40 @@ def test_compiling_the_next_size_ahead_changes_when_not_what(building, monkeypat
             np.testing.assert_allclose(other.result.cost, case.result.cost, rtol=1e-12)
 
 
+def test_only_the_steps_that_grow_the_beam_compile_ahead(building, monkeypatch):
+    """A step that looks one component further (the search is stuck: its last try) and the
+    reductions' batches compile nothing ahead: a program compiled for a search that then stops
+    is waited for at its end and slows the fits beside it (twin house O5's cold select)."""
+    from jaxbox.select import _search
+
+    calls = []
+    original = _search._Search.compile_ahead
+
+    def record(self, cases):
+        calls.append([c.name for c in cases])
+        original(self, cases)
+
+    monkeypatch.setattr(_search, "AHEAD_FREE", 1000)  # every step is near the edge
+    monkeypatch.setattr(_search, "_compile_ahead", lambda requests, sizes: None)
+    monkeypatch.setattr(_search._Search, "compile_ahead", record)
+    # the stuck case's best fits are stepping stones however little better they fit
+    monkeypatch.setattr(
+        _search,
+        "_stepping_stones",
+        lambda children, n: sorted(children, key=lambda cr: cr[0].result.cost)[:n],
+    )
+    s = structure_search(GreyBox(building.data, name="stuck"), starts=4, max_depth=4)
+    by_name = {n.case: n for n in s.tree}
+    stones = {n.case for n in s.tree if n.status == "stepping stone"}
+    further = [n.case for n in s.tree if n.parent in stones]
+    assert stones and further, s.tree_text()  # the search looked one component further
+    assert calls and calls[0] == ["Zon"]  # the root's step, then each step that grew the beam
+    for names in calls:
+        for name in names:
+            assert by_name[name].parent not in stones, name
+            assert "+reduced" not in name and not by_name[name].added.count(";"), name
+
+
 def test_a_case_may_skip_the_continuation(building, tmp_path):
     """``homotopy`` is a setting of a case (and of a search, passed to its cases): ``()`` fits
     the output error from every start directly, and the fit reports it (and a saved GreyBox

@@ -253,6 +253,47 @@ def test_shared_program_equals_the_per_structure_derivatives(name):
         np.testing.assert_allclose(shared[1] / scale, np.asarray(own[1]) / scale, atol=1e-8)
 
 
+def test_structures_with_few_and_many_heat_sources_share_one_program(monkeypatch):
+    """The shared sensitivity program rounds the network's heat sources up to 8, as the fit's
+    programs do: a search's small structures and those with a window per facade (7 sources)
+    run one program, not one each (twin house O5's search compiled two)."""
+    from jaxbox.models import get_model
+    from jaxbox.validate import _uncertainty
+
+    keys = []  # the programs the sensitivities ask for
+    cached = _uncertainty.cached
+    monkeypatch.setattr(
+        _uncertainty, "cached", lambda key, build: keys.append(key) or cached(key, build)
+    )
+
+    n = 96
+    t = np.arange(n) * 3600.0
+    rng = np.random.default_rng(5)
+    day = 2 * np.pi * t / 86400
+    sun = np.maximum(0, np.sin(day))
+    columns = {
+        "T_amb": 8 + 5 * np.sin(day - 2),
+        "Q_hea": 500.0 * (rng.random(n) > 0.5),
+        **{f"I_{f}": 300 * sun * (1 + 0.3 * k) for k, f in enumerate("sew")},
+        "T_zon": 20 + rng.normal(0, 0.3, n),
+    }
+    data = Dataset.from_arrays(t, columns)
+    small, large = get_model("Zon+Int+WinSE"), get_model("Zon+Int+Hea+WinSEW+Sol")
+    assert small.array_sizes()["sources"] <= 4 < large.array_sizes()["sources"]
+    fits = []
+    for model in (small, large):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fits.append(fit_model(model, data, starts=1, max_steps=2))
+    for res in fits:
+        tt, u, _, _ = problem_arrays(res.problem, res.data)
+        p = np.asarray([res.params[k] for k in res.free])
+        fv = np.asarray([v for _, v in res.problem.fixed], dtype=float)
+        assert _uncertainty._rc_jacobian(res.problem, tt, u, p, fv) is not None
+    shared = {key for key in keys if key[:2] == ("uncertainty", "rc")}
+    assert len(shared) == 1, shared
+
+
 @pytest.mark.parametrize(
     ("options", "error", "words"),
     [

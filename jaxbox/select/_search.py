@@ -504,7 +504,9 @@ class _Search:
 
     # ---- identify, judge, reduce ----------------------------------------------------------------
 
-    def identify(self, cases: list[Case], depth: int) -> None:
+    def identify(self, cases: list[Case], depth: int, *, ahead: bool = True) -> None:
+        """Fit ``cases`` in one batched call, padded to the cheapest sizes the search ran at that
+        hold them; then, with ``ahead``, compile the next size ahead (:meth:`compile_ahead`)."""
         self.say(f"step {depth}: {len(cases)} candidate(s) in one batched call")
         self.widest = max(self.widest, len({u for c in cases for u in c.model.inputs}))
         sizes = sorted(self.used, key=_cost) or [dict(SEARCH_SIZES)]
@@ -514,7 +516,8 @@ class _Search:
             padded = case.result.timing.get("sizes") if case.result is not None else None
             if padded and padded not in self.used:
                 self.used.append(dict(padded))
-        self.compile_ahead(cases)
+        if ahead:
+            self.compile_ahead(cases)
 
     def compile_ahead(self, cases: list[Case]) -> None:
         """The size the batches grow to next, from ``cases`` (a step's candidates): one bucket
@@ -649,19 +652,23 @@ class _Search:
         child.notes.append(f"reduced to {case.name}: {text}")
         return case
 
-    def step(self, children: list[tuple[Case, Case | None]], depth: int):
+    def step(self, children: list[tuple[Case, Case | None]], depth: int, *, ahead: bool = True):
         """Identify and judge ``children`` in one batched call, then reduce what only vanishing
         parameters made invalid (up to :data:`REDUCTION_ROUNDS` batched calls more). Returns
-        the winners and every ``(candidate, reference)`` pair of the step."""
+        the winners and every ``(candidate, reference)`` pair of the step. ``ahead``: whether
+        the step may compile the next size ahead (a step that grows the beam; not a removal,
+        whose candidates are smaller than a step's before, nor a look one component further,
+        the search's last try before it stops)."""
         if not children:
             return [], []
-        self.identify([c for c, _ in children], depth)
+        self.identify([c for c, _ in children], depth, ahead=ahead)
         winners, fresh = self.judge(children), children
         for _ in range(REDUCTION_ROUNDS):
             fresh = self.reduce(fresh, depth)
             if not fresh:
                 break
-            self.identify([c for c, _ in fresh], depth)
+            # (the reduced are smaller than the candidates they reduce: nothing to compile ahead)
+            self.identify([c for c, _ in fresh], depth, ahead=False)
             children = children + fresh
             winners = self.judge(children)
         return winners, children
@@ -733,7 +740,7 @@ class _Search:
                 # a component taken early (a facade's sun for what an envelope and a mass explain
                 # together) may be worse than none once the others are in: look one back
                 depth += 1
-                winners += self.step(self.removals(stuck, depth), depth)[0]
+                winners += self.step(self.removals(stuck, depth), depth, ahead=False)[0]
             if not winners:
                 further = ", one or two components further" if stones else ""
                 return f"step {depth}: no extension improves significantly{further}, nor a removal"
@@ -750,7 +757,7 @@ class _Search:
             f"step {depth - 1}: no extension improves; looking one component further from "
             + ", ".join(s.model.name for s, _ in stones)
         )
-        return self.step(self.extensions(stones, depth), depth)
+        return self.step(self.extensions(stones, depth), depth, ahead=False)
 
     # ---- choose ---------------------------------------------------------------------------------
 

@@ -292,8 +292,9 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     search compiles a handful of programs instead of one per candidate; ``None`` where the
     problem has no such form (the diffrax simulator, a node held at a constant temperature).
 
-    Sizes are rounded up (states and inputs to multiples of 8, free parameters to 24…) so that
-    the structures of a search share one or two programs (one simulation each: the padding
+    Sizes are rounded up (states, inputs and heat sources to multiples of 8, free parameters to
+    24…; the sources as the fit's programs round them) so that the structures of a search share
+    one or two programs (one simulation each: the padding
     costs little); padding states are inert and padding parameters are referenced by nothing,
     so their Jacobian columns are zero and dropped. The record is extended to its bucket of
     samples (:func:`~jaxbox.fit._fit.bucket_samples`), so that records of neighbouring lengths
@@ -310,7 +311,7 @@ def _rc_jacobian(problem, t, u, p, fixed_values):
     sizes = {
         "states": _round_up(sizes["states"], 8),
         "edges": _round_up(sizes["edges"], 8),
-        "sources": _round_up(sizes["sources"], 4),
+        "sources": _round_up(sizes["sources"], 8),
         "factors": _round_up(sizes["factors"], 2),
     }
     n_free, n_fixed, m = len(problem.free), len(problem.fixed), len(model.inputs)

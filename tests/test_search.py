@@ -287,6 +287,33 @@ def test_only_the_steps_that_grow_the_beam_compile_ahead(building, monkeypatch):
             assert "+reduced" not in name and not by_name[name].added.count(";"), name
 
 
+def test_the_intervals_program_compiles_beside_the_first_fit(building, monkeypatch):
+    """The search compiles the shared sensitivity program (the first candidate's intervals
+    need it as soon as the first fit ends) in a background thread while that fit compiles:
+    built once, by that thread or, where the fit ran first, by the intervals."""
+    import threading
+    from collections import OrderedDict
+
+    from jaxbox.validate import _uncertainty
+
+    monkeypatch.setattr(_compiled, "_ENTRIES", OrderedDict())  # nothing compiled yet
+    calls = []
+    cached = _uncertainty.cached
+
+    def record(key, build):
+        value, built = cached(key, build)
+        if key[:2] == ("uncertainty", "rc"):
+            calls.append((threading.current_thread().name, built))
+        return value, built
+
+    monkeypatch.setattr(_uncertainty, "cached", record)
+    s = structure_search(GreyBox(building.data, name="beside"), starts=4, max_depth=1)
+    assert s.accepted is not None
+    assert any(name == "jaxbox-compile-ahead" for name, _ in calls), calls
+    assert sum(built for _, built in calls) == 1, calls
+    assert len(calls) > 2  # the candidates' intervals ran it
+
+
 def test_a_case_may_skip_the_continuation(building, tmp_path):
     """``homotopy`` is a setting of a case (and of a search, passed to its cases): ``()`` fits
     the output error from every start directly, and the fit reports it (and a saved GreyBox

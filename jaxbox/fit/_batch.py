@@ -344,6 +344,16 @@ def fit_many(
     return dict(zip(keys, results, strict=True)) if keys is not None else results
 
 
+def request_problem(request: Mapping) -> tuple:
+    """The :class:`~jaxbox.fit.Problem` of a :func:`fit_batch` request and its data prepared
+    for the fit (:func:`fit_data`), as the batch sets them up (the defaults where the request is
+    silent). Raises as :func:`fit_batch` refuses a request."""
+    arg = {k: request.get(k, _DEFAULTS[k]) for k in (*_PROBLEM, "max_gap")}
+    model = get_model(request["model"], data_columns(request["data"]))
+    model, data = fit_data(model, request["data"], arg["max_gap"])
+    return make_problem(model, data, **{k: arg[k] for k in _PROBLEM}), data
+
+
 def _batches(requests: Sequence[Mapping], errors: str) -> tuple[list, dict]:
     """The requests prepared (problem, data, starts, arrays, solver settings) and grouped into
     the batches :func:`fit_batch` solves together; a request that cannot be set up is its
@@ -358,9 +368,7 @@ def _batches(requests: Sequence[Mapping], errors: str) -> tuple[list, dict]:
             if "model" not in req or "data" not in req:
                 raise FitError(f"request {i} needs 'model' and 'data'")
             arg = {k: req.get(k, _DEFAULTS[k]) for k in _DEFAULTS}
-            model = get_model(req["model"], data_columns(req["data"]))
-            model, data = fit_data(model, req["data"], arg["max_gap"])
-            problem = make_problem(model, data, **{k: arg[k] for k in _PROBLEM})
+            problem, data = request_problem(req)
             x0 = make_starts(problem, data, *(arg[k] for k in _STARTS))
             solver = (
                 _max_steps(arg["max_steps"]),

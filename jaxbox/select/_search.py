@@ -390,6 +390,20 @@ def _cost(sizes: dict[str, int]) -> tuple[int, ...]:
     return (sizes.get("states", 0) ** 2 * sizes.get("free", 0), *sorted(sizes.items()))
 
 
+def _compile_sensitivities(case: Case) -> None:
+    """The shared sensitivity program (the parameter intervals' and verdicts') of ``case``'s
+    problem compiled and kept (a background thread's work while the search's first fit
+    compiles: it is needed right after that fit; a failure is not reported here, the interval
+    that needs the program compiles it and reports it)."""
+    from ..fit._batch import request_problem
+    from ..validate._uncertainty import prepare_sensitivities
+
+    try:
+        prepare_sensitivities(*request_problem(case._request()))
+    except Exception:  # noqa: BLE001 - compiled again, and reported, where it is needed
+        pass
+
+
 def _compile_ahead(requests: list[dict], sizes: dict[str, int]) -> None:
     """The fit program of ``sizes`` compiled and kept (a background thread's work: a failure
     is not reported here, the batch that needs the program compiles it and reports it)."""
@@ -452,6 +466,7 @@ class _Search:
         self.used: list[dict[str, int]] = []
         self.next: dict[str, int] | None = None  # what they grow to (compiled ahead)
         self.ahead: list[tuple[dict, threading.Thread]] = []
+        self.background: list[threading.Thread] = []  # every thread, joined in finish()
 
     # ---- propose --------------------------------------------------------------------------------
 
@@ -544,16 +559,19 @@ class _Search:
             return
         widest = max(done, key=lambda c: len(c.result.problem.free))
         request = {**widest._request(), "starts": 1}
-        thread = threading.Thread(
-            target=_compile_ahead, args=([request], target), name="jaxbox-compile-ahead"
-        )
+        self.ahead.append((target, self.in_background(_compile_ahead, [request], target)))
+
+    def in_background(self, work, *args) -> threading.Thread:
+        """``work(*args)`` in a daemon thread, joined in :meth:`finish`."""
+        thread = threading.Thread(target=work, args=args, name="jaxbox-compile-ahead")
         thread.daemon = True
         thread.start()
-        self.ahead.append((target, thread))
+        self.background.append(thread)
+        return thread
 
     def finish(self) -> None:
         """Wait for the programs being compiled ahead (a process does not end inside XLA)."""
-        for _, thread in self.ahead:
+        for thread in self.background:
             thread.join()
 
     def judge(self, children: list[tuple[Case, Case | None]]) -> list[Case]:
@@ -695,7 +713,10 @@ class _Search:
         note = fine_sampling_note(self.gb.ident)
         if note is not None:
             self.say(note)
-        winners, children = self.step([(self.declare(s, None, "root", 0), None) for s in first], 0)
+        pairs = [(self.declare(s, None, "root", 0), None) for s in first]
+        # the intervals' program, needed as soon as the first fit ends, compiled beside it
+        self.in_background(_compile_sensitivities, pairs[0][0])
+        winners, children = self.step(pairs, 0)
         grown = list(winners)
         for c, _ in children:
             node = self.nodes[c.name]

@@ -414,6 +414,20 @@ def sensitivities(
     return np.asarray(ysim), np.asarray(J)
 
 
+def prepare_sensitivities(problem, data) -> bool:
+    """Compile (and keep) the program :func:`sensitivities` will run for ``problem`` on
+    ``data``, before any fit: the one shared by every structure of its padded size
+    (:func:`_rc_jacobian`), evaluated once at the guess. A structure search does it in a thread
+    while its first fit compiles. Returns whether the problem has that shared program."""
+    from ..fit import problem_arrays
+
+    t, u, _, _ = problem_arrays(problem, data)
+    guess = problem.guess_dict
+    p = np.asarray([guess[n] for n in problem.free], dtype=float)
+    fixed_values = np.asarray([v for _, v in problem.fixed], dtype=float)
+    return _rc_jacobian(problem, t, u, p, fixed_values) is not None
+
+
 _SENSITIVITY_NEEDS = {True: ("problem", "data", "params"), False: ("problem", "data")}
 """What :func:`sensitivities` reads of its result: without ``params``, the optimum too."""
 

@@ -269,6 +269,7 @@ def main(argv=None) -> None:
     text = _markdown(runs, args, (load0, load1))
     if args.baseline:
         text += _versus_markdown(runs["versus"], args)
+    out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(text)
     out.with_name("profile.json").write_text(json.dumps(runs, indent=1))
     _into_results(out.with_name("RESULTS.md"), text)

@@ -256,7 +256,9 @@ def test_shared_program_equals_the_per_structure_derivatives(name):
 def test_structures_with_few_and_many_heat_sources_share_one_program(monkeypatch):
     """The shared sensitivity program rounds the network's heat sources up to 8, as the fit's
     programs do: a search's small structures and those with a window per facade (7 sources)
-    run one program, not one each (twin house O5's search compiled two)."""
+    run one program, not one each (twin house O5's search compiled two). Compiled before any
+    fit (:func:`prepare_sensitivities`, what a search does beside its first fit), then run."""
+    from jaxbox.fit import make_problem
     from jaxbox.models import get_model
     from jaxbox.validate import _uncertainty
 
@@ -265,7 +267,6 @@ def test_structures_with_few_and_many_heat_sources_share_one_program(monkeypatch
     monkeypatch.setattr(
         _uncertainty, "cached", lambda key, build: keys.append(key) or cached(key, build)
     )
-
     n = 96
     t = np.arange(n) * 3600.0
     rng = np.random.default_rng(5)
@@ -280,18 +281,10 @@ def test_structures_with_few_and_many_heat_sources_share_one_program(monkeypatch
     data = Dataset.from_arrays(t, columns)
     small, large = get_model("Zon+Int+WinSE"), get_model("Zon+Int+Hea+WinSEW+Sol")
     assert small.array_sizes()["sources"] <= 4 < large.array_sizes()["sources"]
-    fits = []
     for model in (small, large):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            fits.append(fit_model(model, data, starts=1, max_steps=2))
-    for res in fits:
-        tt, u, _, _ = problem_arrays(res.problem, res.data)
-        p = np.asarray([res.params[k] for k in res.free])
-        fv = np.asarray([v for _, v in res.problem.fixed], dtype=float)
-        assert _uncertainty._rc_jacobian(res.problem, tt, u, p, fv) is not None
+        assert _uncertainty.prepare_sensitivities(make_problem(model, data), data)
     shared = {key for key in keys if key[:2] == ("uncertainty", "rc")}
-    assert len(shared) == 1, shared
+    assert len(shared) == 1 and len(keys) == 2, keys
 
 
 @pytest.mark.parametrize(

@@ -128,6 +128,27 @@ def test_long_gap_splits_into_segments(two_segments):
     assert model.segmented(1).param_names == jaxbox.get_model("ZonWal").param_names
 
 
+def test_a_requests_problem_is_the_batchs_and_may_be_set_up_quietly(two_segments, segment_fit):
+    """``request_problem`` sets up a fit request's problem as the batch does (segments and
+    all: what a search's background thread compiles the interval program for), with the
+    data's warnings per gap or (``warn=False``, a second look at the same data) without."""
+    from jaxbox.fit._batch import request_problem
+
+    request = {"model": MODEL, "data": two_segments}
+    with pytest.warns(DataWarning) as caught:
+        problem, data = request_problem(request)
+    said = " ".join(str(w.message) for w in caught)
+    assert "interpolated input 'T_amb'" in said and "segments" in said
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # any warning fails
+        quiet, same = request_problem(request, warn=False)
+    assert quiet.simulation_key == problem.simulation_key and quiet.guess == problem.guess
+    assert quiet.bounds == problem.bounds
+    assert same.segments == data.segments == ((0, 90), (90, 182))
+    assert problem.model.param_names == segment_fit.problem.model.param_names
+    assert problem.free == segment_fit.problem.free
+
+
 def test_inputs_missing_in_a_whole_window_are_refused(two_segments):
     frame = two_segments.frame
     frame["Q_hea"] = np.nan

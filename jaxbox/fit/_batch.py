@@ -48,13 +48,17 @@ def data_columns(data) -> tuple[str, ...] | None:
     return tuple(data.columns) if isinstance(data, Dataset) else None
 
 
-def fit_data(model, data, max_gap=DEFAULT_MAX_GAP, what: str = "identification data"):
+def fit_data(
+    model, data, max_gap=DEFAULT_MAX_GAP, what: str = "identification data", warn: bool = True
+):
     """``(model, data)`` ready for a fit: a list of periods joined
     (:func:`~jaxbox.data.concat_periods`), gaps prepared
     (:func:`~jaxbox.data.prepare_window`: input gaps interpolated up to ``max_gap``, segments
     beyond, output gaps kept for masking) and the model segmented to the data
     (:meth:`~jaxbox.models.RCModel.segmented`). A missing column raises
-    :class:`~jaxbox.data.DataError`, a window that gaps leave unusable :class:`FitError`."""
+    :class:`~jaxbox.data.DataError`, a window that gaps leave unusable :class:`FitError`;
+    ``warn=False``: no :class:`~jaxbox.data.DataWarning` per gap (a second look at the same
+    data)."""
     if isinstance(data, list | tuple):
         data = concat_periods(data)
     if not isinstance(data, Dataset):
@@ -64,7 +68,9 @@ def fit_data(model, data, max_gap=DEFAULT_MAX_GAP, what: str = "identification d
         )
     data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     try:
-        data = prepare_window(data, model.inputs, model.outputs, max_gap=max_gap, what=what)
+        data = prepare_window(
+            data, model.inputs, model.outputs, max_gap=max_gap, what=what, warn=warn
+        )
     except DataError as err:
         raise FitError(str(err)) from None
     return model.segmented(len(data.segments)), data
@@ -344,13 +350,14 @@ def fit_many(
     return dict(zip(keys, results, strict=True)) if keys is not None else results
 
 
-def request_problem(request: Mapping) -> tuple:
+def request_problem(request: Mapping, *, warn: bool = True) -> tuple:
     """The :class:`~jaxbox.fit.Problem` of a :func:`fit_batch` request and its data prepared
-    for the fit (:func:`fit_data`), as the batch sets them up (the defaults where the request is
-    silent). Raises as :func:`fit_batch` refuses a request."""
+    for the fit (:func:`fit_data`; ``warn``: its warnings per gap), as the batch sets them up
+    (the defaults where the request is silent). Raises as :func:`fit_batch` refuses a
+    request."""
     arg = {k: request.get(k, _DEFAULTS[k]) for k in (*_PROBLEM, "max_gap")}
     model = get_model(request["model"], data_columns(request["data"]))
-    model, data = fit_data(model, request["data"], arg["max_gap"])
+    model, data = fit_data(model, request["data"], arg["max_gap"], warn=warn)
     return make_problem(model, data, **{k: arg[k] for k in _PROBLEM}), data
 
 

@@ -399,7 +399,8 @@ def _compile_sensitivities(case: Case) -> None:
     from ..validate._uncertainty import prepare_sensitivities
 
     try:
-        prepare_sensitivities(*request_problem(case._request()))
+        # (no warnings from this thread: the fit gives the data's, on the main thread)
+        prepare_sensitivities(*request_problem(case._request(), warn=False))
     except Exception:  # noqa: BLE001 - compiled again, and reported, where it is needed
         pass
 

@@ -50,6 +50,37 @@ def test_an_exported_fit_is_read_back_without_tracing(data, tmp_path, monkeypatc
         np.testing.assert_array_equal(res.starts.steps, direct.starts.steps)
 
 
+def test_the_hlc_programs_are_read_back_without_tracing(data, tmp_path, monkeypatch):
+    """The KPIs' program and the outdoor-referenced HLC's (what a select's report computes for
+    its accepted model) are kept as exports too: a later process reads them back instead of
+    tracing them, with the direct programs' values to the last digit."""
+    from jaxbox.validate import kpis, outdoor_hlc
+
+    monkeypatch.setattr(_exported, "directory", lambda: None)
+    res = _fit(data)
+    data_b = data.with_columns(T_bou=data["T_amb"] + 3.0)  # a boundary that follows T_amb
+    res_b = jaxbox.fit.fit_model(get_model("Zon+Wal+Bou"), data_b, starts=2, seed=1)
+
+    def numbers():
+        _compiled.clear()  # a new process, as far as the in-process cache knows
+        k, o = kpis(res), outdoor_hlc(res_b)
+        return [k.hlc.value, k.hlc.std, o.value, o.hlc, *o.ci95]
+
+    direct = numbers()
+    monkeypatch.setattr(_exported, "directory", lambda: tmp_path)
+    first = numbers()
+    files = sorted(tmp_path.glob("kpi-*.bin"))
+    assert len(files) == 2  # the KPIs' program and the outdoor HLC's
+
+    def no_export(*a, **k):
+        raise AssertionError("exported again instead of read back")
+
+    monkeypatch.setattr(jax.export, "export", no_export)
+    again = numbers()
+    assert sorted(tmp_path.glob("kpi-*.bin")) == files
+    assert first == direct and again == direct
+
+
 def test_a_damaged_artifact_is_exported_again(data, tmp_path, monkeypatch):
     monkeypatch.setattr(_exported, "directory", lambda: tmp_path)
     good = _fit(data)

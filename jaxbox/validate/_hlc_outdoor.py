@@ -37,6 +37,7 @@ import numpy as np
 
 from .._compiled import cached, jit
 from .._derivatives import value_and_jacfwd
+from .._exported import compile_program
 
 __all__ = ["OutdoorHLC", "outdoor_hlc", "boundary_follow", "AMBIENT"]
 
@@ -108,7 +109,9 @@ def boundary_follow(data, boundaries, zone: str = "T_zon") -> dict[str, tuple[fl
 
 
 def _function(model, free: tuple[str, ...], fixed: tuple[str, ...], jq: int, jb: tuple[int, ...]):
-    """Jitted (p_free, fixed_values, α [len jb]) -> ((HLC_outdoor, HLC, k_b…), gradient in p)."""
+    """Compiled (p_free, fixed_values, α [len jb]) -> ((HLC_outdoor, HLC, k_b…), gradient in
+    p), float64 arrays of those sizes; kept, as an exported program, for later processes too
+    (:func:`jaxbox._exported.compile_program`, as the KPIs' program)."""
 
     from ._kpi import _steady_state
 
@@ -121,7 +124,11 @@ def _function(model, free: tuple[str, ...], fixed: tuple[str, ...], jq: int, jb:
             k = jnp.stack([gain[0, j] for j in jb]) if jb else jnp.zeros(0)
             return jnp.concatenate([jnp.stack([hlc * (1.0 - k @ alpha), hlc]), k])
 
-        return jit(value_and_jacfwd(g), once=True)
+        import jax
+
+        args = tuple(jax.ShapeDtypeStruct((len(n),), jnp.float64) for n in (free, fixed, jb))
+        key = ("kpi_outdoor", model.structure, free, fixed, jq, jb)  # what names the program
+        return compile_program("kpi", key, jit(value_and_jacfwd(g), once=True), args)
 
     return cached(("kpi_outdoor", model, free, fixed, jq, jb), build)[0]
 

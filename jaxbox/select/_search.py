@@ -466,7 +466,7 @@ class _Search:
         # thread) once it outgrows them all
         self.used: list[dict[str, int]] = []
         self.next: dict[str, int] | None = None  # what they grow to (compiled ahead)
-        self.ahead: list[tuple[dict, threading.Thread]] = []
+        self.ahead: list[dict[str, int]] = []  # the sizes compiled ahead (each once)
         self.background: list[threading.Thread] = []  # every thread, joined in finish()
 
     # ---- propose --------------------------------------------------------------------------------
@@ -556,11 +556,12 @@ class _Search:
         if not (near_free or near_states):
             return
         self.next = target = _ahead(largest, near_free, near_states)
-        if any(t == target for t, _ in self.ahead):
+        if target in self.ahead:
             return
         widest = max(done, key=lambda c: len(c.result.problem.free))
         request = {**widest._request(), "starts": 1}
-        self.ahead.append((target, self.in_background(_compile_ahead, [request], target)))
+        self.ahead.append(target)
+        self.in_background(_compile_ahead, [request], target)
 
     def in_background(self, work, *args) -> threading.Thread:
         """``work(*args)`` in a daemon thread, joined in :meth:`finish`."""

@@ -35,9 +35,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from .._compiled import cached, jit
-from .._derivatives import value_and_jacfwd
-from .._exported import compile_program
+from .._compiled import cached
 
 __all__ = ["OutdoorHLC", "outdoor_hlc", "boundary_follow", "AMBIENT"]
 
@@ -113,7 +111,7 @@ def _function(model, free: tuple[str, ...], fixed: tuple[str, ...], jq: int, jb:
     p), float64 arrays of those sizes; kept, as an exported program, for later processes too
     (:func:`jaxbox._exported.compile_program`, as the KPIs' program)."""
 
-    from ._kpi import _steady_state
+    from ._kpi import _steady_state, _value_and_jacobian_program
 
     def build():
         def g(p, fv, alpha):
@@ -124,11 +122,8 @@ def _function(model, free: tuple[str, ...], fixed: tuple[str, ...], jq: int, jb:
             k = jnp.stack([gain[0, j] for j in jb]) if jb else jnp.zeros(0)
             return jnp.concatenate([jnp.stack([hlc * (1.0 - k @ alpha), hlc]), k])
 
-        import jax
-
-        args = tuple(jax.ShapeDtypeStruct((len(n),), jnp.float64) for n in (free, fixed, jb))
-        key = ("kpi_outdoor", model.structure, free, fixed, jq, jb)  # what names the program
-        return compile_program("kpi", key, jit(value_and_jacfwd(g), once=True), args)
+        key = ("kpi_outdoor", model.structure, free, fixed, jq, jb)
+        return _value_and_jacobian_program(key, g, len(free), len(fixed), len(jb))
 
     return cached(("kpi_outdoor", model, free, fixed, jq, jb), build)[0]
 

@@ -247,8 +247,6 @@ def _compiled(model, free: tuple[str, ...], fixed: tuple[str, ...], symmetric: b
     (:func:`jaxbox._exported.compile_program`: a warm select traced three of them, 0.8 s)."""
 
     def build():
-        import jax
-
         g = _kpi_function(model, symmetric)
 
         def f(p, fv):
@@ -256,11 +254,21 @@ def _compiled(model, free: tuple[str, ...], fixed: tuple[str, ...], symmetric: b
             theta.update({n: fv[i] for i, n in enumerate(fixed)})
             return g(theta)
 
-        args = tuple(jax.ShapeDtypeStruct((len(n),), jnp.float64) for n in (free, fixed))
-        key = ("kpi", model.structure, free, fixed, symmetric)  # what names the program
-        return compile_program("kpi", key, jit(value_and_jacfwd(f), once=True), args)
+        key = ("kpi", model.structure, free, fixed, symmetric)
+        return _value_and_jacobian_program(key, f, len(free), len(fixed))
 
     return cached(("kpi", model, free, fixed, symmetric), build)[0]
+
+
+def _value_and_jacobian_program(key: tuple, f, *sizes: int):
+    """``f``'s value and its Jacobian in the first argument, compiled for float64 vectors of
+    ``sizes`` and kept as an exported program for later processes
+    (:func:`jaxbox._exported.compile_program`, in the ``"kpi"`` room; ``key``, with the model's
+    structure, names the program): the KPIs' and the outdoor-referenced HLC's."""
+    import jax
+
+    args = tuple(jax.ShapeDtypeStruct((n,), jnp.float64) for n in sizes)
+    return compile_program("kpi", key, jit(value_and_jacfwd(f), once=True), args)
 
 
 def kpi_values(model, params: Mapping[str, float]) -> dict[str, float | list[float]]:

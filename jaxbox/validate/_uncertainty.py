@@ -395,15 +395,11 @@ def sensitivities(
     Returns:
         (ŷ [N, outputs] in °C, J [N, outputs, len(result.free)] in °C per SI unit), numpy.
     """
-    from ..fit import problem_arrays
-
     require_x64()
     problem = check_fit(result, needs=_SENSITIVITY_NEEDS[params is None]).problem
-    t, u, _, _ = problem_arrays(problem, result.data)
     if params is None:
         params = [result.params[n] for n in problem.free]
-    p = _free_values(params, problem.free)
-    fixed_values = np.asarray([v for _, v in problem.fixed], dtype=float)
+    t, u, p, fixed_values = _arrays(problem, result.data, params)
     shared = _rc_jacobian(problem, t, u, p, fixed_values)
     if shared is not None:
         ysim, J = shared
@@ -419,13 +415,19 @@ def prepare_sensitivities(problem, data) -> bool:
     ``data``, before any fit: the one shared by every structure of its padded size
     (:func:`_rc_jacobian`), evaluated once at the guess. A structure search does it in a thread
     while its first fit compiles. Returns whether the problem has that shared program."""
+    guess = problem.guess_dict
+    arrays = _arrays(problem, data, [guess[n] for n in problem.free])
+    return _rc_jacobian(problem, *arrays) is not None
+
+
+def _arrays(problem, data, params) -> tuple:
+    """``(t, u, p, fixed_values)`` of ``problem`` on ``data`` at the free values ``params``:
+    the arguments of its sensitivity programs."""
     from ..fit import problem_arrays
 
     t, u, _, _ = problem_arrays(problem, data)
-    guess = problem.guess_dict
-    p = np.asarray([guess[n] for n in problem.free], dtype=float)
     fixed_values = np.asarray([v for _, v in problem.fixed], dtype=float)
-    return _rc_jacobian(problem, t, u, p, fixed_values) is not None
+    return t, u, _free_values(params, problem.free), fixed_values
 
 
 _SENSITIVITY_NEEDS = {True: ("problem", "data", "params"), False: ("problem", "data")}

@@ -44,7 +44,7 @@ import jaxbox  # noqa: E402
 
 jaxbox.enable_x64()
 
-from jaxbox.fit import make_problem, sample_starts  # noqa: E402
+from jaxbox.fit import DEFAULT_CONCENTRATION, make_problem, sample_starts  # noqa: E402
 from jaxbox.models import families  # noqa: E402
 
 REL = 1e-4
@@ -108,7 +108,7 @@ def model_row(name: str, ident, n_casadi: int, budget: float, casadi_from=None) 
 
     model = jaxbox.get_model(name)
     problem = make_problem(model, ident)
-    starts = sample_starts(problem, ident, 64, 0, 4.0)
+    starts = sample_starts(problem, ident, 64, 0, DEFAULT_CONCENTRATION)
     row = {
         "free": len(problem.free),
         "jaxbox": _jaxbox_run(model, ident, starts),
@@ -169,7 +169,8 @@ def speed(baseline: str, repeats: int, rounds: int) -> dict:
         }
         ident, _ = jaxbox.datasets.twinhouse_exp1("N2").split()
         problem = make_problem(jaxbox.get_model(SPEED_MODEL), ident)
-        np.save(Path(tmp) / "starts.npy", sample_starts(problem, ident, 64, 0, 4.0))
+        starts = sample_starts(problem, ident, 64, 0, DEFAULT_CONCENTRATION)
+        np.save(Path(tmp) / "starts.npy", starts)
         for _ in range(rounds):
             for which, (path, extra) in codes.items():
                 env = {**os.environ, "PYTHONPATH": path, "JAXBOX_CACHE": "0", **extra}

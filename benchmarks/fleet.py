@@ -152,7 +152,7 @@ def _scipy_fit(data, starts: np.ndarray, lower: np.ndarray, upper: np.ndarray):
 def _scipy_loop(folder: Path, names: list[str]) -> dict:
     import jaxbox
     from jaxbox.data import load
-    from jaxbox.fit import make_problem
+    from jaxbox.fit import DEFAULT_CONCENTRATION, make_problem
     from jaxbox.fit._fit import make_starts
 
     hlc, seconds, cpu = {}, [], []
@@ -161,7 +161,7 @@ def _scipy_loop(folder: Path, names: list[str]) -> dict:
         ident, _ = data.split()
         t0, c0 = time.perf_counter(), time.process_time()
         problem = make_problem(jaxbox.get_model(MODEL), ident)
-        starts = make_starts(problem, ident, STARTS, 0, 4.0)
+        starts = make_starts(problem, ident, STARTS, 0, DEFAULT_CONCENTRATION)
         lo = np.asarray(problem.transform.lower, dtype=float)
         hi = np.asarray(problem.transform.upper, dtype=float)
         p = _scipy_fit(ident, np.clip(starts, lo, hi), lo, hi)

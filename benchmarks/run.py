@@ -38,7 +38,7 @@ import numpy as np  # noqa: E402
 
 import jaxbox  # noqa: E402
 from jaxbox.datasets import twinhouse_exp1  # noqa: E402
-from jaxbox.fit import _fit, make_problem, problem_arrays  # noqa: E402
+from jaxbox.fit import DEFAULT_CONCENTRATION, _fit, make_problem, problem_arrays  # noqa: E402
 from jaxbox.fit._fit import make_starts  # noqa: E402
 
 MODEL = "ZonWalIntInfWinBouC"
@@ -138,7 +138,7 @@ def jaxbox_starts(ident, counts, repeats) -> dict:
             f"{st.converged.sum()} converged, steps median {np.median(st.steps):.0f} "
             f"max {st.steps.max()}"
         )
-    out["starts64"] = make_starts(problem, ident, 64, 0, 4.0).tolist()
+    out["starts64"] = make_starts(problem, ident, 64, 0, DEFAULT_CONCENTRATION).tolist()
     return out
 
 
@@ -151,7 +151,7 @@ def profile_iteration(ident) -> dict:
     tr = problem.transform
     out = {}
     for B in (1, 16, 64, 256):
-        X = make_starts(problem, ident, max(B, 2), 0, 4.0)[:B]
+        X = make_starts(problem, ident, max(B, 2), 0, DEFAULT_CONCENTRATION)[:B]
         Z = jnp.asarray(tr.to_internal(X))
         members = (
             jnp.zeros((B, 0)),
@@ -256,7 +256,7 @@ def hierarchy(ident, counts, which, n_casadi, n_scipy, budget, scipy_models=None
                 f"  {name:<22} jaxbox {S:5d} starts: compile {first.timing['compile_s']:.2f} s, "
                 f"fit {r.timing['fit_s']:.3f} s, best {r.cost:.7g}"
             )
-        X = make_starts(problem, ident, 64, 0, 4.0)
+        X = make_starts(problem, ident, 64, 0, DEFAULT_CONCENTRATION)
         if name != MODEL and "casadi" in which:
             try:
                 row["peers"]["casadi"] = _peers.casadi_collocation(
@@ -1156,7 +1156,7 @@ def main(argv=None):
         partial.write_text(json.dumps(res, indent=1, default=float))
     if "starts64" not in res:  # the same deterministic Latin hypercube as jaxbox_starts
         problem = make_problem(jaxbox.get_model(MODEL), ident)
-        res["starts64"] = make_starts(problem, ident, 64, 0, 4.0).tolist()
+        res["starts64"] = make_starts(problem, ident, 64, 0, DEFAULT_CONCENTRATION).tolist()
     starts64 = res["starts64"]
 
     def section(key, title, fn, *a):

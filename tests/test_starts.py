@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from jaxbox.fit import latin_hypercube, make_transform
+from jaxbox.fit import DEFAULT_CONCENTRATION, latin_hypercube, make_transform
 
 
 @pytest.fixture
@@ -30,7 +30,8 @@ def test_stratified_per_parameter(tr):
     s = latin_hypercube(tr, guess, n, seed=1)
     pos = tr.relative_position(s)  # in the transform's own scale
     for i, g in enumerate(tr.relative_position(np.asarray(guess))):
-        a, b = 1 + 4 * g, 1 + 4 * (1 - g)
+        k = DEFAULT_CONCENTRATION
+        a, b = 1 + k * g, 1 + k * (1 - g)
         strata = np.floor(stats.beta.cdf(pos[:, i], a, b) * n).astype(int)
         assert sorted(strata) == list(range(n)), "one sample in each equal-probability stratum"
 

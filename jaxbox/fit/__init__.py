@@ -1,5 +1,6 @@
 """Estimation: output-error least squares, bound transforms, multistart Levenberg–Marquardt."""
 
+from .._defaults import DEFAULT_CONCENTRATION as DEFAULT_CONCENTRATION
 from .._defaults import DEFAULT_HOMOTOPY as DEFAULT_HOMOTOPY
 from .._defaults import DEFAULT_MAX_STEPS as DEFAULT_MAX_STEPS
 from .._defaults import DEFAULT_STARTS as DEFAULT_STARTS

@@ -16,7 +16,12 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Float
 
-from .._defaults import DEFAULT_HOMOTOPY, DEFAULT_MAX_STEPS, DEFAULT_STARTS
+from .._defaults import (
+    DEFAULT_CONCENTRATION,
+    DEFAULT_HOMOTOPY,
+    DEFAULT_MAX_STEPS,
+    DEFAULT_STARTS,
+)
 from .._x64 import require_x64
 from ..data import DataError, Dataset, concat_periods, prepare_window
 from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
@@ -107,7 +112,7 @@ def fit_model(
     max_steps: int = DEFAULT_MAX_STEPS,
     rtol: float = 1e-6,
     atol: float = 1e-16,
-    concentration: float = 4.0,
+    concentration: float = DEFAULT_CONCENTRATION,
     solver: optx.AbstractLeastSquaresSolver | None = None,
     homotopy: Sequence[float] | None = DEFAULT_HOMOTOPY,
     release: bool = True,
@@ -269,7 +274,7 @@ def fit_many(
     max_steps: int = DEFAULT_MAX_STEPS,
     rtol: float = 1e-6,
     atol: float = 1e-16,
-    concentration: float = 4.0,
+    concentration: float = DEFAULT_CONCENTRATION,
     solver: optx.AbstractLeastSquaresSolver | None = None,
     homotopy: Sequence[float] | None = DEFAULT_HOMOTOPY,
     release: bool = True,

@@ -23,6 +23,7 @@ from jaxtyping import Float
 from scipy import stats
 from scipy.stats import qmc
 
+from .._defaults import DEFAULT_CONCENTRATION
 from ._guess import state_ranges
 from ._problem import FitError, number
 from ._transforms import _FREE, _LIN, _LOG, _LOWER, Transform
@@ -40,8 +41,8 @@ def _check_sampling(seed, concentration) -> None:
     concentration = number(concentration, "concentration")
     if not (np.isfinite(concentration) and concentration >= 0):
         raise FitError(
-            f"concentration must be a finite number ≥ 0 (0: uniform strata; default 4), got "
-            f"{concentration!r}"
+            f"concentration must be a finite number ≥ 0 (0: uniform strata; the fit's default "
+            f"{DEFAULT_CONCENTRATION:g}), got {concentration!r}"
         )
 
 
@@ -50,7 +51,7 @@ def latin_hypercube(
     guess,
     n: int,
     seed: int | None = 0,
-    concentration: float = 4.0,
+    concentration: float = DEFAULT_CONCENTRATION,
 ) -> Float[np.ndarray, "n free"]:
     """``n`` Latin-hypercube starts [n, p] (physical values) around ``guess`` within the bounds.
 
@@ -92,7 +93,7 @@ def latin_hypercube(
 
 
 def sample_starts(
-    problem, data, n: int, seed: int | None = 0, concentration: float = 4.0
+    problem, data, n: int, seed: int | None = 0, concentration: float = DEFAULT_CONCENTRATION
 ) -> Float[np.ndarray, "starts free"]:
     """The guess plus ``n − 1`` Latin-hypercube starts [n, n_free] (physical values).
 

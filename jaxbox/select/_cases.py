@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..fit import DEFAULT_STARTS
+from ..fit import DEFAULT_CONCENTRATION, DEFAULT_STARTS
 from ..fit._fit import check_continued, check_homotopy, check_polish
 from ..models import RCModel
 from ._guess import Guess, lhs_starts
@@ -195,7 +195,7 @@ class Case:
             fixed=self.fixed,
             bounds=self.bounds,
             seed=self.seed,
-            concentration=self.settings.get("concentration", 4.0),
+            concentration=self.settings.get("concentration", DEFAULT_CONCENTRATION),
         )
         return x0
 

@@ -16,7 +16,15 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..fit import FitError, initial_guess, make_problem, sample_starts, state_guess, state_ranges
+from ..fit import (
+    DEFAULT_CONCENTRATION,
+    FitError,
+    initial_guess,
+    make_problem,
+    sample_starts,
+    state_guess,
+    state_ranges,
+)
 from ..fit._problem import number
 from ..models import RCModel
 
@@ -116,7 +124,7 @@ def lhs_starts(
     fixed=None,
     bounds=None,
     seed: int | None = 0,
-    concentration: float = 4.0,
+    concentration: float = DEFAULT_CONCENTRATION,
 ) -> tuple[tuple[str, ...], np.ndarray]:
     """The guess plus ``n − 1`` Latin-hypercube starts [n, n_free] (physical values).
 

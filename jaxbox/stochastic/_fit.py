@@ -33,6 +33,7 @@ from jaxtyping import Array
 
 from .. import _compiled
 from .._compiled import jit
+from .._defaults import DEFAULT_CONCENTRATION
 from .._derivatives import value_grad_hessian
 from .._exported import compile_program
 from .._x64 import require_x64
@@ -597,7 +598,7 @@ def fit_ml(
     priors: Mapping[str, tuple[float, float]] | None = None,
     starts: int | np.ndarray = DEFAULT_ML_STARTS,
     seed: int | None = 0,
-    concentration: float = 4.0,
+    concentration: float = DEFAULT_CONCENTRATION,
     hold: str = "foh",
     x0_std: float | Mapping[str, float] | None = None,
     max_steps: int = DEFAULT_ML_MAX_STEPS,
@@ -659,7 +660,7 @@ def fit_ml_many(
     priors: Mapping[str, tuple[float, float]] | None = None,
     starts: int | np.ndarray = DEFAULT_ML_STARTS,
     seed: int | None = 0,
-    concentration: float = 4.0,
+    concentration: float = DEFAULT_CONCENTRATION,
     hold: str = "foh",
     x0_std: float | Mapping[str, float] | None = None,
     max_steps: int = DEFAULT_ML_MAX_STEPS,

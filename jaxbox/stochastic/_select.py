@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .._defaults import DEFAULT_CONCENTRATION
 from ..fit._starts import sample_starts
 from ..fit._transforms import two_sided
 from ..models import get_model
@@ -196,7 +197,8 @@ def _with_parent_start(model, data, parent: MLResult, options: dict) -> np.ndarr
     starts = options.get("starts", DEFAULT_ML_STARTS)
     if isinstance(starts, int | np.integer):
         rows = rows[: max(int(starts) - 1, 1)]
-        seed, concentration = options.get("seed", 0), options.get("concentration", 4.0)
+        seed = options.get("seed", 0)
+        concentration = options.get("concentration", DEFAULT_CONCENTRATION)
         starts = sample_starts(sp, data, max(int(starts) - len(rows), 1), seed, concentration)
     return np.vstack([np.atleast_2d(np.asarray(starts, dtype=float)), rows])
 

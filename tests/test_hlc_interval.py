@@ -356,6 +356,47 @@ def test_an_offset_beside_an_unused_boundary_is_named():
         own = kpis(fits[name], interval="hac").hlc
         got = _interval(fits[name], data)
         assert got.ci95 == pytest.approx(own.ci95, rel=1e-9) and "offset" not in got.method
+    # an offset takes a constant unmeasured input itself: no line per 100 W of it
+    assert _interval(fits["Zon+Int+Off"], data).per_100_w is None
+    assert _interval(fits["Zon+BouC"], data).per_100_w is not None
+
+
+def test_unmeasured_heat_lowers_the_hlc_by_its_mean_over_the_zones_excess():
+    """ZonWal (125 W/K) heated by 300 W more than its data say (occupants, appliances): the
+    model fitted to them takes that warmth for a lower HLC (about a fifth lower, its interval
+    far from the truth), and the reported ``per_100_w``, ``100 / mean(T_zon − T_amb)``, moves it
+    back to the truth within 5 % once the 300 W are known; every output says so."""
+    from jaxbox.cli._select import _hlc, _hlc_text
+    from jaxbox.report._html import _hlc_section
+
+    rng = np.random.default_rng(3)
+    t = np.arange(N) * STEP
+    day = 2 * np.pi * t / 86400.0
+    u = {
+        "T_amb": 8.0 + 5.0 * np.sin(day - 2.0) + rng.normal(0, 0.5, N),
+        "Q_hea": 1500.0 * (rng.random(N) > 0.5),
+        "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)),
+    }
+    hidden = 300.0
+    heated = Dataset.from_arrays(t, {**u, "Q_hea": u["Q_hea"] + hidden, "T_zon": np.zeros(N)})
+    y = simulate_model("ZonWal", ZONWAL, heated).y[:, 0] + rng.normal(0, 0.05, N)
+    data = Dataset.from_arrays(t, {**u, "T_zon": y})
+    sel = _selection([_Case("a", fit_model("ZonWal", data, starts=_start()), 0.1)])
+    got = hlc_interval(sel)
+    excess = float(np.mean(y - u["T_amb"]))
+    assert got.zone_excess == pytest.approx(excess, rel=1e-12)
+    assert got.per_100_w == pytest.approx(100.0 / excess, rel=1e-12)
+    assert got.value < 0.85 * TRUE_HLC and got.ci95[1] < TRUE_HLC
+    assert got.value + hidden / 100.0 * got.per_100_w == pytest.approx(TRUE_HLC, rel=0.05)
+    line = (
+        "every 100 W of heat the data do not measure (occupants, appliances) would add "
+        f"{got.per_100_w:.3g} W/K"
+    )
+    doc = _hlc(sel)
+    assert doc["per_100_w"] == pytest.approx(got.per_100_w)
+    assert doc["zone_excess"] == got.zone_excess
+    assert line in got.text() and line in _hlc_text(doc)
+    assert line[1:] in "".join(_hlc_section(sel))
 
 
 def _interval(result, data):

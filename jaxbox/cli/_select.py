@@ -336,7 +336,7 @@ def _print_table(gb, sel, hlc: dict | None = None) -> None:
 
 def _hlc_text(hlc: dict) -> str:
     """The HLC line of the text output (and its warnings)."""
-    from ..validate._hlc import NOT_DETERMINED, _outdoor_text
+    from ..validate._hlc import NOT_DETERMINED, _outdoor_text, _unmeasured_text
 
     ci = hlc["ci95"]
     shown = "[-]" if ci is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
@@ -348,6 +348,8 @@ def _hlc_text(hlc: dict) -> str:
         lines[0] += NOT_DETERMINED
     if hlc.get("outdoor"):
         lines.append("  " + _outdoor_text(hlc["outdoor"], round(100 * hlc["level"])))
+    if hlc.get("zone_excess") is not None:
+        lines.append("  " + _unmeasured_text(hlc["zone_excess"]))
     return "\n".join(lines + [f"  warning: {w}" for w in hlc["warnings"]])
 
 

@@ -283,6 +283,11 @@ def _hlc_section(selection) -> list[str]:
             f"<p>{_e(line[0].upper() + line[1:])}: the heating per kelvin of zone–outdoor "
             "difference with the measured boundaries as they behave in the data.</p>"
         )
+    if hlc.zone_excess is not None:
+        from ..validate._hlc import _unmeasured_text
+
+        line = _unmeasured_text(hlc.zone_excess)
+        out.append(f"<p>{_e(line[0].upper() + line[1:])}.</p>")
     return out + [f"<p class=bad>Warning: {_e(w)}</p>" for w in hlc.warnings]
 
 

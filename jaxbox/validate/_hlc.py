@@ -19,6 +19,12 @@ conductance the offset would be, which the HLC then misses; a loss with no such 
 one to an unmeasured boundary such as the ground, at the outdoor air's mean temperature (a
 lower bound of that conductance: see :func:`_offset_readings`). The interval reaches up to the
 accepted model's own moved up by that conductance: both readings of the offset fit the data.
+
+**Unmeasured heat.** A model without an offset explains the warmth of heat the data do not
+measure (occupants, appliances) by a lower HLC: over the record the balance ``HLC · ΔT̄ =`` the
+mean heat input holds, so a mean unmeasured input ``G`` [W] takes ``G / ΔT̄`` off the HLC, ``ΔT̄``
+the zone's mean excess over the outdoor air. :attr:`HlcInterval.per_100_w` says how much, per
+100 W, so that a user who knows the building's occupancy can move the HLC by it.
 """
 
 from __future__ import annotations
@@ -69,6 +75,10 @@ class HlcInterval:
         outdoor: the accepted model's HLC referenced to the outdoor air, its measured boundaries
             as they behave in the data (:func:`~jaxbox.validate.outdoor_hlc`; ``None`` where it
             does not apply).
+        zone_excess: the zone's mean excess over the outdoor air over the record, ``ΔT̄`` [K],
+            where the accepted model has one zone, no offset, and the zone sits at least
+            :data:`OFFSET_MIN_DIFFERENCE` above the outdoor air on average (``None`` otherwise):
+            see :attr:`per_100_w`.
     """
 
     value: float
@@ -78,6 +88,14 @@ class HlcInterval:
     models: tuple[dict, ...]
     warnings: tuple[str, ...] = ()
     outdoor: OutdoorHLC | None = None
+    zone_excess: float | None = None
+
+    @property
+    def per_100_w(self) -> float | None:
+        """What 100 W of mean heat input that the data do not measure (occupants, appliances)
+        would add to the HLC [W/K]: ``100 / ΔT̄`` (:attr:`zone_excess`). The model explains the
+        warmth of such heat by a lower HLC; ``None`` where :attr:`zone_excess` is."""
+        return None if self.zone_excess is None else 100.0 / self.zone_excess
 
     @property
     def half_width(self) -> float:
@@ -106,6 +124,8 @@ class HlcInterval:
             "models": [dict(m) for m in self.models],
             "warnings": list(self.warnings),
             "outdoor": None if self.outdoor is None else self.outdoor.to_dict(),
+            "zone_excess": self.zone_excess,
+            "per_100_w": self.per_100_w,
         }
 
     def text(self) -> str:
@@ -120,6 +140,8 @@ class HlcInterval:
             lines[0] += NOT_DETERMINED
         if self.outdoor is not None:
             lines.append("  " + _outdoor_text(self.outdoor.to_dict(), pct))
+        if self.zone_excess is not None:
+            lines.append("  " + _unmeasured_text(self.zone_excess))
         lines += [f"  warning: {w}" for w in self.warnings]
         return "\n".join(lines)
 
@@ -134,6 +156,39 @@ def _outdoor_text(out: dict, pct: int) -> str:
     return f"referenced to the outdoor air {out['value']:.4g} W/K, {pct} % interval {shown}" + (
         f" ({how})" if how else ""
     )
+
+
+def _unmeasured_text(excess: float) -> str:
+    """One line: what 100 W of unmeasured heat would add to the HLC (see :attr:`HlcInterval.
+    per_100_w`), the zone ``excess`` [K] above the outdoor air on average."""
+    return (
+        f"every 100 W of heat the data do not measure (occupants, appliances) would add "
+        f"{100.0 / excess:.3g} W/K: the model takes its warmth for a lower HLC (the zone "
+        f"{excess:.3g} K above the outdoor air on average)"
+    )
+
+
+def _zone_excess(selection, case) -> float | None:
+    """The zone's mean excess over the outdoor air over the selection's whole record [K] (see
+    :attr:`HlcInterval.per_100_w`), for a model of one zone without an offset: its output, or
+    in the heat-demand form its one zone-temperature input. ``None`` for several zones, an
+    offset (which takes a constant unmeasured input itself), data without ``T_amb``, or a zone
+    less than :data:`OFFSET_MIN_DIFFERENCE` above the outdoor air on average."""
+    model = case.model
+    if any(n.startswith("Q_off") for n in case.result.params):
+        return None
+    temps = [o for o in model.outputs if o.startswith("T_")]
+    if len(model.outputs) != 1 or (temps and len(temps) != 1):
+        return None
+    if not temps:
+        temps = [u for u in model.inputs if u.startswith("T_zon")]
+        if len(temps) != 1:
+            return None
+    frame = _whole_record(selection, case).frame
+    if temps[0] not in frame.columns or "T_amb" not in frame.columns:
+        return None
+    diff = _mean_difference(frame, temps[0], "T_amb")
+    return diff if diff is not None and diff >= OFFSET_MIN_DIFFERENCE else None
 
 
 def _criterion(selection, case) -> float:
@@ -302,6 +357,7 @@ def hlc_interval(
         models=tuple(models),
         warnings=tuple(warns),
         outdoor=_outdoor(selection, cases[0], level, first_uncertainty),
+        zone_excess=_zone_excess(selection, cases[0]),
     )
     if out.determined:
         return out

@@ -129,6 +129,14 @@ def test_heat_demand_form_recovers_the_hlc_and_the_search_says_so():
     assert top["value"] == best.hlc and top["ci95"] == list(best.hlc_interval)
     assert top["method"].startswith("delta (HAC") and top["form"] == "heat demand"
     assert d["form_model"]["hlc_method"] == top["method"] and "(delta (HAC" in best.summary()
+    # what 100 W of unmeasured heat would add, as the temperature form says it (no offset here)
+    frame = data.frame
+    excess = float((frame["T_zon"] - frame["T_amb"]).mean())
+    assert "Off" not in best.structure.split("+")
+    assert best.zone_excess == pytest.approx(excess, rel=1e-6)
+    assert top["per_100_w"] == pytest.approx(100.0 / excess, rel=1e-6)
+    assert best.to_dict()["per_100_w"] == top["per_100_w"]
+    assert "every 100 W of heat the data do not measure" in best.summary()
     from jaxbox.report import greybox_report
 
     page = greybox_report(search.greybox, search)

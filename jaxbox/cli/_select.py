@@ -273,6 +273,8 @@ def _form_hlc(model) -> dict | None:
         "form": model.form,
         "models": [{"model": model.structure, "value": value, "ci95": [float(lo), float(hi)]}],
         "warnings": list(getattr(model, "warnings", ())),
+        "zone_excess": getattr(model, "zone_excess", None),
+        "per_100_w": getattr(model, "per_100_w", None),
     }
 
 

@@ -39,6 +39,7 @@ from scipy import linalg, optimize
 
 from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
 from ..validate import MAX_REL_CI
+from ..validate._hlc import OFFSET_MIN_DIFFERENCE, _unmeasured_text
 from ..validate._hlc_hac import HAC
 
 __all__ = ["HeatDemandFit", "heat_demand_fit", "heat_demand_search", "held_zone", "Problem"]
@@ -125,6 +126,8 @@ class HeatDemandFit:
         form: ``"heat demand"``.
         hlc_method: how the HLC's interval was made (the HAC covariance of the heating's
             residuals, by the delta method).
+        zone_excess: the zone's mean excess over the outdoor air over the record [K], for a
+            structure without an offset (``None`` otherwise): see :attr:`per_100_w`.
     """
 
     structure: str
@@ -141,6 +144,14 @@ class HeatDemandFit:
     undetermined: tuple = ()
     form: str = "heat demand"
     hlc_method: str = HAC
+    zone_excess: float | None = None
+
+    @property
+    def per_100_w(self) -> float | None:
+        """What 100 W of mean heat input that the data do not measure (occupants, appliances)
+        would add to the HLC [W/K], ``100 / zone_excess`` (as
+        :attr:`jaxbox.validate.HlcInterval.per_100_w`)."""
+        return None if self.zone_excess is None else 100.0 / self.zone_excess
 
     @property
     def relative(self) -> float:
@@ -158,6 +169,8 @@ class HeatDemandFit:
             f"({self.relative:.3g} of its std {self.q_std:.4g} W), "
             + ("valid" if self.valid else "not valid: " + "; ".join(self.reasons))
         ]
+        if self.zone_excess is not None:
+            lines.append("  " + _unmeasured_text(self.zone_excess))
         for n, v in self.params.items():
             if n in self.fixed:
                 lines.append(f"  {n:<8} {v:12.5g}  fixed")
@@ -173,6 +186,7 @@ class HeatDemandFit:
         d["hlc_interval"] = list(self.hlc_interval)
         d["intervals"] = {k: list(v) for k, v in self.intervals.items()}
         d["reasons"], d["undetermined"] = list(self.reasons), list(self.undetermined)
+        d["per_100_w"] = self.per_100_w
         return d
 
 
@@ -427,6 +441,10 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
     ]
     if not np.isfinite(hlc) or hlc <= 0:
         reasons.append(f"HLC {hlc:.3g} W/K not positive")
+    excess = None
+    if not any(n_.startswith("Q_off") for n_ in net.names) and "T_amb" in problem.frame:
+        excess = float(np.nanmean(problem.column(problem.zone) - problem.column("T_amb")))
+        excess = excess if excess >= OFFSET_MIN_DIFFERENCE else None
     return HeatDemandFit(
         structure=net.model.name,
         params={n_: float(theta[n_]) for n_ in net.names + net.x0_names},
@@ -440,6 +458,7 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
         valid=not reasons,
         reasons=tuple(reasons),
         undetermined=tuple(undetermined),
+        zone_excess=excess,
     )
 
 

@@ -32,10 +32,8 @@ ZONWAL = {"C_zon": 2e6, "C_wal": 3e7, "R_wal": 0.008, "gA": 3.0, "T_zon0": 20.0,
 TRUE_HLC = 1 / ZONWAL["R_wal"]
 
 
-def _data(seed, rho, sd, n=N):
-    """ZonWal's response to random heating, weather and sun, plus AR(1) noise of standard
-    deviation ``sd`` [K] and lag-1 correlation ``rho``."""
-    rng = np.random.default_rng(seed)
+def _inputs(rng, n):
+    """Hourly times [s] and inputs: weather with a daily cycle, random heating, the sun."""
     t = np.arange(n) * STEP
     day = 2 * np.pi * t / 86400.0
     u = {
@@ -43,6 +41,14 @@ def _data(seed, rho, sd, n=N):
         "Q_hea": 1500.0 * (rng.random(n) > 0.5),
         "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)),
     }
+    return t, u
+
+
+def _data(seed, rho, sd, n=N):
+    """ZonWal's response to random heating, weather and sun, plus AR(1) noise of standard
+    deviation ``sd`` [K] and lag-1 correlation ``rho``."""
+    rng = np.random.default_rng(seed)
+    t, u = _inputs(rng, n)
     clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
     y = simulate_model("ZonWal", ZONWAL, clean).y[:, 0]
     w = rng.normal(0.0, sd * np.sqrt(1 - rho**2), n)
@@ -370,13 +376,7 @@ def test_unmeasured_heat_lowers_the_hlc_by_its_mean_over_the_zones_excess():
     from jaxbox.report._html import _hlc_section
 
     rng = np.random.default_rng(3)
-    t = np.arange(N) * STEP
-    day = 2 * np.pi * t / 86400.0
-    u = {
-        "T_amb": 8.0 + 5.0 * np.sin(day - 2.0) + rng.normal(0, 0.5, N),
-        "Q_hea": 1500.0 * (rng.random(N) > 0.5),
-        "I_glo_hor": np.maximum(0.0, 600.0 * np.sin(day - 1.5)),
-    }
+    t, u = _inputs(rng, N)
     hidden = 300.0
     heated = Dataset.from_arrays(t, {**u, "Q_hea": u["Q_hea"] + hidden, "T_zon": np.zeros(N)})
     y = simulate_model("ZonWal", ZONWAL, heated).y[:, 0] + rng.normal(0, 0.05, N)

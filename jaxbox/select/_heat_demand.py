@@ -39,7 +39,7 @@ from scipy import linalg, optimize
 
 from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
 from ..validate import MAX_REL_CI
-from ..validate._hlc import OFFSET_MIN_DIFFERENCE, _unmeasured_text
+from ..validate._hlc import _excess_over_outdoor, _unmeasured_text
 from ..validate._hlc_hac import HAC
 
 __all__ = ["HeatDemandFit", "heat_demand_fit", "heat_demand_search", "held_zone", "Problem"]
@@ -441,10 +441,6 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
     ]
     if not np.isfinite(hlc) or hlc <= 0:
         reasons.append(f"HLC {hlc:.3g} W/K not positive")
-    excess = None
-    if not any(n_.startswith("Q_off") for n_ in net.names) and "T_amb" in problem.frame:
-        excess = float(np.nanmean(problem.column(problem.zone) - problem.column("T_amb")))
-        excess = excess if excess >= OFFSET_MIN_DIFFERENCE else None
     return HeatDemandFit(
         structure=net.model.name,
         params={n_: float(theta[n_]) for n_ in net.names + net.x0_names},
@@ -458,7 +454,7 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
         valid=not reasons,
         reasons=tuple(reasons),
         undetermined=tuple(undetermined),
-        zone_excess=excess,
+        zone_excess=_excess_over_outdoor(problem.frame, problem.zone, net.names),
     )
 
 

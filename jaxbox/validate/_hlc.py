@@ -170,24 +170,26 @@ def _unmeasured_text(excess: float) -> str:
 
 def _zone_excess(selection, case) -> float | None:
     """The zone's mean excess over the outdoor air over the selection's whole record [K] (see
-    :attr:`HlcInterval.per_100_w`), for a model of one zone without an offset: its output, or
-    in the heat-demand form its one zone-temperature input. ``None`` for several zones, an
-    offset (which takes a constant unmeasured input itself), data without ``T_amb``, or a zone
-    less than :data:`OFFSET_MIN_DIFFERENCE` above the outdoor air on average."""
-    model = case.model
-    if any(n.startswith("Q_off") for n in case.result.params):
+    :attr:`HlcInterval.per_100_w`), for a model whose one output is a zone temperature
+    (:func:`_excess_over_outdoor`; ``None`` for several outputs)."""
+    outputs = case.model.outputs
+    if len(outputs) != 1 or not outputs[0].startswith("T_"):
         return None
-    temps = [o for o in model.outputs if o.startswith("T_")]
-    if len(model.outputs) != 1 or (temps and len(temps) != 1):
-        return None
-    if not temps:
-        temps = [u for u in model.inputs if u.startswith("T_zon")]
-        if len(temps) != 1:
-            return None
     frame = _whole_record(selection, case).frame
-    if temps[0] not in frame.columns or "T_amb" not in frame.columns:
+    return _excess_over_outdoor(frame, outputs[0], case.result.params)
+
+
+def _excess_over_outdoor(frame, zone: str, names) -> float | None:
+    """How far ``zone`` sits above the outdoor air on average in ``frame`` [K], for a model
+    whose parameters are ``names``: ``None`` where one is an offset (which takes a constant
+    unmeasured input itself), without the zone's or ``T_amb``'s column, or with the zone less
+    than :data:`OFFSET_MIN_DIFFERENCE` above the outdoor air on average. The temperature form's
+    :attr:`HlcInterval.zone_excess` and the heat-demand form's."""
+    if any(n.startswith("Q_off") for n in names):
         return None
-    diff = _mean_difference(frame, temps[0], "T_amb")
+    if zone not in frame.columns or "T_amb" not in frame.columns:
+        return None
+    diff = _mean_difference(frame, zone, "T_amb")
     return diff if diff is not None and diff >= OFFSET_MIN_DIFFERENCE else None
 
 

@@ -1,5 +1,6 @@
 """The component grammar and the structure search (small grammar, synthetic buildings)."""
 
+import dataclasses
 import json
 import math
 
@@ -728,3 +729,89 @@ def test_a_window_of_many_short_steps_gets_a_note_on_resampling(building, monkey
     lines = []
     structure_search(GreyBox(building.data, name="fine"), starts=2, progress=lines.append)
     assert lines[0].startswith("structure search") and lines[1] == note, lines[:2]
+
+
+# ---- a building of any size ---------------------------------------------------------------------
+
+
+def _heated(data, k: float):
+    """``data`` with its heating ``k`` times as large (the same temperatures: a building ``k``
+    times as large, its resistances divided by ``k``, its capacities and aperture times ``k``)."""
+    from jaxbox.data import Dataset
+
+    cols = {c: data.array([c])[:, 0] for c in data.columns}
+    cols["Q_hea"] = k * cols["Q_hea"]
+    return Dataset.from_arrays(data.t, cols)
+
+
+def test_a_building_of_any_size_above_the_reference_is_searched_alike(building):
+    """The naming defaults and bounds suit a house; the search scales them by the building's
+    size from its data, so the same temperatures with every heat input k times as large give
+    the same search (costs, accepted model) and the parameters scaled by k. Here a 100 W/K
+    building made 5 and 20 kW/K: without the scale the capacities run into their bound of
+    1e10 J/K, and in SI units the sensitivities to capacities and to resistances lie so far
+    apart (1e-14) that the identifiability check took a capacity for one the outputs do not
+    depend on."""
+    from jaxbox.select._scale import building_scale
+
+    runs = {}
+    for k in (50.0, 200.0):
+        data = _heated(building.data, k)
+        grammar = Grammar.from_columns(data.columns)
+        assert building_scale(data, grammar) > 1.0
+        runs[k] = structure_search(GreyBox(data, name=f"x{k:g}"), starts=4, max_depth=2)
+    small, large = runs[50.0], runs[200.0]
+    assert small.accepted is not None and small.accepted == large.accepted
+    for a, b in zip(small.greybox.cases.values(), large.greybox.cases.values(), strict=True):
+        assert a.model.name == b.model.name
+        assert (a.result is None) == (b.result is None)
+        if a.result is None:
+            continue
+        np.testing.assert_allclose(b.result.cost, a.result.cost, rtol=1e-6)
+        assert a.verdict is None or a.verdict.valid == b.verdict.valid
+    best = small.greybox.cases[small.accepted].result.params
+    other = large.greybox.cases[large.accepted].result.params
+    for name, value in best.items():
+        f = {"R_": 0.25, "C_": 4.0, "gA": 4.0, "Q_": 4.0}.get(name[:2], 1.0)
+        np.testing.assert_allclose(other[name], f * value, rtol=1e-4, atol=1e-6, err_msg=name)
+
+
+def test_the_building_scale_is_its_heat_per_kelvin_over_the_reference():
+    """max(1, mean heat / mean zone-ambient difference / REFERENCE_HLC): a house stays at 1,
+    so does a record without heating or with the zone at the outdoor temperature."""
+    from jaxbox.data import Dataset
+    from jaxbox.models import REFERENCE_HLC
+    from jaxbox.select._scale import building_scale
+
+    t = np.arange(48) * 3600.0
+    base = {"T_amb": np.full(48, 5.0), "T_zon": np.full(48, 20.0)}
+    grammar = Grammar.from_columns(["T_zon", "T_amb", "Q_hea"])
+    for q, expected in ((1500.0, 1.0), (15.0 * 4000.0, 4000.0 / REFERENCE_HLC)):
+        data = Dataset.from_arrays(t, {**base, "Q_hea": np.full(48, q)})
+        assert building_scale(data, grammar) == pytest.approx(expected)
+    data = Dataset.from_arrays(t, {**base, "Q_hea": np.zeros(48)})
+    assert building_scale(data, grammar) == 1.0
+    data = Dataset.from_arrays(t, {**base, "T_zon": np.full(48, 5.5), "Q_hea": np.full(48, 1e6)})
+    assert building_scale(data, grammar) == 1.0
+    assert building_scale(data, Grammar.from_columns(["T_zon", "T_amb"])) == 1.0
+
+
+def test_a_grammar_with_a_scale_builds_a_larger_buildings_parameters():
+    """Resistances divided, capacities, heat inputs and apertures multiplied (defaults and
+    bounds), temperatures and fractions as they are."""
+    from jaxbox.models import scaled_parameter
+
+    g = Grammar.from_columns(["T_zon", "T_amb", "Q_hea", "I_glo_hor"])
+    plain = parse_structure("Zon+Int+Rad+Off").build(g)
+    big = parse_structure("Zon+Int+Rad+Off").build(dataclasses.replace(g, scale=8.0))
+    assert big.param_names == plain.param_names
+    for a, b in zip(plain.parameters, big.parameters, strict=True):
+        f = {"R_": 1 / 8.0, "C_": 8.0, "Q_": 8.0, "gA": 8.0}.get(a.name[:2], 1.0)
+        expected = (f * a.default, f * a.lower, f * a.upper)
+        assert (b.default, b.lower, b.upper) == pytest.approx(expected)
+        assert b.unit == a.unit and b.description == a.description
+    spec = plain.parameter("R_wal")
+    assert scaled_parameter(spec, 1.0) is spec
+    for bad in (0.0, -2.0, float("nan"), "8"):
+        with pytest.raises(ModelError, match="finite number > 0"):
+            scaled_parameter(spec, bad)

@@ -18,6 +18,8 @@ from ._library import model_families as model_families
 from ._library import register as register
 from ._network import RCModel as RCModel
 from ._network import RCNetwork as RCNetwork
+from ._parameters import REFERENCE_HLC as REFERENCE_HLC
 from ._parameters import ModelError as ModelError
 from ._parameters import Parameter as Parameter
 from ._parameters import parameter_for as parameter_for
+from ._parameters import scaled_parameter as scaled_parameter

@@ -72,7 +72,7 @@ from ..data._errors import list_names
 from ..data._suggest import suggestion_text
 from . import _components as c
 from ._network import RCModel, RCNetwork
-from ._parameters import ModelError
+from ._parameters import ModelError, scaled_parameter
 
 __all__ = [
     "Structure",
@@ -219,6 +219,13 @@ class Grammar:
         heating: zone number -> its heating column (``Q_hea``, ``Q_hea1``…).
         electric: the data have ``P_ele``.
         offsets: a measured zone may have a constant sensor offset (``Off``).
+        scale: the building's size against the naming defaults': every structure's
+            resistances, capacities, constant heat inputs and solar apertures (their defaults
+            and bounds) are those of a building ``scale`` times as large
+            (:func:`~jaxbox.models.scaled_parameter`). ``None`` (the default) builds them
+            unscaled; the structure search sets it from its data (the data's heat input per
+            kelvin of zone-ambient difference over :data:`~jaxbox.models.REFERENCE_HLC`, at
+            least 1), so that a school or an office block is searched as a house is.
     """
 
     zones: tuple[int, ...]
@@ -228,6 +235,7 @@ class Grammar:
     heating: tuple[tuple[int, str], ...] = ()
     electric: bool = False
     offsets: bool = True
+    scale: float | None = None
 
     @classmethod
     def from_columns(cls, columns: Iterable[str]) -> Grammar:
@@ -403,8 +411,13 @@ class Structure:
         return net
 
     def build(self, grammar: Grammar | None = None) -> RCModel:
-        """The :class:`RCModel` of this structure."""
-        return self.network(grammar).build()
+        """The :class:`RCModel` of this structure (scaled by ``grammar.scale``, see
+        :class:`Grammar`)."""
+        model = self.network(grammar).build()
+        s = None if grammar is None else grammar.scale
+        if s is None or s == 1.0:
+            return model
+        return model.with_parameters({p.name: scaled_parameter(p, s) for p in model.parameters})
 
     def describe(self) -> str:
         parts = []

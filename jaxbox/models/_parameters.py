@@ -14,6 +14,11 @@ prefix     unit    default guess                 default bounds
 ``Q_*``    W       0                             [-1e4, 1e4]
 ========== ======= ============================= =================================
 
+The defaults and bounds of ``R_*``, ``C_*``, ``Q_*`` and ``gA*`` suit a building whose heat-loss
+coefficient is up to about :data:`REFERENCE_HLC`; :func:`scaled_parameter` gives them for a
+building ``s`` times as large (the structure search does so from its data, see
+:attr:`jaxbox.models.Grammar.scale`).
+
 ``Q_*`` is a constant heat input (signed): a steady base load, or the heat that stands for a
 constant offset of a temperature sensor (:func:`~jaxbox.models.components.sensor_offset`).
 
@@ -32,7 +37,14 @@ import dataclasses
 import math
 import re
 
-__all__ = ["Parameter", "ModelError", "parameter_for", "NAMING"]
+__all__ = [
+    "Parameter",
+    "ModelError",
+    "parameter_for",
+    "scaled_parameter",
+    "NAMING",
+    "REFERENCE_HLC",
+]
 
 
 class ModelError(ValueError):
@@ -158,6 +170,37 @@ NAMING: tuple[tuple[str, str, float, float, float, str], ...] = (
     (r"fra_\w+", "-", 0.5, 0.0, 1.0, "fraction {}"),
     (r"Q_\w+", "W", 0.0, -1e4, 1e4, "constant heat input {}"),
 )
+
+
+#: The heat-loss coefficient [W/K] of the largest building the naming defaults and bounds suit
+#: (a large house, a small office: R_wal 1e-2 K/W is 100 W/K, and a capacity of 1e10 J/K with
+#: it a time constant of 280 h). A larger building's parameters lie outside them (its
+#: constant gains beyond 1e4 W, its masses beyond 1e10 J/K): see :func:`scaled_parameter`.
+REFERENCE_HLC = 1000.0
+
+_SCALES = (("R_", -1), ("C_", 1), ("Q_", 1), ("gA", 1))
+
+
+def scaled_parameter(spec: Parameter, s: float) -> Parameter:
+    """``spec`` for a building ``s`` times as large: conductances, capacities, constant heat
+    inputs and solar apertures ``s`` times, so resistances ``R_*`` (default and bounds) divided
+    by ``s``, capacities ``C_*``, heat inputs ``Q_*`` and apertures ``gA*`` multiplied by it;
+    every other parameter (temperatures, fractions) unchanged.
+
+    The same data with every heat input ``s`` times as large are then fitted by the same
+    temperatures: the problem, in the fit's scaled coordinates, is the same.
+
+    Raises:
+        ModelError: ``s`` not a finite number > 0.
+    """
+    if not (isinstance(s, int | float) and math.isfinite(s) and s > 0):
+        raise ModelError(f"scale of {spec.name!r} must be a finite number > 0, got {s!r}")
+    power = next((k for prefix, k in _SCALES if spec.name.startswith(prefix)), 0)
+    if power == 0 or s == 1.0:
+        return spec
+    f = float(s) ** power
+    lo, hi = sorted((spec.lower * f, spec.upper * f))
+    return spec.replace(default=spec.default * f, lower=lo, upper=hi)
 
 
 def parameter_for(name: str, description: str | None = None) -> Parameter:

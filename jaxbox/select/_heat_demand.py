@@ -38,6 +38,7 @@ import numpy as np
 from scipy import linalg, optimize
 
 from ..models._grammar import Grammar, Structure, extensions, parse_structure, roots
+from ..models._network import RCModel
 from ..validate import MAX_REL_CI
 from ..validate._hlc import _excess_over_outdoor, _unmeasured_text
 from ..validate._hlc_hac import HAC
@@ -491,15 +492,15 @@ def _invertible(structure: Structure) -> bool:
     )
 
 
-def _vanishing(fit: HeatDemandFit) -> dict:
+def _vanishing(fit: HeatDemandFit, model: RCModel) -> dict:
     """The parameters of an invalid fit that vanish where their component does, with the value
-    that removes it: a capacity at its lower bound (the node merged), an aperture, gain or
-    offset at 0 (dropped). Empty when anything else makes it invalid."""
+    that removes it: a capacity at its lower bound in ``model`` (the node merged), an aperture,
+    gain or offset at 0 (dropped). Empty when anything else makes it invalid."""
     bad = set(fit.undetermined) | {r.split(" ")[0] for r in fit.reasons if "bound" in r}
     out = {}
     for name in bad:
         if name.startswith("C_"):
-            out[name] = 1.0e4
+            out[name] = model.parameter(name).lower
         elif name.startswith(("gA", "Q_off", "fra_ele")):
             out[name] = 0.0
         else:
@@ -568,7 +569,7 @@ def heat_demand_search(
         except (ValueError, np.linalg.LinAlgError) as err:
             tree.append((structure.name, parent_name, str(err), "failed"))
             return None
-        cut = {} if f.valid else _vanishing(f)
+        cut = {} if f.valid else _vanishing(f, structure.build(grammar))
         if cut:
             tree.append((structure.name, parent_name, f, "reduced"))
             try:

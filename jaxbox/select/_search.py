@@ -72,6 +72,7 @@ import numpy as np
 from scipy import stats
 
 from ..fit import DEFAULT_STARTS
+from ..models import REFERENCE_HLC
 from ..models._grammar import (
     Grammar,
     Structure,
@@ -90,6 +91,7 @@ from ._forward import (
 )
 from ._guess import parent_guess
 from ._reduce import Reduction, reduction
+from ._scale import building_scale
 
 __all__ = ["SearchNode", "Search", "structure_search", "CRITERIA"]
 
@@ -142,12 +144,16 @@ class Search(Selection):
         tree: every candidate, in the order identified.
         margin: the relative decrease of the criterion that counted as an improvement (also
             the margin of the near-best models of :func:`~jaxbox.validate.hlc_interval`).
+        scale: the building's size the structures were built for
+            (:attr:`jaxbox.models.Grammar.scale`): 1 for a building up to
+            :data:`~jaxbox.models.REFERENCE_HLC`, else its heat input per kelvin over it.
     """
 
     criterion: str = "cv"
     tree: tuple[SearchNode, ...] = ()
     margin: float = 0.02
     choice: FormChoice = FormChoice()
+    scale: float = 1.0
 
     @property
     def form(self) -> str:
@@ -165,6 +171,7 @@ class Search(Selection):
     def to_dict(self) -> dict:
         d = super().to_dict()
         d.update(criterion=self.criterion, tree=[n.to_dict() for n in self.tree])
+        d["scale"] = self.scale
         d.update(self.choice.to_dict())
         return d
 
@@ -866,6 +873,12 @@ def structure_search(
         settings,
     )
     t0 = time.perf_counter()
+    if grammar.scale is not None and grammar.scale > 1.0:
+        say(
+            f"a large building: its heat input per kelvin is {grammar.scale:.3g} times "
+            f"{REFERENCE_HLC:g} W/K, and so are the conductances, capacities, constant heat "
+            "inputs and apertures of every structure (their guesses and bounds)"
+        )
     search = _Search(gb, grammar, judge, kw=kw, say=say, **counts)
     try:
         stopped = search.run()
@@ -907,6 +920,7 @@ def structure_search(
         criterion=criterion,
         tree=tuple(SearchNode(**nodes[n]) for n in nodes),
         margin=float(margin),
+        scale=1.0 if grammar.scale is None else float(grammar.scale),
     )
 
 
@@ -955,6 +969,8 @@ def _checked(
         grammar = grammar or Grammar.from_columns(gb.data.columns)
     except ModelError as err:
         raise ValueError(str(err)) from None
+    if grammar.scale is None:  # a large building searched as a house is (select/_scale.py)
+        grammar = dataclasses.replace(grammar, scale=building_scale(gb.ident, grammar))
     judge = _Judge(criterion, float(margin), float(alpha))
     return gb, grammar, judge, counts, {"starts": starts, "seed": seed, **settings}
 

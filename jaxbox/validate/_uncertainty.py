@@ -597,8 +597,13 @@ def uncertainty(
     sigma2 = float(np.sum(e * e) / dof)
 
     norms = np.linalg.norm(Jw, axis=0)
-    scale_ref = np.max(norms) if np.any(norms > 0) else 1.0
-    zero = ~(norms > 1e-14 * scale_ref)  # also catches nan
+    # a column counts as zero against the others per relative change of a resistance or a
+    # capacity (always > 0), per unit of the others: in SI units a large building's
+    # capacities (1e10 J/K) and resistances (1e-5 K/W) have sensitivities 1e15 apart
+    positive = np.array([n.startswith(("R_", "C_")) for n in free])
+    rel = norms * np.where(positive, np.abs(theta), 1.0)
+    scale_ref = np.max(rel) if np.any(rel > 0) else 1.0
+    zero = ~(rel > 1e-14 * scale_ref)  # also catches nan
     live = np.flatnonzero(~zero)
     combos: list[Combination] = []
     affected = zero.copy()

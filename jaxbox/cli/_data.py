@@ -528,7 +528,29 @@ def load_for_model(args, opts: DataOptions, name: str, model):
             f"--model {name} reads other columns in each DATA (its parameters differ: "
             f"{' / '.join(', '.join(b) for b in sorted(built))}); fit them one at a time"
         )
-    return sets, get_model(name, sets[0][1].columns)
+    model = get_model(name, sets[0][1].columns)
+    if len(sets) == 1:  # one building: sized from its data, as the structure search sizes it
+        model = _sized(name, sets[0][2]) or model
+    return sets, model
+
+
+def _sized(name: str, ident):
+    """Structure ``name`` built for the building of the identification data ``ident`` as the
+    structure search builds it (:func:`jaxbox.select._scale.building_scale`): scaled where the
+    building is larger than :data:`~jaxbox.models.REFERENCE_HLC`, else ``None``."""
+    import dataclasses
+
+    from ..models import Grammar, ModelError, parse_structure
+    from ..select._scale import building_scale
+
+    try:
+        grammar = Grammar.from_columns([str(c) for c in ident.columns])
+    except ModelError:
+        return None
+    scale = building_scale(ident, grammar)
+    if scale <= 1.0:
+        return None
+    return parse_structure(name).build(dataclasses.replace(grammar, scale=scale))
 
 
 def slug(spec: str, specs: Sequence[str] = ()) -> str:

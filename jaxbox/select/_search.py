@@ -873,7 +873,7 @@ def structure_search(
         settings,
     )
     t0 = time.perf_counter()
-    if grammar.scale is not None and grammar.scale > 1.0:
+    if grammar.scale > 1.0:  # set by _checked
         say(
             f"a large building: its heat input per kelvin is {grammar.scale:.3g} times "
             f"{REFERENCE_HLC:g} W/K, and so are the conductances, capacities, constant heat "
@@ -920,7 +920,7 @@ def structure_search(
         criterion=criterion,
         tree=tuple(SearchNode(**nodes[n]) for n in nodes),
         margin=float(margin),
-        scale=1.0 if grammar.scale is None else float(grammar.scale),
+        scale=float(grammar.scale),
     )
 
 

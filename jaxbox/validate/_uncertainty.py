@@ -553,6 +553,7 @@ def uncertainty(
         ```
     """
     from ..fit import problem_arrays
+    from ..fit._problem import _positive
     from ._args import check_flag, check_fraction, check_level, check_positive
 
     problem = check_fit(result).problem
@@ -600,7 +601,7 @@ def uncertainty(
     # a column counts as zero against the others per relative change of a resistance or a
     # capacity (always > 0), per unit of the others: in SI units a large building's
     # capacities (1e10 J/K) and resistances (1e-5 K/W) have sensitivities 1e15 apart
-    positive = np.array([n.startswith(("R_", "C_")) for n in free])
+    positive = np.array([_positive(n) for n in free])
     rel = norms * np.where(positive, np.abs(theta), 1.0)
     scale_ref = np.max(rel) if np.any(rel > 0) else 1.0
     zero = ~(rel > 1e-14 * scale_ref)  # also catches nan

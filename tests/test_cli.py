@@ -51,19 +51,25 @@ MAP += ["--map", "I_glo_hor=sun"]
 
 
 @pytest.mark.slow
-def test_fit_of_a_structure_sizes_a_large_building_as_the_search_does(csv_file, capsys):
-    """A structure name fitted to one building larger than the naming defaults' reference is
-    built for that building, as the structure search builds it: its resistances' bounds
-    divided and its capacities' multiplied by the same scale (here the heating ×100: a
-    10 kW/K building, R_wal 1e-4 K/W)."""
+@pytest.mark.parametrize("command", ["fit", "select"])
+@pytest.mark.parametrize("name", ["Zon+Wal", "Zon"])
+def test_a_model_named_for_a_large_building_is_sized_as_the_search_does(
+    csv_file, capsys, command, name
+):
+    """A structure or a library model named for one building larger than the naming
+    defaults' reference (``fit --model``, ``select --models``) is built for that building, as
+    the structure search builds its own: its resistances' bounds divided and its capacities'
+    multiplied by the same scale (here the heating ×100: a 10 kW/K building, R_wal 1e-4 K/W)."""
     from jaxbox.models import parameter_for
 
-    args = ["fit", str(csv_file), "--model", "Zon+Wal", "--starts", "2", "--json", *MAP]
+    which = ["--model", name] if command == "fit" else ["--models", name]
+    args = [command, str(csv_file), *which, "--starts", "2", "--json", *MAP]
     code = main([*args, "--scale", "Q_hea=100", "--validate", "none"])
     out = capsys.readouterr()
     assert code == 0, out.err
-    params = json.loads(out.out)["params"]
-    scale = params["C_wal"]["upper"] / parameter_for("C_wal").upper
+    doc = json.loads(out.out)
+    params = (doc if command == "fit" else doc["fit"])["params"]
+    scale = params["C_zon"]["upper"] / parameter_for("C_zon").upper
     assert scale > 1.0
     assert parameter_for("R_wal").lower / params["R_wal"]["lower"] == pytest.approx(scale)
     assert params["T_zon0"]["lower"] == parameter_for("T_zon0").lower

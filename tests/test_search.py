@@ -776,6 +776,37 @@ def test_a_building_of_any_size_above_the_reference_is_searched_alike(building):
         np.testing.assert_allclose(other[name], f * value, rtol=1e-4, atol=1e-6, err_msg=name)
 
 
+def test_any_model_is_sized_for_a_large_building_as_the_search_sizes_its_own(building):
+    """A library model or a structure named on the command line (``fit --model``, ``select
+    --models``) is built for a large building as the search builds its structures: every
+    parameter scaled by the data's size; a house's model comes back as it is."""
+    from jaxbox.data import Dataset
+    from jaxbox.select._scale import data_scale, sized_model
+
+    model = get_model("Zon+Wal+Int", building.data.columns)
+    assert data_scale(building.data) == 1.0 and sized_model(model, building.data) is model
+    data = _heated(building.data, 200.0)
+    s = data_scale(data)
+    assert s == building_scale_of(data) > 1.0
+    sized = sized_model(model, data)
+    assert sized.structure == model.structure
+    grammar = dataclasses.replace(Grammar.from_columns(data.columns), scale=s)
+    assert sized == parse_structure("Zon+Wal+Int").build(grammar)
+    for p, q in zip(model.parameters, sized.parameters, strict=True):
+        f = {"R_": 1.0 / s, "C_": s, "gA": s, "Q_": s}.get(p.name[:2], 1.0)
+        assert (q.default, q.lower, q.upper) == pytest.approx(
+            (f * p.default, *sorted((f * p.lower, f * p.upper))), rel=1e-12
+        ), p.name
+    no_ambient = Dataset.from_arrays(data.t, {c: data.array([c])[:, 0] for c in ("T_zon", "Q_hea")})
+    assert data_scale(no_ambient) == 1.0  # no T_amb: no grammar, no size
+
+
+def building_scale_of(data):
+    from jaxbox.select._scale import building_scale
+
+    return building_scale(data, Grammar.from_columns(data.columns))
+
+
 def test_the_building_scale_is_its_heat_per_kelvin_over_the_reference():
     """max(1, mean heat / mean zone-ambient difference / REFERENCE_HLC): a house stays at 1,
     so does a record without heating or with the zone at the outdoor temperature."""

@@ -104,6 +104,39 @@ def test_non_physical_values_and_time_constants(good):
     assert any("does not decay" in r for r in v.reasons)
 
 
+def test_the_physical_limits_grow_with_the_fitted_building(good):
+    """A capacity of 2e11 J/K is absurd for a 100 W/K house and physical for a building of
+    10 kW/K (the upper limits of C_* and gA* are sized by UA over REFERENCE_HLC, as the
+    naming convention's bounds are for a large building); a user's own limits stay as given."""
+    from jaxbox.models import REFERENCE_HLC
+    from jaxbox.validate import PHYSICAL_LIMITS, physical_limits
+
+    limits, size = physical_limits(good.model, good.params)
+    assert size == 1.0 and limits == PHYSICAL_LIMITS
+    k = 100.0  # the same building 100 times as large: UA 10 kW/K
+    big = {**good.params, "R_wal": good.params["R_wal"] / k, "gA": good.params["gA"] * k}
+    big["C_zon"] = 2e11
+    ua = 1.0 / big["R_wal"]
+    limits, size = physical_limits(good.model, big)
+    assert size == pytest.approx(ua / REFERENCE_HLC)
+    assert limits["C_"] == pytest.approx((1e3, 1e11 * size)) and limits["R_"] == (0.0, 100.0)
+    assert limits["gA"] == pytest.approx((0.0, 500.0 * size))
+    large = dataclasses.replace(good, params=big)
+    assert "C_zon" not in check_validity(large, check_intervals=False).flagged("non_physical")
+    small = dataclasses.replace(good, params={**good.params, "C_zon": 2e11})
+    v = check_validity(small, check_intervals=False)
+    assert v.flagged("non_physical") == ("C_zon",)
+    (reason,) = [r for r in v.reasons if r.startswith("C_zon") and "physical" in r]
+    assert "≤ 1e+11 J/K" in reason, reason
+    big["C_zon"] = 1e11 * size * 3
+    v = check_validity(dataclasses.replace(good, params=big), check_intervals=False)
+    (reason,) = [r for r in v.reasons if r.startswith("C_zon") and "physical" in r]
+    assert f"{size:.3g} × the reference's" in reason, reason
+    v = check_validity(large, limits={"C_": (1e3, 1e11)}, check_intervals=False)
+    assert v.flagged("non_physical") == ("C_zon",)
+    assert not any("reference's" in r for r in v.reasons)
+
+
 def test_custom_limits(good):
     v = check_validity(good, limits={"C_zon": (1e7, 1e8)}, check_intervals=False)
     assert v.flagged("non_physical") == ("C_zon",)

@@ -515,12 +515,17 @@ def load_for_model(args, opts: DataOptions, name: str, model):
     """:func:`load_all` for ``--model name`` (``model``: as built without data): ``(sets,
     model)``. A structure of the grammar (``Zon+Wal+Int``) is built for the data's columns, as
     the structure search builds it (no solar aperture without ``I_glo_hor``); every DATA must
-    then give the same model."""
+    then give the same model. With one DATA the model, a structure's or the library's, is sized
+    for its building (:func:`jaxbox.select._scale.sized_model`) as the search sizes its own."""
     from ..models import get_model, list_models
     from ..models._grammar import is_structure_name
+    from ..select._scale import sized_model
 
     if not (is_structure_name(name) and name not in list_models()):
-        return load_all(args, opts, model=model), model
+        sets = load_all(args, opts, model=model)
+        if len(sets) == 1:
+            model = sized_model(model, sets[0][2])
+        return sets, model
     sets = load_all(args, opts, model_for=lambda columns: get_model(name, columns))
     built = {get_model(name, data.columns).param_names for _, data, _, _ in sets}
     if len(built) > 1:
@@ -529,28 +534,9 @@ def load_for_model(args, opts: DataOptions, name: str, model):
             f"{' / '.join(', '.join(b) for b in sorted(built))}); fit them one at a time"
         )
     model = get_model(name, sets[0][1].columns)
-    if len(sets) == 1:  # one building: sized from its data, as the structure search sizes it
-        model = _sized(name, sets[0][2]) or model
+    if len(sets) == 1:
+        model = sized_model(model, sets[0][2])
     return sets, model
-
-
-def _sized(name: str, ident):
-    """Structure ``name`` built for the building of the identification data ``ident`` as the
-    structure search builds it (:func:`jaxbox.select._scale.building_scale`): scaled where the
-    building is larger than :data:`~jaxbox.models.REFERENCE_HLC`, else ``None``."""
-    import dataclasses
-
-    from ..models import Grammar, ModelError, parse_structure
-    from ..select._scale import building_scale
-
-    try:
-        grammar = Grammar.from_columns([str(c) for c in ident.columns])
-    except ModelError:
-        return None
-    scale = building_scale(ident, grammar)
-    if scale <= 1.0:
-        return None
-    return parse_structure(name).build(dataclasses.replace(grammar, scale=scale))
 
 
 def slug(spec: str, specs: Sequence[str] = ()) -> str:

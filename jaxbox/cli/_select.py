@@ -371,6 +371,10 @@ def select_command(args) -> int:
     candidates = _candidates(args.models, sets[0][1])
     for _, data, _, _ in sets[1:]:
         _candidates(args.models, data)
+    if len(sets) == 1 and candidates != "search":  # sized for the building, as the search sizes
+        from ..select._scale import sized_model
+
+        candidates = [sized_model(m, sets[0][2]) for m in candidates]
     with Outputs() as outputs:
         t0 = time.perf_counter()
         outcomes = _run_selection(

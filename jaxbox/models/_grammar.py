@@ -72,7 +72,7 @@ from ..data._errors import list_names
 from ..data._suggest import suggestion_text
 from . import _components as c
 from ._network import RCModel, RCNetwork
-from ._parameters import ModelError, scaled_parameter
+from ._parameters import ModelError
 
 __all__ = [
     "Structure",
@@ -415,9 +415,7 @@ class Structure:
         :class:`Grammar`)."""
         model = self.network(grammar).build()
         s = None if grammar is None else grammar.scale
-        if s is None or s == 1.0:
-            return model
-        return model.with_parameters({p.name: scaled_parameter(p, s) for p in model.parameters})
+        return model if s is None else model.scaled(s)
 
     def describe(self) -> str:
         parts = []

@@ -547,6 +547,19 @@ class RCModel:
         )
         return dataclasses.replace(out, parameters=specs)
 
+    def scaled(self, s: float) -> RCModel:
+        """A copy for a building ``s`` times as large: every parameter's default and bounds as
+        :func:`~jaxbox.models.scaled_parameter` scales them (resistances divided by ``s``,
+        capacities, constant heat inputs and apertures multiplied); ``self`` where ``s`` is 1.
+
+        Raises:
+            ModelError: ``s`` not a finite number > 0.
+        """
+        from ._parameters import scaled_parameter
+
+        specs = {p.name: scaled_parameter(p, s) for p in self.parameters}
+        return self if s == 1.0 else self.with_parameters(specs)
+
     # ---- segments ------------------------------------------------------------------------------
     @property
     def base_names(self) -> tuple[str, ...]:

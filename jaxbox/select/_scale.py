@@ -10,15 +10,16 @@ many times the reference (:attr:`jaxbox.models.Grammar.scale`). Since resistance
 constant heat inputs and apertures scale together, the same temperatures with every heat input
 ``k`` times as large give the same search in the fit's own coordinates, and the parameters ``k``
 times (resistances divided), as long as both buildings are above the reference.
+:func:`sized_model` sizes any model the same way (a library model named on the command line).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..models import REFERENCE_HLC, Grammar
+from ..models import REFERENCE_HLC, Grammar, ModelError, RCModel
 
-__all__ = ["building_scale", "MIN_EXCESS"]
+__all__ = ["building_scale", "data_scale", "sized_model", "MIN_EXCESS"]
 
 #: The least mean zone-ambient difference [K] that sizes a building; below it (a record near
 #: the outdoor temperature) the scale stays 1.
@@ -48,3 +49,21 @@ def building_scale(data, grammar: Grammar) -> float:
     if abs(excess) < MIN_EXCESS or q * excess <= 0.0:
         return 1.0
     return max(1.0, q / excess / REFERENCE_HLC)
+
+
+def data_scale(data) -> float:
+    """:func:`building_scale` of ``data`` with the grammar its columns give (1 where they give
+    none: no ``T_amb`` or zone temperature)."""
+    try:
+        grammar = Grammar.from_columns([str(c) for c in data.columns])
+    except ModelError:
+        return 1.0
+    return building_scale(data, grammar)
+
+
+def sized_model(model: RCModel, data) -> RCModel:
+    """``model`` built for the building of the identification data ``data`` as the structure
+    search builds its structures: :meth:`~jaxbox.models.RCModel.scaled` by
+    :func:`data_scale` where the building is larger than the reference, else ``model``."""
+    s = data_scale(data)
+    return model if s <= 1.0 else model.scaled(s)

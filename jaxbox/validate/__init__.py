@@ -61,5 +61,6 @@ from ._verdict import Flag as Flag
 from ._verdict import Verdict as Verdict
 from ._verdict import check_validity as check_validity
 from ._verdict import heat_loss_coefficients as heat_loss_coefficients
+from ._verdict import physical_limits as physical_limits
 from ._verdict import sensor_offsets as sensor_offsets
 from ._verdict import time_constants as time_constants

@@ -13,7 +13,9 @@ turn (:data:`_CHECKS`) and collects the reasons:
   an initial temperature there gets its own advice (narrow the bounds from physics); a parameter
   only *near* a bound (not at it) whose confidence interval excludes the bound is a warning;
 * ``non_physical`` — a value outside broad physical limits (``limits``: non-positive or absurd
-  resistances and capacities, negative apertures…);
+  resistances and capacities, negative apertures…); the upper limits of a node's capacity and
+  of an aperture grow with the fitted building beyond :data:`~jaxbox.models.REFERENCE_HLC`
+  (:func:`physical_limits`), as the naming convention's bounds do for a large building;
 * ``time_constant`` — a time constant ``τ = −1/Re λ`` of the state matrix outside
   ``tau_range`` (seconds … years), an unstable eigenvalue, or a slowest time constant outside
   ``slowest_tau_range`` (10 min … 1 year: no building settles faster or slower); a too-fast
@@ -66,6 +68,7 @@ __all__ = [
     "MAX_RMSE",
     "MAX_RMSE_RATIO",
     "PHYSICAL_LIMITS",
+    "physical_limits",
     "RMSE_FLOOR",
     "SLOWEST_TAU_RANGE",
     "UA_RANGE",
@@ -104,7 +107,9 @@ CAPACITY_RANGE = (1e5, 1e12)
 #: Plausible slowest time constant [s] of a building: 10 minutes … 1 year.
 SLOWEST_TAU_RANGE = (600.0, _YEAR)
 
-#: Broad physical limits per parameter-name prefix (SI): values outside are absurd for a building.
+#: Broad physical limits per parameter-name prefix (SI): values outside are absurd for a building
+#: of up to :data:`~jaxbox.models.REFERENCE_HLC`; a larger one's capacities and apertures may be
+#: as many times larger (:func:`physical_limits`).
 PHYSICAL_LIMITS: dict[str, tuple[float, float]] = {
     "R_": (0.0, 100.0),  # K/W, exclusive at 0
     "C_": (1e3, 1e11),  # J/K
@@ -112,6 +117,27 @@ PHYSICAL_LIMITS: dict[str, tuple[float, float]] = {
     "fra_": (0.0, 10.0),  # -
     "T_": (-50.0, 80.0),  # °C
 }
+#: The prefixes of :data:`PHYSICAL_LIMITS` whose upper limit grows with the building's size.
+_SIZED = ("C_", "gA")
+
+
+def physical_limits(model, params: Mapping[str, float]) -> tuple[dict, float]:
+    """:data:`PHYSICAL_LIMITS` for the building a fit describes, and its size ``s``.
+
+    ``s = max(1, UA / REFERENCE_HLC)``, ``UA`` [W/K] the fit's largest heat-loss coefficient
+    (:func:`heat_loss_coefficients`; 1 without one, or where it is not finite and positive):
+    the upper limits of capacities ``C_*`` and apertures ``gA*`` are ``s`` times their
+    defaults, as :func:`~jaxbox.models.scaled_parameter` scales their bounds, so that a large
+    building's own bounds never lie beyond what the verdict calls physical.
+    """
+    from ..models import REFERENCE_HLC
+
+    ua = [v for v, _ in heat_loss_coefficients(model, params).values() if 0 < v < math.inf]
+    s = max(1.0, max(ua, default=0.0) / REFERENCE_HLC)
+    limits = {
+        k: (lo, hi * s) if k in _SIZED else (lo, hi) for k, (lo, hi) in PHYSICAL_LIMITS.items()
+    }
+    return limits, s
 
 
 @dataclasses.dataclass(frozen=True)
@@ -326,6 +352,8 @@ class _Judged:
     bound_tol: float
     tau_range: tuple[float, float]
     limits: dict
+    own_limits: dict
+    size: float
     residuals: object
     check_intervals: bool
     validation: object
@@ -467,11 +495,14 @@ def _check_physical(ctx: _Judged) -> list[Flag]:
         unit = ctx.specs[n].unit
         open_low = n.startswith("R_") and lo == 0
         if (v <= lo if open_low else v < lo) or v > hi:
+            size = ""
+            if ctx.size > 1.0 and n.startswith(_SIZED) and _limit(n, ctx.own_limits) is None:
+                size = f" for its heat-loss coefficient, {ctx.size:.3g} × the reference's"
             flags.append(
                 Flag(
                     "non_physical",
                     (n,),
-                    f"{n} = {_fmt(v, unit)} is not physical for a building (expected "
+                    f"{n} = {_fmt(v, unit)} is not physical for a building{size} (expected "
                     f"{'>' if open_low else '≥'} {lo:g} and ≤ {hi:g} {unit})",
                 )
             )
@@ -805,6 +836,8 @@ def _judged(result, uncertainty, **options) -> _Judged:
     )
     tau = np.asarray(time_constants(model, result.params)[0] if finite else [], dtype=float)
     A = _state_matrix(model, result.params) if finite else None
+    own = options.pop("limits")
+    sized, size = physical_limits(model, result.params) if finite else (PHYSICAL_LIMITS, 1.0)
     no_intervals = None
     if options["check_intervals"] and uncertainty is None and not failed:
         from ._uncertainty import uncertainty as _uncertainty
@@ -822,6 +855,9 @@ def _judged(result, uncertainty, **options) -> _Judged:
         A=A,
         uncertainty=uncertainty if options["check_intervals"] else None,
         no_intervals=no_intervals,
+        limits={**sized, **own},
+        own_limits=own,
+        size=size,
         **options,
     )
 
@@ -882,7 +918,8 @@ def check_validity(
             scale: logarithmic for R and C) from a bound is *near* the bound.
         tau_range: acceptable time constants [s] (default 1 s … 10 years).
         limits: physical limits per parameter name or name prefix (SI), merged over
-            :data:`PHYSICAL_LIMITS`; the lower limit of ``R_`` is exclusive.
+            :data:`PHYSICAL_LIMITS` as sized for the fitted building (:func:`physical_limits`);
+            the lower limit of ``R_`` is exclusive.
         residuals: an optional :class:`~jaxbox.validate.ResidualAnalysis`; non-white residuals
             add a warning (never invalidate).
         check_intervals: skip the interval and identifiability checks when False.
@@ -937,7 +974,7 @@ def check_validity(
         ),
         bound_tol=check_fraction(bound_tol, "bound_tol", upper=0.5),
         tau_range=check_range(tau_range, "tau_range", "s", lower=0.0),
-        limits={**PHYSICAL_LIMITS, **_limits(limits)},
+        limits=_limits(limits),
         residuals=check_instance(
             residuals, ResidualAnalysis, "residuals", "jaxbox.validate.analyse_residuals"
         ),

@@ -283,6 +283,24 @@ def test_a_meter_given_as_power_names_counter():
     assert found.kind == "counter" and "--counter Q_hea=kWh" in found.message
 
 
+def test_the_meter_of_a_heating_that_runs_a_fifth_of_the_time_is_a_counter():
+    """An office's heat meter rises only while the heating runs (here 5 of 24 hours); held
+    still the rest of the time it still never falls. A power that rises less often than
+    :data:`COUNTER_RISING` of its steps, or fewer than :data:`COUNTER_RISES` times, is not
+    taken for one."""
+    from jaxbox.data._counters import COUNTER_RISES, COUNTER_RISING, rising_share
+
+    on = (np.arange(N) % 24 >= 7) & (np.arange(N) % 24 < 12)
+    meter = 120.0 + np.cumsum(np.where(on, 3.2, 0.0))  # kWh
+    (found,) = _findings(frame(Q_hea=meter), "Q_hea")
+    assert found.kind == "counter" and "rises in 21 %" in found.message, found.message
+    assert rising_share(meter) == pytest.approx(np.mean(np.diff(meter) > 0))
+    rare = 120.0 + np.cumsum(np.arange(N) % 24 == 7)  # rises once a day: 4 times
+    assert 0 < np.count_nonzero(np.diff(rare)) < COUNTER_RISES and rising_share(rare) is None
+    few = 120.0 + np.cumsum(np.arange(N) % 24 == 7) + np.cumsum(np.arange(N) % 24 == 19)
+    assert np.mean(np.diff(few) > 0) < COUNTER_RISING and rising_share(few) is None
+
+
 def test_the_gain_of_an_input_is_found_from_the_state_space():
     import jaxbox
     from jaxbox.select._cases import _gain_inputs

@@ -23,9 +23,13 @@ from ._errors import DataError
 __all__ = ["COUNTER_UNITS", "counters_to_power", "rising_share"]
 
 #: A power column is an energy counter when it never falls (at this share of its steps: a
-#: reset or two allowed) and rises at this share of them.
+#: reset or two allowed) and rises at this share of them, and at least this many times: the
+#: meter of a heating that runs a tenth of the time still rises at a tenth of its steps
+#: (an office's, off at night and at weekends: 40 % of its hours), and no power logged as it
+#: is holds still or climbs through a whole record without falling once.
 COUNTER_MONOTONE = 0.99
-COUNTER_RISING = 0.5
+COUNTER_RISING = 0.1
+COUNTER_RISES = 6
 
 
 def rising_share(values: np.ndarray) -> float | None:
@@ -38,6 +42,8 @@ def rising_share(values: np.ndarray) -> float | None:
         return None
     rising = float(np.mean(steps > 0))
     if np.mean(steps >= 0) < COUNTER_MONOTONE or rising < COUNTER_RISING:
+        return None
+    if np.count_nonzero(steps > 0) < COUNTER_RISES:
         return None
     return rising
 

@@ -197,6 +197,30 @@ def test_irregular_sampling_suggests_a_grid_as_fine_as_the_data(step, rule) -> N
         load(df)
 
 
+def test_hourly_stamps_that_jitter_with_rows_missing_resample_hourly() -> None:
+    """A logger that stamps hourly within ±5 minutes and loses a third of its rows: the
+    median step (3829 s here) lies above the hour, but the logger's own step is the hour; the
+    error suggests it, and resample='1h' averages onto it (lost rows become gaps)."""
+    from jaxbox.data._checks import nominal_step
+
+    rng = np.random.default_rng(0)
+    n = 240
+    kept = rng.random(n) > 0.35
+    t = pd.Timestamp("2020-01-01") + pd.to_timedelta(
+        3600 * np.arange(n) + rng.integers(-300, 300, n), unit="s"
+    )
+    df = pd.DataFrame({"time": t, "T_zon": 20.0 + np.sin(np.arange(n) / 5)})[kept]
+    index = pd.DatetimeIndex(df["time"]).as_unit("ns")
+    assert np.median(np.diff(index.asi8)) * 1e-9 > 3600 * 1.05
+    assert nominal_step(index) == pytest.approx(3600, rel=0.05)
+    with pytest.raises(DataError, match=r"irregular sampling.*resample='1h'\)"):
+        load(df)
+    ds = load(df, resample="1h")
+    assert ds.step == 3600.0 and 0.2 < np.isnan(ds["T_zon"]).mean() < 0.5
+    with pytest.raises(DataError, match="shorter than the sampling step"):
+        load(df, resample="30min")  # half the logger's step: not an average
+
+
 def test_local_time_with_utc_offsets_across_a_clock_change() -> None:
     """Local time stamps with their offsets (summer time +02:00, then +01:00) are instants: they
     are read onto one regular grid at the first offset, with a warning naming the offsets."""

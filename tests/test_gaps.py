@@ -519,3 +519,27 @@ def test_data_with_an_output_gap_batch_with_data_without_one():
         assert r.cost == pytest.approx(alone.cost, rel=1e-6)
         for k, v in alone.params.items():
             assert r.params[k] == pytest.approx(v, rel=1e-5), k
+
+
+def test_a_window_cut_into_dozens_of_segments_is_refused_with_the_max_gap_that_joins_them():
+    """A sensor that loses a sample or three every few hours: each gap beyond max_gap would
+    start a segment with initial states of its own (dozens of short experiments). More than
+    MAX_CUTS such gaps are refused, naming the max_gap that interpolates all but a few; with
+    it the window is one piece or a few."""
+    from jaxbox.data._gaps import MAX_CUTS
+
+    n = 400
+    u = inputs(n)
+    data = simulated(u, INIT[0], "2024-01-01")
+    frame = data.frame.copy()
+    rng = np.random.default_rng(3)
+    starts = np.sort(rng.choice(np.arange(5, n - 10, 9), MAX_CUTS + 6, replace=False))
+    for k, a in enumerate(starts):
+        frame.iloc[a : a + 2 + k % 2, frame.columns.get_loc("T_amb")] = np.nan  # 2 or 3 h
+    holed = Dataset.from_arrays(np.arange(n) * STEP, dict(frame.items()), start="2024-01-01")
+    cols = (["T_amb", "Q_hea", "I_glo_hor"], ["T_zon"])
+    with pytest.raises(DataError, match=r"would split into \d+ segments.*max_gap='3h'") as err:
+        prepare_window(holed, *cols, what="identification data", warn=False)
+    assert f"at {len(starts)} input gaps longer than max_gap (1 h; 2 h to 3 h)" in str(err.value)
+    joined = prepare_window(holed, *cols, max_gap="3h", warn=False)
+    assert len(joined.segments) == 1 and len(joined) == n

@@ -21,6 +21,7 @@ from ._dataset import Dataset as Dataset
 from ._errors import DataError as DataError
 from ._errors import DataWarning as DataWarning
 from ._gaps import DEFAULT_MAX_GAP as DEFAULT_MAX_GAP
+from ._gaps import MAX_CUTS as MAX_CUTS
 from ._gaps import concat_periods as concat_periods
 from ._gaps import prepare_window as prepare_window
 from ._load import as_dataset as as_dataset

@@ -378,6 +378,26 @@ def median_step(index: pd.DatetimeIndex) -> float:
     return float(np.median(np.diff(index.asi8))) * 1e-9
 
 
+#: How far [share] jittered time stamps may lift the logger's own step above its grid's: a
+#: grid that much finer than :func:`nominal_step` is still the logger's.
+JITTER = 0.1
+
+
+def nominal_step(index: pd.DatetimeIndex) -> float:
+    """The logger's own step [s]: the median of the steps in the shortest cluster (those up to
+    1.5 times the 10th percentile of the steps). The median step itself for a regular index;
+    for stamps that jitter around a grid with rows missing (steps of one, two, three grid
+    steps), the grid's step, where the median of all steps lies above it."""
+    if len(index) < 2:
+        return float("nan")
+    steps = np.diff(index.asi8) * 1e-9
+    steps = steps[steps > 0]
+    if not steps.size:
+        return float("nan")
+    short = steps[steps <= 1.5 * np.percentile(steps, 10)]
+    return float(np.median(short))
+
+
 def irregular_position(index: pd.DatetimeIndex) -> int | None:
     """Position of the first sample whose step from the previous one differs from the median."""
     if len(index) < 3:
@@ -421,13 +441,14 @@ def check_regular(index: pd.DatetimeIndex, where: Where = _position) -> None:
     raise DataError(
         f"irregular sampling: the step from {index[i - 1]} to {index[i]} ({where(i)}) is "
         f"{fmt_seconds(this)} but the median step is {fmt_seconds(step)}; pass resample= "
-        f"(e.g. resample='{_rule_hint(step)}') to average onto a regular grid."
+        f"(e.g. resample='{_rule_hint(nominal_step(index))}') to average onto a regular grid."
     )
 
 
 def _rule_hint(step: float) -> str:
-    """The finest usual grid not finer than ``step`` [s] (``"15min"`` for 15-minute data with
-    jittered time stamps), so that resampling keeps the data's resolution."""
+    """The finest usual grid not finer than ``step`` [s], give or take :data:`JITTER`
+    (``"15min"`` for 15-minute data with jittered time stamps, ``"1h"`` for hourly stamps
+    that jitter by minutes), so that resampling keeps the data's resolution."""
     for seconds, rule in (
         (60, "1min"),
         (300, "5min"),
@@ -436,9 +457,9 @@ def _rule_hint(step: float) -> str:
         (1800, "30min"),
         (3600, "1h"),
     ):
-        if step <= seconds * (1 + 1e-6):
+        if step <= seconds * (1 + JITTER):
             return rule
-    return f"{int(np.ceil(step / 3600 - 1e-6))}h"
+    return f"{int(np.ceil(step / 3600 / (1 + JITTER)))}h"
 
 
 def to_float(frame: pd.DataFrame, where: Where = _position) -> pd.DataFrame:

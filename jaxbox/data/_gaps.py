@@ -34,6 +34,7 @@ from ._signals import signal_base
 
 __all__ = [
     "DEFAULT_MAX_GAP",
+    "MAX_CUTS",
     "MIN_SEGMENT",
     "concat_periods",
     "duration_seconds",
@@ -49,6 +50,10 @@ DEFAULT_MAX_GAP = 3600.0
 MIN_SEGMENT = 4
 #: More interpolated gaps than this in the same input(s) are reported in one summary note.
 MAX_GAP_NOTES = 5
+#: More cuts than this in one window are refused: each segment's initial states are estimated
+#: on their own, so a record with a sample lost every few hours (a wireless sensor) would be
+#: fitted as dozens of short experiments, slowly and poorly determined.
+MAX_CUTS = 20
 _TOL = 1e-6
 
 
@@ -191,8 +196,10 @@ def prepare_window(
         each cut; its segments are :attr:`Dataset.segments`.
 
     Raises:
-        DataError: no segment of at least :data:`MIN_SEGMENT` samples is left, or an output is
-            missing in every sample of the window.
+        DataError: no segment of at least :data:`MIN_SEGMENT` samples is left, an output is
+            missing in every sample of the window, or more than :data:`MAX_CUTS` input gaps
+            are longer than ``max_gap`` (the message names the ``max_gap`` that interpolates
+            most of them).
     """
     from ._dataset import Dataset
 
@@ -248,6 +255,9 @@ def prepare_window(
                 f"{what}: {which} missing {span}, longer than max_gap ({limit / 3600:g} h): "
                 "the window splits into segments there"
             )
+    cuts = sorted((b - a) * step for (kind, a, b) in found if kind == "cut")
+    if len(cuts) > MAX_CUTS:
+        raise DataError(_too_many_cuts(what, cuts, limit, step))
     if not filled and keep.all():
         out = data
     else:
@@ -290,6 +300,23 @@ def prepare_window(
         for note in notes:
             warnings.warn(note + ".", DataWarning, stacklevel=3)
     return out
+
+
+def _too_many_cuts(what: str, cuts: list[float], limit: float, step: float) -> str:
+    """Why a window with more than :data:`MAX_CUTS` input gaps longer than ``max_gap`` is
+    refused, and the ``max_gap`` that would interpolate all but a few of them."""
+    keep = MAX_CUTS // 2  # gaps left to cut at the suggested max_gap
+    longest = cuts[-keep - 1]  # the longest gap that it interpolates
+    hours = longest / 3600.0
+    text = f"{hours:g}h" if hours == int(hours) else f"{round(longest / 60):d}min"
+    return (
+        f"{what} would split into {len(cuts) + 1} segments at {len(cuts)} input gaps longer "
+        f"than max_gap ({limit / 3600:g} h; {_duration(round(cuts[0] / step), step)} to "
+        f"{_duration(round(cuts[-1] / step), step)}), each segment with initial states of its "
+        f"own: interpolate the short gaps, max_gap='{text}' (command line --max-gap {text}: "
+        f"{len(cuts) - keep} of the {len(cuts)} gaps are that short), or average onto a "
+        "coarser grid (resample=, --resample)"
+    )
 
 
 def concat_periods(periods: Sequence) -> object:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ._checks import fmt_seconds, irregular_position
+from ._checks import JITTER, fmt_seconds, irregular_position, nominal_step
 from ._errors import DataError
 
 __all__ = ["resample_mean", "rule_seconds"]
@@ -45,17 +45,22 @@ def resample_mean(
 ) -> pd.DataFrame:
     """Mean of ``frame`` over right-closed intervals of length ``rule`` labelled at the right edge.
 
-    ``step`` [s] is the sampling step of ``frame`` (its median step). Incomplete intervals at the
-    start or end are dropped; an interval without any value of a column is a gap (NaN).
+    ``step`` [s] is the sampling step of ``frame`` (its median step; for irregular stamps the
+    rule is checked against the logger's own step, :func:`~jaxbox.data._checks.nominal_step`,
+    since rows missing from a jittered grid lift the median above it). Incomplete intervals at
+    the start or end are dropped; an interval without any value of a column is a gap (NaN).
     """
     offset, width = rule_seconds(rule)
-    if width < step * (1 - _TOL):
+    regular = irregular_position(frame.index) is None
+    # jittered stamps, rows missing: the logger's own step, give or take its jitter
+    logged = step if regular else nominal_step(frame.index) / (1 + JITTER)
+    if width < logged * (1 - _TOL):
         raise DataError(
             f"resample rule {rule!r} ({fmt_seconds(width)}) is shorter than the sampling step "
-            f"({fmt_seconds(step)}); resampling only averages onto a coarser grid."
+            f"({fmt_seconds(logged)}); resampling only averages onto a coarser grid."
         )
     ratio = width / step
-    if irregular_position(frame.index) is None and abs(ratio - round(ratio)) > _TOL * ratio:
+    if regular and abs(ratio - round(ratio)) > _TOL * ratio:
         raise DataError(
             f"resample rule {rule!r} ({fmt_seconds(width)}) is not a whole multiple of the "
             f"sampling step ({fmt_seconds(step)}); choose a multiple so that every interval "

@@ -15,12 +15,14 @@ import pytest
 
 from jaxbox.data import Dataset
 from jaxbox.fit import fit_batch, fit_many, fit_model
+from jaxbox.models import get_model
 from jaxbox.simulate import simulate_model
 from jaxbox.validate import (
     fit_report,
     hlc_interval,
     kpis,
     near_best,
+    record_conductance,
     robust_covariance,
     uncertainty,
 )
@@ -350,18 +352,22 @@ def test_an_offset_beside_an_unused_boundary_is_named():
     # mean (6 °C, the cellar near 12 °C) it reaches up by less: a lower bound of that loss
     own = kpis(fits["Zon+Int+Off"], interval="hac").hlc
     true_hlc = 1 / truth["R_wal"] + 1 / truth["R_bou"]
+    record, _ = record_conductance(types.SimpleNamespace(result=fits["Zon+Int+Off"]))
     for d, h in ((data, added), (unmeasured, at_outdoor)):
         got = _interval(fits["Zon+Int+Off"], d)
         assert got.value == pytest.approx(own.value, rel=1e-9)
         assert got.ci95[0] == pytest.approx(own.ci95[0], rel=1e-9)
-        assert got.ci95[1] == pytest.approx(own.ci95[1] + h, rel=1e-3)
+        # up by the offset's conductance, or to the conductance the record shows if higher
+        assert got.ci95[1] == pytest.approx(max(own.ci95[1] + h, record), rel=1e-3)
         assert "offset read as a conductance" in got.method and got.method in got.text()
     assert own.ci95[1] < true_hlc <= _interval(fits["Zon+Int+Off"], data).ci95[1]
     assert own.ci95[1] + 10.0 < _interval(fits["Zon+Int+Off"], unmeasured).ci95[1] < true_hlc
     for name in ("Zon+BouC", "Zon+Off"):
         own = kpis(fits[name], interval="hac").hlc
         got = _interval(fits[name], data)
-        assert got.ci95 == pytest.approx(own.ci95, rel=1e-9) and "offset" not in got.method
+        up = max(own.ci95[1], record_conductance(types.SimpleNamespace(result=fits[name]))[0])
+        assert got.ci95 == pytest.approx((own.ci95[0], up), rel=1e-9)
+        assert "offset" not in got.method
     # an offset takes a constant unmeasured input itself: no line per 100 W of it
     assert _interval(fits["Zon+Int+Off"], data).per_100_w is None
     assert _interval(fits["Zon+BouC"], data).per_100_w is not None
@@ -397,6 +403,48 @@ def test_unmeasured_heat_lowers_the_hlc_by_its_mean_over_the_zones_excess():
     assert doc["zone_excess"] == got.zone_excess
     assert line in got.text() and line in _hlc_text(doc)
     assert line[1:] in "".join(_hlc_section(sel))
+
+
+def test_the_interval_reaches_up_to_the_conductance_the_record_shows():
+    """The data show the response over the record only: the interval's upper end is at least
+    H(T), the conductance the accepted model shows after the record's length T (a step of
+    heat, every other input held), which bounds the steady state from above. Checked
+    against the analytic step response of one node, R (1 − e^(−T/RC)), and against the
+    exact simulation of a two-node model; a model that settles well within its record keeps
+    its own interval."""
+    rng = np.random.default_rng(5)
+    n = 120
+    t, u = _inputs(rng, n)
+    clean = Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
+    truth = {"C_zon": 4e7, "R_wal": 0.01, "gA": 2.0, "T_zon0": 20.0}  # τ = 111 h, T = 119 h
+    y = simulate_model("Zon", truth, clean).y[:, 0]
+    slow = fit_model("Zon", clean.with_columns(T_zon=y + rng.normal(0, 0.05, n)), starts=2)
+    h, span = record_conductance(types.SimpleNamespace(result=slow))
+    r, c = slow.params["R_wal"], slow.params["C_zon"]
+    assert span == (n - 1) * STEP
+    assert h == pytest.approx(1 / (r * (1 - math.exp(-span / (r * c)))), rel=1e-9)
+    got = _interval(slow, slow.data)
+    own = kpis(slow, interval="hac").hlc
+    assert own.ci95[1] < h and got.ci95 == pytest.approx((own.ci95[0], h), rel=1e-9)
+    assert "conductance the record shows" in got.method
+    # two nodes: the zone's rise after T under a step of 1 W, simulated exactly
+    theta = {"C_zon": 2e6, "C_wal": 3e7, "R_wal": 0.01, "R_int": 0.002, "C_int": 5e7}
+    theta |= {"gA": 1.0, "T_zon0": 0.0, "T_wal0": 0.0, "T_int0": 0.0}
+    model = "Zon+Wal+Int"
+    fit = types.SimpleNamespace(model=get_model(model), params=theta, data=clean)
+    step = clean.with_columns(
+        T_amb=np.zeros(n), Q_hea=np.ones(n), I_glo_hor=np.zeros(n), T_zon=np.zeros(n)
+    )
+    rise = simulate_model(model, theta, step).y[-1, 0]
+    h2, _ = record_conductance(types.SimpleNamespace(result=fit))
+    assert h2 == pytest.approx(1 / rise, rel=1e-6)
+    # a model that settles within hours: its own interval stands
+    fast = dict(truth, C_zon=2e6)  # τ = 5.6 h
+    y = simulate_model("Zon", fast, clean).y[:, 0]
+    quick = fit_model("Zon", clean.with_columns(T_zon=y + rng.normal(0, 0.05, n)), starts=2)
+    got = _interval(quick, quick.data)
+    assert got.ci95 == pytest.approx(kpis(quick, interval="hac").hlc.ci95, rel=1e-9)
+    assert "record shows" not in got.method
 
 
 def _interval(result, data):

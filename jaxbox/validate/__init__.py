@@ -3,6 +3,7 @@
 from ._hlc import HlcInterval as HlcInterval
 from ._hlc import hlc_interval as hlc_interval
 from ._hlc import near_best as near_best
+from ._hlc import record_conductance as record_conductance
 from ._hlc_hac import RobustCovariance as RobustCovariance
 from ._hlc_hac import robust_covariance as robust_covariance
 from ._hlc_outdoor import OutdoorHLC as OutdoorHLC

@@ -20,6 +20,15 @@ one to an unmeasured boundary such as the ground, at the outdoor air's mean temp
 lower bound of that conductance: see :func:`_offset_readings`). The interval reaches up to the
 accepted model's own moved up by that conductance: both readings of the offset fit the data.
 
+**The record's length.** The HLC is a steady state; the data show the building's response
+only over the identification record. An RC network's zone warms monotonically under a step of
+heat (every node's capacity and conductance positive), so the conductance it shows after the
+record's length ``T``, ``H(T) = 1 / θ(T)`` (``θ`` the zone's rise per watt after ``T``, every
+other input held), bounds its steady state from above; below ``H(T)``, how much more the zone
+would warm after ``T`` is the model's extrapolation, which its own interval takes on trust.
+The interval reaches up to the accepted model's ``H(T)`` (:func:`record_conductance`), an
+allowance that matters where the slowest time constant is not short against the record.
+
 **Unmeasured heat.** A model without an offset explains the warmth of heat the data do not
 measure (occupants, appliances) by a lower HLC: over the record the balance ``HLC · ΔT̄ =`` the
 mean heat input holds, so a mean unmeasured input ``G`` [W] takes ``G / ΔT̄`` off the HLC, ``ΔT̄``
@@ -42,7 +51,7 @@ from ._hlc_hac import HAC
 if TYPE_CHECKING:
     from ._hlc_outdoor import OutdoorHLC
 
-__all__ = ["HlcInterval", "hlc_interval", "near_best", "NEAR_BEST"]
+__all__ = ["HlcInterval", "hlc_interval", "near_best", "record_conductance", "NEAR_BEST"]
 
 #: what the HLC's line says where its interval is wider than the verdicts allow a parameter's
 NOT_DETERMINED = "; not determined by these data: quote the interval, not the value"
@@ -345,6 +354,15 @@ def hlc_interval(
         extra = max(h for h, _ in readings)
         hi = max(hi, models[0]["ci95"][1] + extra)
         method += f" + the offset read as a conductance the model leaves out (+{extra:.3g} W/K)"
+    # the record shows the building's response up to its length: the steady state the model
+    # extrapolates from it may lie anywhere up to the conductance the record itself shows
+    record = record_conductance(cases[0])
+    if record is not None and record[0] > hi:
+        hi = record[0]
+        method += (
+            f" + up to the conductance the record shows ({record[0]:.3g} W/K after "
+            f"{record[1] / 3600:.3g} h)"
+        )
     if lo < 0:  # a heat-loss coefficient is not negative: the data leave it unbounded below
         warns.append(
             f"the interval reaches {lo:.3g} W/K, below 0: the data do not bound the HLC from "
@@ -368,6 +386,40 @@ def hlc_interval(
         f"±{100 * _verdict.MAX_REL_CI:.0f} %): the data hardly determine it"
     )
     return dataclasses.replace(out, warnings=(*out.warnings, undetermined))
+
+
+def record_conductance(case) -> tuple[float, float] | None:
+    """``(H(T) [W/K], T [s])``: the conductance a case's model shows after the length ``T`` of
+    the longest segment of its identification data, ``1 / θ(T)`` with ``θ(T)`` [K/W] the rise
+    of the zone its heat input warms most, ``T`` after a step of one watt with every other input
+    held: ``θ(T) = c (A⁻¹ (e^{AT} − I) b)`` over the nodes not held constant. It tends to the
+    HLC as ``T`` grows and lies above it, by how far the model's response was still rising at
+    the record's end. ``None`` for a model with no heat input or several, or a response that
+    is not a finite rise."""
+    from scipy.linalg import expm
+
+    result = case.result
+    model = result.model
+    heat = _verdict._heat_inputs(model)
+    if len(heat) != 1:
+        return None
+    params = {k: float(v) for k, v in result.params.items()}
+    A, B, C, _ = model.state_space_numpy(params)
+    dyn = [i for i, n in enumerate(model.network.nodes) if not n.constant]
+    A, b, C = A[np.ix_(dyn, dyn)], B[dyn, model.inputs.index(heat[0])], C[:, dyn]
+    t = np.asarray(result.data.t, dtype=float)
+    span = max((t[stop - 1] - t[start] for start, stop in result.data.segments), default=0.0)
+    if not span > 0:
+        return None
+    try:
+        rise = C @ np.linalg.solve(A, (expm(A * span) - np.eye(len(A))) @ b)
+        steady = C @ np.linalg.solve(-A, b)
+    except np.linalg.LinAlgError:
+        return None
+    k = int(np.argmax(steady))  # the zone it warms most, as the HLC's own
+    if not (np.isfinite(rise[k]) and rise[k] > 0):
+        return None
+    return 1.0 / float(rise[k]), float(span)
 
 
 #: the least mean difference [K] between the zone and a boundary for which an offset is read as

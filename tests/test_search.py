@@ -731,6 +731,25 @@ def test_a_window_of_many_short_steps_gets_a_note_on_resampling(building, monkey
     assert lines[0].startswith("structure search") and lines[1] == note, lines[:2]
 
 
+def test_heating_off_through_the_identification_half_leaves_no_valid_model():
+    """A zoo building whose heating never runs in its identification half (z001 of five
+    days): the data fix the time constants but not the scale of the capacities, resistances
+    and apertures. A reduction must not fix a capacity at its estimate there ("settled": its
+    lag seen, itself not), which would set that scale and make a resistance look determined:
+    Zon+Wal so reduced was accepted with an HLC of 9600 W/K against the building's 245."""
+    from jaxbox.select._cases import idle_heat_inputs
+
+    (b,) = jaxbox.datasets.make_zoo(2, seed=0, step="60min", days=5, zones=(1,))[1:]
+    gb = GreyBox(b.data, name=b.name)
+    assert np.all(gb.ident.array(["Q_hea"])[np.isfinite(gb.ident.array(["Q_hea"]))] == 0.0)
+    search = structure_search(gb, starts=4)
+    assert search.accepted is None
+    judged = [c for c in gb.cases.values() if c.verdict is not None]
+    assert judged and idle_heat_inputs(judged)
+    for case in judged:
+        assert "settled at" not in " ".join(case.notes), (case.name, case.notes)
+
+
 # ---- a building of any size ---------------------------------------------------------------------
 
 

@@ -273,10 +273,15 @@ def settled(case) -> list[Fix]:
     """Capacities that only intervals make the case invalid for, of nodes whose lag the data see
     but not the capacity: a fast node (own time constant ``C/ΣG`` under two sampling steps), or
     a node whose time constant is determined (its 95 % interval within
-    :data:`~jaxbox.validate.MAX_REL_CI`) while ``C`` is not: fixed at the estimate."""
+    :data:`~jaxbox.validate.MAX_REL_CI`) while ``C`` is not: fixed at the estimate. None where
+    every heat input is idle (:func:`~jaxbox.select._cases.idle_heat_inputs`): there every
+    time constant is determined and no capacity, resistance or aperture is (only their
+    ratios), and a capacity fixed at its estimate would set a scale the data leave free."""
+    from ._cases import idle_heat_inputs
+
     blurred = _blurred(case)
     caps = sorted(n for n in blurred if n.startswith("C_"))
-    if not caps:
+    if not caps or idle_heat_inputs([case]):
         return []
     params = {k: float(v) for k, v in case.result.params.items()}
     tau = own_time_constants(case.model, params)

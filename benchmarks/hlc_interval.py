@@ -7,8 +7,8 @@ run, and the accepted model's heat-loss coefficient is given three intervals (95
 * **HAC**: the delta method on the prewhitened Newey–West covariance
   (:func:`jaxbox.validate.robust_covariance`);
 * **new**: HAC, widened to the union of the intervals of the near-best valid structures and
-  up by the conductance an offset may be (:func:`jaxbox.validate.hlc_interval`; what
-  ``select`` reports now).
+  up by the conductance an offset may be, and up to the conductance the record shows after
+  its length (:func:`jaxbox.validate.hlc_interval`; what ``select`` reports now).
 
 Buildings:
 
@@ -165,7 +165,8 @@ def markdown(doc: dict) -> str:
         "the old report), *HAC* (delta method on the prewhitened Newey–West covariance) and "
         "*new* (HAC, widened to the union over the valid structures of the search within its "
         "margin, 2 %, of the accepted one's criterion, and up by the conductance an offset may "
-        "be where the accepted model's is a loss: what `select` reports); for comparison "
+        "be where the accepted model's is a loss, and up to the conductance the record shows "
+        "after its length, `record_conductance`: what `select` reports); for comparison "
         f"the same union within {100 * WIDE:.0f} %. Coverage: the share of buildings whose "
         "interval holds the reference; half-width: median, % of the value.",
         "",
@@ -180,7 +181,7 @@ def markdown(doc: dict) -> str:
     label = {
         "white": "white (old)",
         "hac": "HAC",
-        "new": "HAC + near-best (2 %): new",
+        "new": "HAC + near-best (2 %) + offset + record: new",
         "wide": f"HAC + near-best ({100 * WIDE:.0f} %)",
     }
     for kind in ("zoo", "windows", "office"):

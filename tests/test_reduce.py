@@ -65,7 +65,10 @@ def _judged(name, *flags, at=None, grammar=GRAMMAR):
     )
 
 
-_HOURLY = SimpleNamespace(t=np.arange(240) * 3600.0)
+# ten days, hourly, the heating running (an idle heating leaves no capacity to settle)
+_HOURLY = jaxbox.data.Dataset.from_arrays(
+    np.arange(240) * 3600.0, {"Q_hea": 800.0 * (np.arange(240) % 5 > 2)}
+)
 
 
 def _bound(name):
@@ -149,6 +152,19 @@ def test_a_heater_whose_lag_is_undetermined_is_merged_into_the_zone(monkeypatch)
     # a resistance of another node, undetermined, is no such reason (the envelope's; a
     # boundary's is cut, see below)
     assert _reduce("Zon+Wal+Int+Bou", _wide("R_wal")) is None
+
+
+def test_no_capacity_is_settled_where_the_heating_is_idle():
+    """With every heat input 0 W the data fix time constants and ratios, not the scale: a fast
+    heater's blurred capacity, settled when the heating runs, is left alone (fixing it would set
+    the scale the data leave free)."""
+    from jaxbox.select._reduce import settled
+
+    fast = {"C_hea": 1e-4, "R_hea": 1e-5}
+    case = _judged("Zon+Int+Bou+Hea+WinS+Sol", _wide("R_hea"), _wide("C_hea"), at=fast)
+    assert [f.name for f in settled(case)] == ["C_hea"]
+    case.ident = case.ident.with_columns(Q_hea=np.zeros(len(case.ident)))
+    assert settled(case) == []
 
 
 def test_a_mass_whose_coupling_is_undetermined_is_merged_and_the_zone_takes_its_capacity(

@@ -144,6 +144,52 @@ def test_heat_demand_form_recovers_the_hlc_and_the_search_says_so():
     assert f"{best.structure} in its heat-demand form" in page
 
 
+def test_the_heat_demand_form_reaches_up_to_the_conductance_the_record_shows():
+    """The heat a held zone takes per kelvin T after a step of its temperature (the other
+    nodes charging from rest): the zone's direct conductances at T = 0, the HLC as T grows,
+    falling in between, and equal to an ODE integration of the other nodes (solve_ivp). The
+    form's interval reaches up to it after the identification record's length (_judged)."""
+    from scipy.integrate import solve_ivp
+
+    from jaxbox.models import Grammar, parse_structure
+    from jaxbox.select._heat_demand import Problem, _Network
+
+    data = load(simulate(10, control="held"))
+    problem = Problem(data, (data.start, data.end))
+    grammar = Grammar.from_columns(data.columns)
+    net = _Network(parse_structure("Zon+Wal+Int"), grammar, problem, {})
+    theta = {**{n: net.model.parameter(n).default for n in net.names}}
+    theta.update(C_zon=2e6, C_wal=3e7, C_int=8e6, R_wal=0.01, R_int=0.002)
+    A, _, caps = net.matrices(theta)
+    z, o = net.z, net.o
+    assert net.hlc_after(theta, 0.0) == pytest.approx(-caps[z] * A[z, z], rel=1e-12)
+    assert net.hlc_after(theta, 1e9) == pytest.approx(net.hlc(theta), rel=1e-9)
+    times = [3600.0, 6 * 3600.0, 48 * 3600.0, 240 * 3600.0]
+    seen = [net.hlc_after(theta, t) for t in times]
+    assert all(a > b for a, b in zip(seen, seen[1:], strict=False)) and seen[-1] > net.hlc(theta)
+    Aoo, Aoz = A[np.ix_(o, o)], A[o, z]
+    ode = solve_ivp(
+        lambda t, x: Aoo @ x + Aoz,
+        (0, times[2]),
+        np.zeros(len(o)),
+        rtol=1e-10,
+        atol=1e-12,
+        method="Radau",
+    )
+    direct = -caps[z] * (A[z, z] + A[z, o] @ ode.y[:, -1])
+    assert seen[2] == pytest.approx(direct, rel=1e-6)
+    # a fit in the form: its interval's upper end is at least the conductance after its record
+    from jaxbox.select import heat_demand_fit
+
+    fit = heat_demand_fit("Zon+Wal", grammar, problem, starts=2)
+    shown = _Network(parse_structure("Zon+Wal"), grammar, problem, {}).hlc_after(
+        fit.params, float(np.count_nonzero(problem.ident)) * problem.dt
+    )
+    assert fit.hlc_interval[1] >= shown * (1 - 1e-9) and shown > fit.hlc
+    if "record shows" in fit.hlc_method:  # where it reaches beyond the statistical interval
+        assert fit.hlc_interval[1] == pytest.approx(shown, rel=1e-9)
+
+
 def test_coheating_steady_state_covers_the_hlc():
     data = load(simulate(control="constant", gains=150.0, noise_q=150.0, seed=3))
     assert float(np.std(data["T_zon"])) < 0.1

@@ -523,17 +523,15 @@ def load_for_model(args, opts: DataOptions, name: str, model):
 
     if not (is_structure_name(name) and name not in list_models()):
         sets = load_all(args, opts, model=model)
-        if len(sets) == 1:
-            model = sized_model(model, sets[0][2])
-        return sets, model
-    sets = load_all(args, opts, model_for=lambda columns: get_model(name, columns))
-    built = {get_model(name, data.columns).param_names for _, data, _, _ in sets}
-    if len(built) > 1:
-        raise UsageError(
-            f"--model {name} reads other columns in each DATA (its parameters differ: "
-            f"{' / '.join(', '.join(b) for b in sorted(built))}); fit them one at a time"
-        )
-    model = get_model(name, sets[0][1].columns)
+    else:
+        sets = load_all(args, opts, model_for=lambda columns: get_model(name, columns))
+        built = {get_model(name, data.columns).param_names for _, data, _, _ in sets}
+        if len(built) > 1:
+            raise UsageError(
+                f"--model {name} reads other columns in each DATA (its parameters differ: "
+                f"{' / '.join(', '.join(b) for b in sorted(built))}); fit them one at a time"
+            )
+        model = get_model(name, sets[0][1].columns)
     if len(sets) == 1:
         model = sized_model(model, sets[0][2])
     return sets, model

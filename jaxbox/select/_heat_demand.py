@@ -282,26 +282,23 @@ class _Network:
 
     def hlc(self, theta: dict) -> float:
         """Steady-state heat [W/K] the zone node loses per kelvin above the ambient."""
-        A, _, caps = self.matrices(theta)
-        z, o = self.z, self.o
-        row = A[z, z]
-        if o:
-            x = np.linalg.solve(A[np.ix_(o, o)], -A[o, z])
-            row = row + A[z, o] @ x
-        return float(-caps[z] * row)
+        return self.hlc_after(theta, None)
 
-    def hlc_after(self, theta: dict, seconds: float) -> float:
+    def hlc_after(self, theta: dict, seconds: float | None) -> float:
         """Heat [W/K] the zone node takes per kelvin ``seconds`` after its temperature steps
         up by one kelvin from rest, every other input held: the conductance a record of that
         length shows. The other nodes are then at ``A_oo⁻¹ (e^{A_oo t} − I) A_oz`` and still
-        taking heat, so it lies above :meth:`hlc`, its limit as ``t`` grows."""
+        taking heat, so it lies above :meth:`hlc`, its limit as ``t`` grows (``None``: that
+        steady state, the other nodes at ``−A_oo⁻¹ A_oz``)."""
         A, _, caps = self.matrices(theta)
         z, o = self.z, self.o
         row = A[z, z]
         if o:
             Aoo = A[np.ix_(o, o)]
-            x = np.linalg.solve(Aoo, (linalg.expm(Aoo * seconds) - np.eye(len(o))) @ A[o, z])
-            row = row + A[z, o] @ x
+            lag = (
+                -np.eye(len(o)) if seconds is None else linalg.expm(Aoo * seconds) - np.eye(len(o))
+            )
+            row = row + A[z, o] @ np.linalg.solve(Aoo, lag @ A[o, z])
         return float(-caps[z] * row)
 
 

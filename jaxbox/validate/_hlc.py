@@ -404,19 +404,22 @@ def record_conductance(case) -> tuple[float, float] | None:
     if len(heat) != 1:
         return None
     params = {k: float(v) for k, v in result.params.items()}
+    j = model.inputs.index(heat[0])
+    G = model.steady_state_gains(params)
+    if G is None:
+        return None
+    k = int(np.argmax(G[:, j]))  # the zone it warms most, as the HLC's own
     A, B, C, _ = model.state_space_numpy(params)
     dyn = [i for i, n in enumerate(model.network.nodes) if not n.constant]
-    A, b, C = A[np.ix_(dyn, dyn)], B[dyn, model.inputs.index(heat[0])], C[:, dyn]
+    A, b, C = A[np.ix_(dyn, dyn)], B[dyn, j], C[:, dyn]
     t = np.asarray(result.data.t, dtype=float)
     span = max((t[stop - 1] - t[start] for start, stop in result.data.segments), default=0.0)
     if not span > 0:
         return None
     try:
         rise = C @ np.linalg.solve(A, (expm(A * span) - np.eye(len(A))) @ b)
-        steady = C @ np.linalg.solve(-A, b)
     except np.linalg.LinAlgError:
         return None
-    k = int(np.argmax(steady))  # the zone it warms most, as the HLC's own
     if not (np.isfinite(rise[k]) and rise[k] > 0):
         return None
     return 1.0 / float(rise[k]), float(span)

@@ -552,3 +552,33 @@ def test_a_fast_mode_of_a_capacity_on_its_floor_names_it_and_fixed_there_is_a_no
     assert flag.parameters == ("C_zon",) and not flag.severe
     (flag,) = _check_time_constants(ctx(["C_wal"], lower * 1.2, 0.5))
     assert flag.parameters == () and flag.severe
+
+
+def test_the_data_check_is_remembered_by_the_data_s_content_not_its_shape(fitted_half, halves):
+    """A search judges many candidates on the same windows, so the data check's findings are
+    kept by content: the same values give the same flags without checking again, and other
+    values of the same shape (a validation window with a +60 K spike) are checked anew."""
+    from jaxbox.validate import _verdict
+
+    _verdict._FOUND.clear()
+    clean = validate(fitted_half, halves[1])
+    first = check_validity(fitted_half, validation=clean, check_intervals=False)
+    assert not any(f.kind == "implausible_data" for f in first.flags)
+    n = len(_verdict._FOUND)
+    assert n == 2  # the identification window and the validation window
+    again = check_validity(fitted_half, validation=clean, check_intervals=False)
+    assert [f.message for f in again.flags] == [f.message for f in first.flags]
+    assert len(_verdict._FOUND) == n
+    spiked = validate(fitted_half, _spiked(halves[1], 60.0))
+    v = check_validity(fitted_half, validation=spiked, check_intervals=False)
+    flags = [f for f in v.flags if f.kind == "implausible_data"]
+    assert flags and all(f.message.startswith("validation data") for f in flags)
+    assert len(_verdict._FOUND) == n + 1
+    # other options of the check are another entry too (a plausible range that admits it)
+    check_validity(
+        fitted_half,
+        validation=spiked,
+        check_intervals=False,
+        data_overrides={"T_zon": (-50.0, 150.0)},
+    )
+    assert len(_verdict._FOUND) == n + 3

@@ -23,8 +23,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import scipy.linalg
-import scipy.signal
 
 from ..data._args import check_count, check_real
 
@@ -310,6 +308,8 @@ def _simulate(model, theta, u, dt, loops=(), noise=None):
     n = len(u)
     G01 = G0 - G1
     if not loops:  # x_{k+1} = Φ x_k + d_k, mode by mode
+        import scipy.signal  # here: its import costs a command that never simulates ~1 s
+
         drive = u[:-1] @ G01.T + u[1:] @ G1.T
         w = np.vstack([x0, drive]) @ Ti.T  # modal coordinates
         z = np.empty_like(w)

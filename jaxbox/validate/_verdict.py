@@ -43,6 +43,7 @@ reached by a single start, non-white residuals, data that may be wrong) are retu
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from collections.abc import Callable, Mapping
 
@@ -50,7 +51,7 @@ import numpy as np
 
 from ..data import DataError, Dataset, Finding, find_implausible, signal_unit
 from ..data._args import check_mapping
-from ..data._plausible import STUCK_HOURS
+from ..data._plausible import _ALLOWED, STUCK_HOURS
 from ..fit._transforms import make_transform
 from ._args import (
     check_fit,
@@ -708,6 +709,57 @@ def _validation_dataset(validation):
     return Dataset.from_arrays(validation.index_cross, signals, check=False)
 
 
+#: the findings of the data check by the data's content and the check's options: a search
+#: judges dozens of candidates on the same identification and validation windows, and the
+#: checks take some 25 ms a window (bounded; the oldest entry goes first)
+_FOUND: dict[tuple, tuple[Finding, ...]] = {}
+_FOUND_SIZE = 16
+
+
+def _content_key(data: Dataset, columns: list[str]) -> tuple | None:
+    """A key naming ``data``'s values exactly (its index, every column: a check may read
+    another column than its own), or ``None`` where that cannot be told (a column not
+    numeric, no time index)."""
+    frame = getattr(data, "_frame", None)
+    stamps = getattr(getattr(frame, "index", None), "asi8", None)
+    if stamps is None:
+        return None
+    h = hashlib.blake2b(digest_size=20)
+    h.update(np.ascontiguousarray(stamps).tobytes())
+    for name in frame.columns:
+        values = frame[name].to_numpy()
+        if values.dtype.kind not in "fiub":
+            return None
+        h.update(str(name).encode() + b"\0" + str(values.dtype).encode())
+        h.update(np.ascontiguousarray(values).tobytes())
+    return (h.hexdigest(), tuple(columns))
+
+
+def _implausible(data: Dataset, columns: list[str], ctx: _Judged) -> tuple[Finding, ...]:
+    """:func:`~jaxbox.data.find_implausible` of ``columns``, once per content and options."""
+    overrides = ctx.data_overrides
+    key = _content_key(data, columns)
+    if key is not None:
+        key += (
+            None if overrides is None else repr(sorted(overrides.items())),
+            ctx.stuck_hours,
+            tuple(sorted(map(repr, _ALLOWED.get()))),
+        )
+        if key in _FOUND:
+            return _FOUND[key]
+    try:
+        found = find_implausible(
+            data, columns=columns, overrides=overrides, stuck_hours=ctx.stuck_hours
+        )
+    except DataError as err:
+        found = (Finding("", "data", str(err)),)
+    if key is not None:
+        while len(_FOUND) >= _FOUND_SIZE:
+            del _FOUND[next(iter(_FOUND))]
+        _FOUND[key] = found
+    return found
+
+
 def _check_data(ctx: _Judged) -> list[Flag]:
     if not ctx.check_data:
         return []
@@ -720,16 +772,12 @@ def _check_data(ctx: _Judged) -> list[Flag]:
     ):
         try:
             data = get()
+        except DataError as err:
+            found: tuple[Finding, ...] = (Finding("", "data", str(err)),)
+        else:
             if data is None:
                 continue
-            found = find_implausible(
-                data,
-                columns=[c for c in columns if c in data],
-                overrides=ctx.data_overrides,
-                stuck_hours=ctx.stuck_hours,
-            )
-        except DataError as err:
-            found = [Finding("", "data", str(err))]
+            found = _implausible(data, [c for c in columns if c in data], ctx)
         errors = [f for f in found if f.severe]
         for f in errors[:1] + [f for f in found if not f.severe]:
             flags.append(

@@ -222,7 +222,13 @@ def check_fit_params(fit: dict, model, path: str, option: str = "--params") -> N
 
 
 def fit_form(
-    fit: dict, model, path: str, data=None, option: str = "--params", step: float | None = None
+    fit: dict,
+    model,
+    path: str,
+    data=None,
+    option: str = "--params",
+    step: float | None = None,
+    max_gap: float | None = None,
 ):
     """The stochastic form of a fit file: its noise parameters where it has them (a
     maximum-likelihood fit), else noise estimated from the residuals over ``data``."""
@@ -253,7 +259,9 @@ def fit_form(
             f"{option} {path} is an output-error fit without noise parameters; its stochastic "
             "form needs data to estimate them from"
         )
-    return noise_from_residuals(model, params, data)
+    if max_gap is None:
+        return noise_from_residuals(model, params, data)
+    return noise_from_residuals(model, params, data, max_gap=max_gap)
 
 
 def fill_initial_outputs(fit: dict, model, data) -> None:
@@ -315,10 +323,10 @@ def forecast_command(args) -> int:
     history = _history(data, args.at)
     history.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     fill_initial_outputs(fit, model, history)
-    form = fit_form(fit, model, args.params, history)
+    form = fit_form(fit, model, args.params, history, max_gap=opts.max_gap)
     future = data if args.inputs is None else load_data(args.inputs)
     if args.setpoint is not None:
-        return _demand_command(args, form, history, future, out)
+        return _demand_command(args, form, history, future, out, opts.max_gap)
     cov = None
     if args.parameters:
         from ..stochastic import noise_names
@@ -331,7 +339,14 @@ def forecast_command(args) -> int:
             )
         keep = [i for i, n in enumerate(cov[0]) if n not in noise_names(model)]
         cov = (tuple(cov[0][i] for i in keep), cov[1][keep][:, keep])
-    frame = forecast(form, history, future, horizon=args.horizon, parameters=cov or False)
+    frame = forecast(
+        form,
+        history,
+        future,
+        horizon=args.horizon,
+        parameters=cov or False,
+        max_gap=opts.max_gap,
+    )
     tmp = out.with_name(out.name + ".part")
     frame.to_csv(tmp, index_label="time")
     fig = plot_forecast(frame, history) if plot is not None else None
@@ -345,6 +360,7 @@ def forecast_command(args) -> int:
         "noise": form.note,
         "parameters": bool(cov),
         "calibration": frame.attrs["calibration"],
+        "missing_inputs": frame.attrs.get("bridged"),
         "out": str(out),
         "outputs": {},
     }
@@ -370,6 +386,8 @@ def forecast_command(args) -> int:
     with_theta = "; the bands hold the parameters' uncertainty" if cov else ""
     print(f"wrote {len(frame)} rows to {out} ({form.note}{with_theta})")
     print(f"bands calibrated on the history: {frame.attrs['calibration']}")
+    if frame.attrs.get("bridged"):
+        print(f"missing inputs: {frame.attrs['bridged']}")
     for o, row in summary["outputs"].items():
         end = frame.index[-1]
         print(f"{o} at {end}: {row['mean_end']:.2f} ± {row['sd_end']:.2f} °C (mean ± sd)")
@@ -382,7 +400,7 @@ def forecast_command(args) -> int:
     return 0
 
 
-def _demand_command(args, form, history, future, out: Path) -> int:
+def _demand_command(args, form, history, future, out: Path, max_gap: float) -> int:
     """``jaxbox forecast … --setpoint 21 [--setback 17@22:00-06:00] --q-max 3000``."""
     from ..forecast import heat_demand
 
@@ -395,6 +413,7 @@ def _demand_command(args, form, history, future, out: Path) -> int:
         q_max=args.q_max,
         q_min=args.q_min,
         horizon=args.horizon,
+        max_gap=max_gap,
     )
     tmp = out.with_name(out.name + ".part")
     frame.to_csv(tmp, index_label="time")

@@ -29,6 +29,7 @@ import pandas as pd
 
 from ..fit._problem import FitError
 from ..stochastic._checks import as_data, regular_step
+from ._bridge import DEFAULT_MAX_GAP
 from ._forecast import future_inputs, horizon_steps
 from ._form import stochastic_form
 
@@ -115,6 +116,7 @@ def heat_demand(
     samples: int = 400,
     seed: int | None = 0,
     x0: Mapping[str, float] | None = None,
+    max_gap: float | str = DEFAULT_MAX_GAP,
 ) -> pd.DataFrame:
     """The heating power that holds the zone at a setpoint over a horizon, with its band.
 
@@ -131,6 +133,8 @@ def heat_demand(
         zone: the controlled output (default the model's first).
         samples: Monte Carlo draws of the band; seed: their seed.
         x0: initial state [°C] of the filter per state name.
+        max_gap: the longest gap of the history's inputs [s] the filter bridges without
+            reopening (as :func:`~jaxbox.forecast.forecast`).
 
     Returns:
         A DataFrame on the forecast's times ``t + step … t + horizon``: ``setpoint`` [°C];
@@ -162,8 +166,8 @@ def heat_demand(
     j, row = model.inputs.index(heater), model.outputs.index(zone)
     if heater not in future.columns:
         future = future.with_columns({heater: np.zeros(len(future))})
-    run = form.filter(history, x0=x0)
-    u = future_inputs(model, history, future, steps)
+    run = form.filter(history, x0=x0, max_gap=max_gap)
+    u = future_inputs(model, history, future, steps, last=run.u[-1])
     u[:, j] = 0.0
     sysm = run.system
     index = history.index[-1] + pd.to_timedelta(np.arange(1, steps + 1) * dt, unit="s")

@@ -45,8 +45,10 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..data._gaps import _duration, duration_seconds
 from ..fit._problem import FitError
 from ..stochastic._checks import as_data, regular_step
+from ._bridge import DEFAULT_MAX_GAP
 from ._form import DiscreteSystem, StochasticForm, stochastic_form
 
 __all__ = [
@@ -105,10 +107,11 @@ def horizon_steps(horizon, dt: float) -> int:
     return steps
 
 
-def future_inputs(model, history, future, steps: int) -> np.ndarray:
+def future_inputs(model, history, future, steps: int, last=None) -> np.ndarray:
     """The inputs ``u_t, u_{t+1}, …, u_{t+steps}`` [steps + 1, m]: the last row of ``history``
-    (time ``t``) and the rows of ``future`` after ``t``, which must continue the history at its
-    step and cover the horizon."""
+    (time ``t``; ``last`` [m] instead, the filter's where it filled a missing one) and the rows
+    of ``future`` after ``t``, which must continue the history at its step and cover the
+    horizon."""
     future.require(list(model.inputs), what=f"the future inputs of model {model.name}")
     dt = history.step
     after = future.index > history.index[-1]
@@ -140,7 +143,10 @@ def future_inputs(model, history, future, steps: int) -> np.ndarray:
             f"future input {model.inputs[col]} is missing (NaN) at {times[row]}; a forecast "
             "needs every input over the horizon"
         )
-    hist_u = np.asarray(history.array(list(model.inputs)), float)[-1:]
+    if last is None:
+        hist_u = np.asarray(history.array(list(model.inputs)), float)[-1:]
+    else:
+        hist_u = np.asarray(last, float).reshape(1, -1)
     return np.concatenate([hist_u, u], axis=0)
 
 
@@ -182,6 +188,7 @@ def _standardised(run, origins: np.ndarray, steps: int) -> np.ndarray:
         within = idx[:, 1:] < n
         idx = np.minimum(idx, n - 1)
         f = propagate(run.system, run.m[o], run.P[o], run.u[idx])
+        within &= _measured_inputs(run, o, steps)
         meas = np.where(within[..., None], run.y[idx[:, 1:]], np.nan)
         with np.errstate(invalid="ignore", divide="ignore"):
             z2 = (meas - f["y"]) ** 2 / np.clip(f["var"], 1e-300, None)
@@ -189,6 +196,19 @@ def _standardised(run, origins: np.ndarray, steps: int) -> np.ndarray:
     if not out:
         return np.full((0, steps, run.y.shape[1]), np.nan)
     return np.concatenate(out, axis=0)
+
+
+def _measured_inputs(run, origins: np.ndarray, steps: int) -> np.ndarray:
+    """[O, H]: whether the inputs of the forecast from each origin to each step ``1 … steps``
+    were all measured (none filled by the filter, :mod:`jaxbox.forecast._bridge`)."""
+    ok = np.ones((origins.size, steps), dtype=bool)
+    filled = getattr(run, "filled", None)
+    if filled is None or not filled.any():
+        return ok
+    cum = np.concatenate([[0], np.cumsum(filled)])
+    n = len(filled)
+    ends = np.minimum(origins[:, None] + np.arange(1, steps + 1)[None, :] + 1, n)
+    return (cum[ends] - cum[np.minimum(origins, n)][:, None]) == 0
 
 
 def _recent(dt: float) -> int:
@@ -365,6 +385,7 @@ def forecast(
     x0: Mapping[str, float] | None = None,
     parameters: bool | tuple = False,
     calibrate: bool = True,
+    max_gap: float | str = DEFAULT_MAX_GAP,
 ) -> pd.DataFrame:
     """Forecast the outputs of a fitted model with their uncertainty.
 
@@ -386,6 +407,9 @@ def forecast(
             ``(names, covariance)`` [SI²].
         calibrate: scale the bands to the model's own multi-step errors over the history
             (see the module docstring); ``False``: the stochastic form's bands as they are.
+        max_gap: the longest gap of the history's inputs [s] (or ``"2h"``) the filter bridges
+            without reopening (:meth:`StochasticForm.filter`); missing inputs are interpolated
+            either way.
 
     Returns:
         A DataFrame indexed by time (``t + step`` … ``t + horizon``): ``step`` (samples after
@@ -400,17 +424,17 @@ def forecast(
     model = form.model
     history = as_data(history, "history")
     future = as_data(future, "future")
-    run = form.filter(history, x0=x0)
+    run = form.filter(history, x0=x0, max_gap=max_gap)
     dt = regular_step(history)
     steps = horizon_steps(horizon, dt)
-    u = future_inputs(model, history, future, steps)
+    u = future_inputs(model, history, future, steps, last=run.u[-1])
     out = propagate(run.system, run.m[-1], run.P[-1], u)
     note = _calibrated(out, run, steps, calibrate)
     cov = _covariance_of(result, parameters)
     if cov is not None:
 
         def mean_of(f):
-            r = f.filter(history, x0=x0)
+            r = f.filter(history, x0=x0, max_gap=max_gap)
             return propagate(r.system, r.m[-1], r.P[-1], u)["y"]
 
         out["var"] = out["var"] + _parameter_variance(form, cov, mean_of)
@@ -423,7 +447,23 @@ def forecast(
     frame.attrs.update(_attrs(form, history.index[-1], run.m[-1], run.P[-1]))
     frame.attrs["parameters"] = cov is not None
     frame.attrs["calibration"] = note
+    frame.attrs["bridged"] = _bridged(run, max_gap)
     return frame
+
+
+def _bridged(run, max_gap) -> str | None:
+    """What the filter did with the history's missing inputs, in a line (``None``: none)."""
+    filled = run.filled
+    if filled is None or not filled.any():
+        return None
+    line = f"{int(filled.sum())} sample(s) of the history with a missing input interpolated"
+    if run.reopened:
+        when = ", ".join(str(run.index[k]) for k in run.reopened[-3:])
+        line += (
+            f"; the filter reopened after {len(run.reopened)} gap(s) longer than max_gap "
+            f"({_duration(1, duration_seconds(max_gap))}), at {when}"
+        )
+    return line
 
 
 def _attrs(form: StochasticForm, origin, m, P) -> dict:
@@ -448,6 +488,7 @@ def backtest(
     every: int = 1,
     parameters: bool | tuple = False,
     calibrate: bool = True,
+    max_gap: float | str = DEFAULT_MAX_GAP,
 ) -> pd.DataFrame:
     """Forecasts from many origins over measured data, scored against the measurements.
 
@@ -458,6 +499,9 @@ def backtest(
     it, as :func:`forecast` would calibrate them there (module docstring); origins with fewer
     than :data:`CALIBRATION_MIN` whole horizons before them keep the raw bands.
 
+    Missing inputs are bridged by the filter (``max_gap`` as in :func:`forecast`); an origin
+    whose horizon holds a missing input is not scored (a forecast takes measured inputs).
+
     Returns:
         One row per horizon step and output: ``step``, ``hours``, ``output``, ``n`` (scored
         forecasts), ``rmse`` [K], ``bias`` [K], ``cover50``, ``cover95`` (fraction of the
@@ -466,7 +510,7 @@ def backtest(
     form = stochastic_form(result)
     model = form.model
     data = as_data(data)
-    run = form.filter(data)
+    run = form.filter(data, max_gap=max_gap)
     dt = regular_step(data)
     steps = horizon_steps(horizon, dt)
     n = len(data)
@@ -479,6 +523,14 @@ def backtest(
             f"no origin at or after {start} leaves a horizon of {steps} samples within the data "
             f"(which end at {data.index[-1]})"
         )
+    measured = _measured_inputs(run, origins, steps)[:, -1]
+    if not measured.all():
+        origins = origins[measured]
+        if origins.size == 0:
+            raise FitError(
+                f"every origin at or after {start} has a missing input within its horizon of "
+                f"{steps} samples: a backtest scores forecasts from measured inputs"
+            )
     u = np.stack([run.u[o : o + steps + 1] for o in origins])
     out = propagate(run.system, run.m[origins], run.P[origins], u)
     _check_flag(calibrate, "calibrate")
@@ -496,7 +548,7 @@ def backtest(
     if cov is not None:
 
         def mean_of(f):
-            r = f.filter(data)
+            r = f.filter(data, max_gap=max_gap)
             return propagate(r.system, r.m[origins], r.P[origins], u)["y"]
 
         out["var"] = out["var"] + _parameter_variance(form, cov, mean_of)

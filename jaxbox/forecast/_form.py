@@ -39,6 +39,7 @@ from ..stochastic._noise import (
     noise_names,
 )
 from ..stochastic._problem import DEFAULT_X0_STD, system
+from ._bridge import DEFAULT_MAX_GAP, bridge_inputs
 
 __all__ = ["StochasticForm", "DiscreteSystem", "FilterRun", "stochastic_form"]
 
@@ -86,8 +87,10 @@ class DiscreteSystem:
 @dataclasses.dataclass(frozen=True, eq=False)
 class FilterRun:
     """The Kalman filter over a dataset: filtered means ``m`` [N, n] [°C] and covariances
-    ``P`` [N, n, n] [K²] after the update at each sample, with the inputs ``u`` [N, m] and the
-    measured outputs ``y`` [N, p] (NaN where missing)."""
+    ``P`` [N, n, n] [K²] after the update at each sample, with the inputs ``u`` [N, m] (missing
+    ones filled) and the outputs ``y`` [N, p] the filter used (NaN where missing or in a long
+    input gap). ``filled`` [N]: the rows with an input filled (``None``: none); ``reopened``:
+    the rows where the filter reopened after a long input gap."""
 
     index: object
     m: np.ndarray
@@ -95,6 +98,8 @@ class FilterRun:
     u: np.ndarray
     y: np.ndarray
     system: DiscreteSystem
+    filled: np.ndarray | None = None
+    reopened: tuple[int, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -133,31 +138,59 @@ class StochasticForm:
         P0 = np.diag(np.asarray(self.x0_std, float) ** 2)
         return DiscreteSystem(dt, self.hold, Phi, G0, G1, Q, C, D, r, m0, P0)
 
-    def filter(self, data, *, x0: Mapping[str, float] | None = None) -> FilterRun:
-        """The Kalman filter over ``data`` (regular samples, every input, outputs may be NaN),
-        starting from ``T_*0`` (or ``x0`` [°C] per state name) with covariance
-        ``diag(x0_std²)``."""
+    def filter(
+        self,
+        data,
+        *,
+        x0: Mapping[str, float] | None = None,
+        max_gap: float | str = DEFAULT_MAX_GAP,
+    ) -> FilterRun:
+        """The Kalman filter over ``data`` (regular samples, outputs may be NaN), starting from
+        ``T_*0`` (or ``x0`` [°C] per state name) with covariance ``diag(x0_std²)``.
+
+        Missing inputs are interpolated (:mod:`jaxbox.forecast._bridge`); after a gap longer
+        than ``max_gap`` [s] (or ``"2h"``) the filter reopens: the outputs inside the gap are
+        not used, and the state's covariance at its first sample after it is widened by
+        ``diag(x0_std²)``. The run's ``filled`` and ``reopened`` say where.
+        """
         data = as_data(data)
         model = self.model
         data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
         dt = regular_step(data)
         sysm = self.system(dt)
         u = np.asarray(data.array(list(model.inputs)), float)
-        y = np.asarray(data.array(list(model.outputs)), float)
-        bad = ~np.isfinite(u)
-        if bad.any():
-            row, col = np.argwhere(bad)[0]
-            raise FitError(
-                f"input {model.inputs[col]} is missing (NaN) at {data.index[row]}; the Kalman "
-                "filter needs every input (outputs may be missing): fill or drop those rows"
-            )
+        y = np.array(data.array(list(model.outputs)), dtype=float, copy=True)
+        u, filled, long = bridge_inputs(u, model.inputs, data.index, dt, max_gap)
+        for a, b in long:
+            y[a:b] = np.nan  # their inputs are guesses: the filter does not update on them
         m0 = sysm.m0.copy()
         if x0 is not None:
             for i, s in enumerate(model.states):
                 if s in x0:
                     m0[i] = float(x0[s])
-        m, P = run_filter(sysm, m0, sysm.P0, u, y)
-        return FilterRun(data.index, m, P, u, y, sysm)
+        n = len(u)
+        ms, Ps = [], []
+        start, prior, cov = 0, m0, sysm.P0
+        for stop in [b for _, b in long if b < n] + [n]:
+            m, P = run_filter(sysm, prior, cov, u[start:stop], y[start:stop])
+            ms.append(m)
+            Ps.append(P)
+            if stop < n:  # reopen: the prediction to `stop`, its covariance widened
+                k = stop - 1
+                prior = sysm.Phi @ m[-1] + sysm.G0 @ u[k] + sysm.G1 @ (u[k + 1] - u[k])
+                cov = sysm.Phi @ P[-1] @ sysm.Phi.T + sysm.Q + sysm.P0
+            start = stop
+        reopened = tuple(b for _, b in long if b < n)
+        return FilterRun(
+            data.index,
+            np.concatenate(ms),
+            np.concatenate(Ps),
+            u,
+            y,
+            sysm,
+            filled=filled,
+            reopened=reopened,
+        )
 
 
 def _filter_program(shapes):
@@ -245,12 +278,26 @@ def _oe_form(result) -> StochasticForm:
     return dataclasses.replace(form, step=float(result.data.step))
 
 
-def noise_from_residuals(model: RCModel, params: Mapping[str, float], data) -> StochasticForm:
+#: the fewest samples the noise of an output-error fit is estimated from
+NOISE_MIN_SAMPLES = 24
+
+
+def noise_from_residuals(
+    model: RCModel,
+    params: Mapping[str, float],
+    data,
+    *,
+    max_gap: float | str = DEFAULT_MAX_GAP,
+) -> StochasticForm:
     """The stochastic form of a model whose physical parameters ``params`` (SI) were estimated
     by output error: the diffusions and measurement noises that maximise the Kalman filter's
-    likelihood of ``data`` (one regular series, inputs complete, starting at the fit's initial
-    state ``T_*0``) with the physical parameters held (L-BFGS-B in the logarithms of the noise
-    parameters, within their bounds, from three starts)."""
+    likelihood of ``data`` (one regular series starting at the fit's initial state ``T_*0``)
+    with the physical parameters held (L-BFGS-B in the logarithms of the noise parameters,
+    within their bounds, from three starts).
+
+    Input gaps of at most ``max_gap`` [s] (or ``"2h"``) are interpolated; the likelihood is
+    taken up to the first longer one (after it where the series begins with one), which must
+    leave :data:`NOISE_MIN_SAMPLES` samples."""
     import scipy.optimize
 
     data = as_data(data)
@@ -258,11 +305,18 @@ def noise_from_residuals(model: RCModel, params: Mapping[str, float], data) -> S
     dt = regular_step(data)
     u = np.asarray(data.array(list(model.inputs)), float)
     y = np.asarray(data.array(list(model.outputs)), float)
-    if not np.all(np.isfinite(u)):
+    u, _, long = bridge_inputs(u, model.inputs, data.index, dt, max_gap)
+    a = long[0][1] if long and long[0][0] == 0 else 0
+    b = next((g for g, _ in long if g > a), len(u))
+    if b - a < NOISE_MIN_SAMPLES:
+        gaps = ", ".join(f"{data.index[g]} to {data.index[h - 1]}" for g, h in long[:3])
         raise FitError(
-            "the noise of the stochastic form is estimated by the Kalman filter, which needs "
-            "every input: fill or drop the rows where an input is missing"
+            f"the noise of the stochastic form is estimated by the Kalman filter over the data "
+            f"up to their first input gap longer than max_gap ({gaps}), which leaves {b - a} "
+            f"samples, fewer than {NOISE_MIN_SAMPLES}: fill the gap, give a larger max_gap "
+            "(command line --max-gap), or data that start after it"
         )
+    u, y = u[a:b], y[a:b]
     missing = [n for n in model.param_names if n not in params]
     if missing:
         raise FitError(

@@ -140,3 +140,45 @@ def test_fit_method_ml_without_validation(csv_file, capsys, json_out):
         assert set(doc["simulation_rmse"]["identification"]) == {"T_zon"}
     else:
         assert "validation: none" in out.out
+
+
+def test_input_gaps_are_interpolated_up_to_max_gap_and_a_longer_one_named(
+    fit_doc, csv_file, tmp_path, capsys
+):
+    """A one-hour gap of T_amb in the identification half is interpolated, as the output-error
+    fit does (the fit is the one of the same data filled by pandas); a three-hour gap is refused
+    in one line naming it and the --max-gap that bridges it, for the fit and for estimate."""
+    frame = pd.read_csv(csv_file, index_col="time")
+    short, long = frame.copy(), frame.copy()
+    short.iloc[40, short.columns.get_loc("T_amb")] = np.nan
+    long.iloc[40:43, long.columns.get_loc("T_amb")] = np.nan
+    paths = {}
+    for name, f in (("short", short), ("long", long), ("filled", short.interpolate())):
+        paths[name] = tmp_path / f"{name}.csv"
+        f.to_csv(paths[name], index_label="time")
+
+    def fit(path, *extra):
+        args = ["fit", str(path), "--model", "BM_Ti", "--method", "ml", "--starts", "4"]
+        code = main([*args, "--json", *extra])
+        out = capsys.readouterr()
+        return code, out.out, out.err
+
+    code, out, err = fit(paths["short"])
+    assert code == 0, err
+    code, ref, err = fit(paths["filled"])
+    assert code == 0, err
+    assert json.loads(out)["loglik"] == pytest.approx(json.loads(ref)["loglik"], rel=1e-9)
+    code, _, err = fit(paths["long"])
+    assert code == 2 and err.count("error:") == 1
+    t = pd.DatetimeIndex(frame.index)
+    need = f"{int(np.ceil(3 * (t[1] - t[0]).total_seconds() / 3600))}h"  # three samples
+    assert f"identification data: the inputs are missing from {t[40]} to {t[42]}" in err
+    assert f"--max-gap {need} to interpolate it" in err
+    code, out, err = fit(paths["long"], "--max-gap", need)
+    assert code == 0, err
+    _, params = fit_doc
+    est = ["estimate", str(paths["long"]), "--model", "BM_Ti", "--params", str(params)]
+    code = main([*est, "--out", str(tmp_path / "s.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and "the data: the inputs are missing" in err and f"--max-gap {need}" in err
+    assert main([*est, "--out", str(tmp_path / "s.csv"), "--max-gap", need]) == 0

@@ -41,6 +41,41 @@ def _stochastic_view(model):
     )
 
 
+def _one_series(data, model, max_gap: float, what: str, where: str):
+    """``data`` with its short input gaps interpolated (up to ``max_gap`` [s], as the
+    output-error fit does), as the one regular series the Kalman filter of the stochastic form
+    runs over; a longer gap, which would cut it in two, is refused with the ``--max-gap`` that
+    bridges it and, as ``where`` says, the data on one side of it."""
+    import numpy as np
+
+    from ..data import DataError, prepare_window
+    from ..data._gaps import _duration
+
+    if data is None:
+        return None
+    try:
+        ready = prepare_window(
+            data, model.inputs, model.outputs, max_gap=max_gap, what=what, warn=False
+        )
+    except DataError as err:
+        raise UsageError(str(err)) from None
+    if len(ready.segments) <= 1:
+        return ready
+    index, step = ready.index, ready.step
+    cuts = [(index[a - 1], index[a]) for a, _ in ready.segments[1:]]
+    widest = max((b - a).total_seconds() - step for a, b in cuts)
+    first = cuts[0]
+    bridge = _duration(1, float(np.ceil(widest / 3600.0) * 3600.0))
+    raise UsageError(
+        f"{what}: the inputs are missing from {first[0] + np.timedelta64(int(step), 's')} to "
+        f"{first[1] - np.timedelta64(int(step), 's')}"
+        + (f" (and in {len(cuts) - 1} more gap(s))" if len(cuts) > 1 else "")
+        + f", longer than --max-gap {_duration(1, max_gap)}; the Kalman filter of the "
+        f"stochastic form runs over one series: give --max-gap {bridge.replace(' ', '')} to interpolate "
+        f"{'them' if len(cuts) > 1 else 'it'}, or {where}"
+    )
+
+
 def ml_fit_command(args) -> int:
     """``jaxbox fit DATA… --model NAME --method ml``."""
     from ..fit import FitError
@@ -69,6 +104,9 @@ def ml_fit_command(args) -> int:
         check_parameters(view, limits, "--bounds")
     docs = []
     for spec, _, ident, valid in sets:
+        where = "--train/--validate windows on one side of it"
+        ident = _one_series(ident, model, opts.max_gap, "identification data", where)
+        valid = _one_series(valid, model, opts.max_gap, "validation data", where)
         t0 = time.perf_counter()
         try:
             result = fit_ml(
@@ -231,6 +269,7 @@ def estimate_command(args) -> int:
     hold = args.hold or fit["hold"] or "foh"
     data = load_data(opts.specs[0], opts)
     data.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
+    data = _one_series(data, model, opts.max_gap, "the data", "a file of the rows on one side")
     x0 = fit["x0_std"]
     if isinstance(x0, list) and len(x0) != model.n_states:
         raise UsageError(

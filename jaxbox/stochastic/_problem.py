@@ -384,8 +384,10 @@ def stochastic_arrays(model: RCModel, data) -> tuple[float, np.ndarray, np.ndarr
     if bad.any():
         row, col = np.argwhere(bad)[0]
         raise FitError(
-            f"input {model.inputs[col]} is missing (NaN) at row {row}; the Kalman filter needs "
-            "every input (outputs may be missing); fill or drop those rows"
+            f"input {model.inputs[col]} is missing (NaN) at {data.index[row]} (row {row}); the "
+            "Kalman filter needs every input (outputs may be missing): interpolate short gaps "
+            "(jaxbox.data.prepare_window, command line --max-gap) or use the data on one side "
+            "of a long one"
         )
     if not np.isfinite(y).any():
         raise FitError("every output value is missing (NaN); nothing to estimate from")

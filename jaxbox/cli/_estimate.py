@@ -65,13 +65,13 @@ def _one_series(data, model, max_gap: float, what: str, where: str):
     cuts = [(index[a - 1], index[a]) for a, _ in ready.segments[1:]]
     widest = max((b - a).total_seconds() - step for a, b in cuts)
     first = cuts[0]
-    bridge = _duration(1, float(np.ceil(widest / 3600.0) * 3600.0))
+    bridge = _duration(1, float(np.ceil(widest / 3600.0) * 3600.0)).replace(" ", "")
     raise UsageError(
         f"{what}: the inputs are missing from {first[0] + np.timedelta64(int(step), 's')} to "
         f"{first[1] - np.timedelta64(int(step), 's')}"
         + (f" (and in {len(cuts) - 1} more gap(s))" if len(cuts) > 1 else "")
         + f", longer than --max-gap {_duration(1, max_gap)}; the Kalman filter of the "
-        f"stochastic form runs over one series: give --max-gap {bridge.replace(' ', '')} to interpolate "
+        f"stochastic form runs over one series: give --max-gap {bridge} to interpolate "
         f"{'them' if len(cuts) > 1 else 'it'}, or {where}"
     )
 

@@ -3,6 +3,8 @@ results: forecasts with bands, heat demand for a setpoint, the discrete state sp
 
 from __future__ import annotations
 
+from ..data._gaps import DEFAULT_MAX_GAP
+
 __all__ = ["ModelUses"]
 
 
@@ -18,13 +20,22 @@ class ModelUses:
         return stochastic_form(self)
 
     def forecast(
-        self, history, future, *, horizon="24h", x0=None, parameters=False, calibrate=True
+        self,
+        history,
+        future,
+        *,
+        horizon="24h",
+        x0=None,
+        parameters=False,
+        calibrate=True,
+        max_gap=DEFAULT_MAX_GAP,
     ):
         """Forecast of the outputs with 50 % and 95 % bands from the state the Kalman filter
         estimates at the end of ``history``, driven by the inputs of ``future`` over ``horizon``
         (samples or a duration such as ``"24h"``; ``parameters``: the bands also hold the
         uncertainty of the estimate; ``calibrate``: the bands scaled to the model's own
-        multi-step errors over the history): :func:`jaxbox.forecast.forecast`."""
+        multi-step errors over the history; ``max_gap``: the longest gap of the history's
+        inputs bridged without reopening the filter): :func:`jaxbox.forecast.forecast`."""
         from ..forecast import forecast
 
         return forecast(
@@ -35,6 +46,7 @@ class ModelUses:
             x0=x0,
             parameters=parameters,
             calibrate=calibrate,
+            max_gap=max_gap,
         )
 
     def heat_demand(self, history, future, *, setpoint, q_max, **options):

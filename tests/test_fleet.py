@@ -352,3 +352,59 @@ def test_polish_reaches_the_search_and_the_selection(selections_seen):
     selections([get_model("Zon")], ["house"], load_config(polish=0))
     assert seen[0]["polish"] == 3 and "polish" not in seen[1]
     assert "polish" in seen[2] and seen[2]["polish"] is None
+
+
+def test_a_searched_buildings_hlc_interval_is_the_one_select_reports(monkeypatch, tmp_path):
+    """The fleet's search reports the accepted model's HLC with the interval ``jaxbox select``
+    gives (:func:`jaxbox.validate.hlc_interval`: near-best structures, coloured residuals, the
+    record's conductance), not the model's own; the row says the form."""
+    import jaxbox.validate as validate
+
+    seen = []
+    real = validate.hlc_interval
+
+    def spy(sel, **kw):
+        out = real(sel, **kw)
+        seen.append(out)
+        return out
+
+    monkeypatch.setattr(validate, "hlc_interval", spy)
+    folder = tmp_path / "in"
+    make_fleet(1, folder, days=7, seed=5)
+    run_fleet(folder, tmp_path / "out", load_config(starts=4, max_steps=60), workers=0)
+    row = read_results(tmp_path / "out").iloc[0]
+    (hi,) = seen
+    assert row["status"] == "ok" and row["form"] == "temperature"
+    assert (row["hlc"], row["hlc_lo"], row["hlc_hi"]) == (hi.value, *hi.ci95)
+    assert row["kpi_interval"] == hi.method
+
+
+@pytest.mark.slow
+def test_a_held_zone_gets_the_heat_demand_form_and_the_hlc_select_reports(tmp_path, capsys):
+    """A building held by its thermostat: the fleet's search accepts the heat-demand form, as
+    ``jaxbox select`` does on the same file, with the same HLC and interval (before, the fleet
+    read only the temperature form and reported "no valid model")."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_thermostat_form import simulate, truth_hlc
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    csv = folder / "held.csv"
+    simulate(10, control="held").to_csv(csv)
+    run_fleet(folder, tmp_path / "out", load_config(starts=8), workers=0)
+    row = read_results(tmp_path / "out").iloc[0]
+    assert row["status"] == "ok" and row["form"] == "heat demand", row["message"]
+    assert "in its heat-demand form" in row["message"]
+    assert row["hlc_lo"] <= truth_hlc() <= row["hlc_hi"]
+    assert np.isnan(row["rmse_cross"])  # the heating's error is in the message, in W
+    assert main(["select", str(csv), "--json", "--starts", "8"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["form"] == "heat demand" and doc["form_model"]["structure"] == row["model"]
+    assert doc["hlc"]["value"] == pytest.approx(row["hlc"], rel=1e-9)
+    assert doc["hlc"]["ci95"] == pytest.approx([row["hlc_lo"], row["hlc_hi"]], rel=1e-9)
+    assert doc["hlc"]["method"] == row["kpi_interval"]
+    params = {p["name"]: p for p in row["params"]}
+    assert params["R_wal"]["unit"] == "K/W" and params["R_wal"]["ci_lo"] > 0

@@ -49,6 +49,7 @@ SCHEMA = pa.schema(
         ("status", pa.string()),
         ("message", pa.string()),
         ("model", pa.string()),
+        ("form", pa.string()),
         ("n_train", pa.int64()),
         ("n_valid", pa.int64()),
         ("step_s", _F),

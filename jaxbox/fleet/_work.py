@@ -166,6 +166,7 @@ def _fit_row(name, result, validation, unc, verdict, kp) -> dict:
     row = _empty_row(name, status, message)
     row.update(
         model=result.model.name,
+        form="temperature",
         n_train=int(result.n_samples),
         n_valid=0 if validation.y_cross is None else int(len(validation.y_cross)),
         step_s=float(result.data.step),
@@ -180,6 +181,73 @@ def _fit_row(name, result, validation, unc, verdict, kp) -> dict:
         reasons=" | ".join(verdict.reasons),
         warnings=" | ".join(verdict.warnings),
         **_kpi_columns(kp),
+    )
+    return row
+
+
+def _selection_hlc(row: dict, sel) -> None:
+    """The HLC's interval of a selection's accepted model as ``jaxbox select`` reports it
+    (:func:`jaxbox.validate.hlc_interval`: coloured residuals, the near-best structures, the
+    conductance the record shows), in place of the model's own."""
+    from ..validate import hlc_interval
+
+    try:
+        hi = hlc_interval(sel)
+    except (ValueError, np.linalg.LinAlgError):  # no finite optimum, a singular model
+        return
+    if hi is None or not math.isfinite(hi.value):
+        return
+    row.update(hlc=float(hi.value), hlc_lo=float(hi.ci95[0]), hlc_hi=float(hi.ci95[1]))
+    row["kpi_interval"] = hi.method
+
+
+def _form_row(name: str, fm, ident, valid) -> dict:
+    """The row of a building whose search accepted the heat-demand or the steady-state form
+    (:attr:`jaxbox.select.Search.form_model`): the HLC with the interval and method ``jaxbox
+    select`` reports; the error is the heating's, in ``message`` (the RMSE columns, in K, are
+    the temperature form's and stay empty)."""
+    from ..models._parameters import parameter_for
+
+    row = _empty_row(name, "ok", fm.summary().splitlines()[0])
+    params = []
+    if fm.form == "heat demand":
+        for n, v in fm.params.items():
+            lo, hi = fm.intervals.get(n, (math.nan, math.nan))
+            params.append(
+                {
+                    "name": n,
+                    "unit": parameter_for(n).unit,
+                    "value": float(v),
+                    "std": math.nan,
+                    "ci_lo": float(lo),
+                    "ci_hi": float(hi),
+                    "free": n not in fm.fixed,
+                }
+            )
+        gA = fm.params.get("gA", math.nan)
+        gA_ci = fm.intervals.get("gA", (math.nan, math.nan))
+    else:
+        dropped = "gA" in fm.dropped
+        gA = math.nan if dropped else fm.gA
+        gA_ci = (math.nan, math.nan) if dropped else fm.gA_interval
+    lo, hi = fm.hlc_interval
+    row.update(
+        model=fm.structure,
+        form=fm.form,
+        n_train=int(len(ident)),
+        n_valid=int(len(valid)),
+        step_s=float(ident.step),
+        params=params,
+        valid=bool(fm.valid),
+        reasons=" | ".join(fm.reasons),
+        warnings=" | ".join(getattr(fm, "warnings", ())),
+        hlc=float(fm.hlc),
+        hlc_lo=float(lo),
+        hlc_hi=float(hi),
+        solar_aperture=float(gA),
+        solar_aperture_lo=float(gA_ci[0]),
+        solar_aperture_hi=float(gA_ci[1]),
+        kpi_interval=fm.hlc_method,
     )
     return row
 
@@ -318,6 +386,16 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
     for n, gb, sel in zip(names, boxes, selections, strict=True):
         timing = {"load_s": checked[n][2], "select_s": share, "models_fitted": len(sel.order)}
         case = sel.case
+        form_model = getattr(sel, "form_model", None)
+        if case is None and form_model is not None:  # the heat-demand or steady-state form
+            ident, valid = checked[n][0], checked[n][1]
+            report = {"selection": sel.to_dict()} if fit_json else None
+            if report is not None and cfg.reports:
+                from ..report import greybox_report
+
+                report["_html"] = greybox_report(gb, sel)
+            out[n] = (_form_row(n, form_model, ident, valid), report, timing)
+            continue
         if case is None:
             done = [gb.cases[c] for c in sel.order if gb.cases[c].result is not None]
             if not done:
@@ -341,6 +419,8 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
             continue
         timing.update(more)
         row = _fit_row(n, case.result, validation, unc, verdict, kp)
+        if sel.case is not None:
+            _selection_hlc(row, sel)
         if sel.case is None:
             row["status"] = "no_valid_model"
             row["message"] = f"{sel.stopped}; best attempt {case.name}: " + "; ".join(case.reasons)

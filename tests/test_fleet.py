@@ -408,3 +408,33 @@ def test_a_held_zone_gets_the_heat_demand_form_and_the_hlc_select_reports(tmp_pa
     assert doc["hlc"]["method"] == row["kpi_interval"]
     params = {p["name"]: p for p in row["params"]}
     assert params["R_wal"]["unit"] == "K/W" and params["R_wal"]["ci_lo"] > 0
+
+
+def test_max_gap_and_stuck_hours_reach_every_building(tmp_path, capsys):
+    """``[data] max_gap`` (``--max-gap``): a 3-h input gap cuts a building's window into two
+    segments (initial states of their own) at 1 h, and is interpolated at 4 h, as ``jaxbox fit
+    --max-gap`` does; ``stuck_hours`` reaches the data check; bad values are one line naming
+    the option."""
+    folder = tmp_path / "in"
+    make_fleet(1, folder, days=7, seed=5)
+    f = pd.read_csv(folder / "b0.csv")
+    f.loc[40:42, "T_amb"] = np.nan
+    f.loc[5:60, "T_zon"] = 20.0  # a sensor that stays put for 56 h
+    f.to_csv(folder / "b0.csv", index=False)
+    initial = {}
+    for gap in ("1h", "4h"):
+        out = tmp_path / gap
+        cfg = load_config(models="ZonWal", starts=2, max_gap=gap, stuck_hours="none")
+        run_fleet(folder, out, cfg, workers=0)
+        assert read_results(out).iloc[0]["status"] != "bad_data"
+        doc = json.loads((out / "fits" / "b0.json").read_text())
+        initial[gap] = sorted(k for k in doc["params"] if k.startswith("T_"))
+    assert initial["1h"] == ["T_wal0", "T_wal0_s2", "T_zon0", "T_zon0_s2"]
+    assert initial["4h"] == ["T_wal0", "T_zon0"]
+    run_fleet(folder, tmp_path / "stuck", load_config(models="ZonWal", starts=2), workers=0)
+    row = read_results(tmp_path / "stuck").iloc[0]
+    assert row["status"] == "bad_data" and "T_zon" in row["message"], row["message"]
+    for option, value in (("--max-gap", "30x"), ("--stuck-hours", "-3")):
+        code = main(["fleet", str(folder), "--out", str(tmp_path / "x"), option, value])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("error:") == 1 and option in err, err

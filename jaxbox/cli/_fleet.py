@@ -38,6 +38,18 @@ def add_fleet_arguments(p) -> None:
     p.add_argument("--seed", type=int_option, help="seed of the starts (default 0)")
     p.add_argument("--partition-size", type=int_option, help="buildings per Dask task (default 16)")
     p.add_argument(
+        "--max-gap",
+        metavar="DURATION",
+        help="input gaps up to DURATION (e.g. 2h) are interpolated, longer ones cut the window "
+        "(default: the config, else 1h)",
+    )
+    p.add_argument(
+        "--stuck-hours",
+        metavar="H",
+        help="a temperature unchanged for H hours is a stuck sensor; 'none': no such check "
+        "(default: the config, else 24)",
+    )
+    p.add_argument(
         "--scheduler", metavar="tcp://HOST:PORT", help="address of a running Dask scheduler"
     )
     p.add_argument(
@@ -68,11 +80,26 @@ _RUN_ONLY = (
     ("config", "--config"),
     ("starts", "--starts"),
     ("partition_size", "--partition-size"),
+    ("max_gap", "--max-gap"),
+    ("stuck_hours", "--stuck-hours"),
     ("scheduler", "--scheduler"),
     ("workers", "--workers"),
     ("resume", "--resume"),
     ("no_fits", "--no-fits"),
 )
+
+
+def _hours(text: str | None):
+    """``--stuck-hours`` as the config takes it: a number of hours, ``"none"``, or ``None``
+    (not given: the config's)."""
+    if text is None or text.strip().lower() in ("none", "off"):
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise UsageError(
+            f"--stuck-hours {text}: give a positive number of hours, or none"
+        ) from None
 
 
 def _given(args, pairs) -> list[str]:
@@ -153,6 +180,8 @@ def fleet_command(args) -> int:
             starts=args.starts,
             seed=args.seed,
             partition_size=args.partition_size,
+            max_gap=args.max_gap,
+            stuck_hours=_hours(args.stuck_hours),
         )
         summary = run_fleet(
             args.source,
@@ -165,7 +194,12 @@ def fleet_command(args) -> int:
             progress=None if not args.json else False,
         )
     except FleetError as err:
-        raise UsageError(str(err)) from None
+        text = str(err)
+        for attr, option in (("max_gap", "--max-gap"), ("stuck_hours", "--stuck-hours")):
+            if getattr(args, attr) is not None:  # given here, not in the config file
+                text = text.replace(f"data.{attr}=", f"{option} ")
+                text = text.replace(f"data.{attr}", option)
+        raise UsageError(text) from None
     doc = summary.to_dict()
     if args.json:
         print_json(doc)

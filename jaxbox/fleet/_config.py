@@ -15,6 +15,8 @@ A TOML file has up to four tables; every key is optional::
     sep = ","
     decimal = "."
     # thousands = ","         # digits grouped in thousands (1,234.5); default none
+    max_gap = "1h"              # input gaps up to this are interpolated; longer ones cut
+    stuck_hours = 24            # a temperature unchanged this long is a stuck sensor ("none": off)
 
     [windows]                   # identification / validation periods of every building
     fraction = 0.5              # first share identifies, the rest validates (default halves)
@@ -50,6 +52,9 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
+from ..data._gaps import DEFAULT_MAX_GAP
+from ..data._plausible import STUCK_HOURS
+
 __all__ = ["FleetConfig", "FleetError", "load_config"]
 
 
@@ -83,6 +88,12 @@ class FleetConfig:
             :data:`jaxbox.data.UNITS`).
         tz: time zone of the time stamps (``None``: as written; see :func:`jaxbox.data.load`).
         sep, decimal, thousands: CSV separator, decimal mark and thousands separator.
+        max_gap: the longest input gap [s] interpolated (a number, or text such as ``"2h"``);
+            a longer one cuts the window into segments (:func:`jaxbox.data.prepare_window`),
+            as ``jaxbox select --max-gap``.
+        stuck_hours: a temperature that does not change for this many hours is refused as a
+            stuck sensor (``None``, or ``"none"`` in a file: no such check), as ``jaxbox select
+            --stuck-hours``.
         fraction: identification share of each building's data (without ``train``).
         train, valid: absolute (start, end) periods, the same for every building.
         models: ``"search"`` (the structure search, default), one model name (fitted as
@@ -115,6 +126,8 @@ class FleetConfig:
     sep: str | None = None
     decimal: str | None = None
     thousands: str | None = None
+    max_gap: float | str = DEFAULT_MAX_GAP
+    stuck_hours: float | str | None = STUCK_HOURS
     fraction: float = 0.5
     train: tuple[str, str] | None = None
     valid: tuple[str, str] | None = None
@@ -222,6 +235,29 @@ class FleetConfig:
                     f"from the decimal mark ('.' with decimal = ','), got {self.thousands!r}"
                 )
         self._check_reading()
+        self._check_gaps()
+
+    def _check_gaps(self) -> None:
+        """``max_gap`` as seconds, ``stuck_hours`` as hours or ``None``."""
+        from ..data import DataError
+        from ..data._gaps import duration_seconds
+
+        try:
+            gap = duration_seconds(self.max_gap, "data.max_gap")
+        except DataError as err:
+            raise FleetError(str(err)) from None
+        object.__setattr__(self, "max_gap", gap)
+        hours = self.stuck_hours
+        if isinstance(hours, str) and hours.strip().lower() in ("none", "off"):
+            hours = None
+        if hours is not None:
+            if isinstance(hours, bool) or not isinstance(hours, int | float) or not hours > 0:
+                raise FleetError(
+                    f"data.stuck_hours must be a positive number of hours or 'none', got "
+                    f"{self.stuck_hours!r}"
+                )
+            hours = float(hours)
+        object.__setattr__(self, "stuck_hours", hours)
 
     def _check_models(self) -> None:
         """Every model name resolves: a library or structure name, a family, 'all', 'search'."""
@@ -364,6 +400,8 @@ _TABLES = {
         "sep",
         "decimal",
         "thousands",
+        "max_gap",
+        "stuck_hours",
     ),
     "windows": ("fraction", "train", "valid"),
     "identify": (

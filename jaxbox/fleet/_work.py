@@ -16,6 +16,7 @@ import warnings
 
 import numpy as np
 
+from ..data._plausible import STUCK_HOURS
 from ._config import FleetConfig
 from ._sources import Building, read_buildings
 
@@ -74,7 +75,7 @@ def _check(data, cfg: FleetConfig, models):
     columns = sorted({c for m in models for c in (*m.inputs, *m.outputs)})
     data.require(columns, what=f"model {models[0].name}" if len(models) == 1 else "the models")
     for part in (ident, valid):
-        part.check_plausible(columns=columns, warn=False)
+        part.check_plausible(columns=columns, warn=False, stuck_hours=cfg.stuck_hours)
     return ident, valid
 
 
@@ -129,7 +130,9 @@ def _kpi_columns(kp) -> dict:
     return out
 
 
-def _judge(result, valid, *, validation=None, verdict=None, fit_json: bool):
+def _judge(
+    result, valid, *, validation=None, verdict=None, fit_json: bool, stuck_hours=STUCK_HOURS
+):
     """Validation, uncertainty, verdict, KPIs (and the fit document) of a fit."""
     from ..validate import check_validity, fit_report, kpis, uncertainty, validate
 
@@ -142,7 +145,11 @@ def _judge(result, valid, *, validation=None, verdict=None, fit_json: bool):
         unc = None
     if verdict is None:
         verdict = check_validity(
-            result, unc, check_intervals=unc is not None, validation=validation
+            result,
+            unc,
+            check_intervals=unc is not None,
+            validation=validation,
+            stuck_hours=stuck_hours,
         )
     t1 = time.perf_counter()
     kp = None
@@ -283,6 +290,7 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
             "data": checked[n][0],
             "starts": cfg.starts,
             "seed": cfg.seed,
+            "max_gap": cfg.max_gap,
             **extra,
         }
 
@@ -316,7 +324,9 @@ def _fixed_model(model, checked: dict, cfg: FleetConfig, fit_json: bool, out: di
             "batch": batch,
         }
         try:
-            validation, unc, verdict, kp, report, more = _judge(result, valid, fit_json=fit_json)
+            validation, unc, verdict, kp, report, more = _judge(
+                result, valid, fit_json=fit_json, stuck_hours=cfg.stuck_hours
+            )
         except Exception as err:  # non-finite post-simulation and the like
             out[name] = (_empty_row(name, "failed", f"validation: {err}"), None, timing)
             continue
@@ -363,6 +373,8 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
                 train=(str(ident.start), str(ident.end)),
                 valid=(str(valid.start), str(valid.end)),
                 name=n,
+                max_gap=cfg.max_gap,
+                stuck_hours=cfg.stuck_hours,
             )
         )
     t0 = time.perf_counter()

@@ -585,3 +585,33 @@ def test_cli_parameters_from_the_fit_files_covariance(files, data, capsys):
         ["forecast", csv, "--params", ml, "--at", at, "--out", out, "--parameters"], capsys
     )
     assert code == 2 and "holds no covariance of its parameters" in err
+
+
+def test_cli_future_inputs_are_read_as_the_data_are(files, data, capsys):
+    """A logger's own column names and kW: --map and --unit apply to --inputs FUTURE.csv as to
+    DATA (a file of future inputs need not hold the zone temperature), and the forecast is the
+    one from the same inputs in canonical names."""
+    folder, _, _, oe = files
+    names = {"T_amb": "outdoor", "Q_hea": "heat_kW", "I_glo_hor": "sun", "T_zon": "indoor"}
+    logger = data.frame.rename(columns=names)
+    logger["heat_kW"] = logger["heat_kW"] / 1000.0
+    csv, future = folder / "logger.csv", folder / "logger_future.csv"
+    logger.to_csv(csv, index_label="time")
+    logger.drop(columns=["indoor"]).iloc[101:113].to_csv(future, index_label="time")
+    maps = [a for k, v in names.items() for a in ("--map", f"{k}={v}")]
+    out, ref = folder / "logger_fc.csv", folder / "canonical_fc.csv"
+    args = ["forecast", csv, "--params", oe, "--at", data.index[100], "--horizon", "12h"]
+    code, _, err = _cli(
+        [*args, *maps, "--unit", "Q_hea=kW", "--inputs", future, "--out", out], capsys
+    )
+    assert code == 0, err
+    canonical = folder / "canonical_future.csv"
+    data.frame[["T_amb", "Q_hea", "I_glo_hor"]].iloc[101:113].to_csv(canonical, index_label="time")
+    code, _, err = _cli(
+        ["forecast", folder / "building.csv", "--params", oe, "--at", data.index[100]]
+        + ["--horizon", "12h", "--inputs", canonical, "--out", ref],
+        capsys,
+    )
+    assert code == 0, err
+    a, b = pd.read_csv(out), pd.read_csv(ref)
+    np.testing.assert_allclose(a["T_zon_mean"], b["T_zon_mean"], rtol=1e-9)

@@ -279,6 +279,29 @@ def fill_initial_outputs(fit: dict, model, data) -> None:
                 fit["params"][name] = float(x[0])
 
 
+def _future_data(path: str, opts):
+    """``--inputs FUTURE.csv`` read as DATA is (``--map``, ``--unit``, ``--scale``, the time
+    and CSV options: the same logger's format), the maps of columns it lacks (the outputs,
+    which a file of future inputs need not hold) left out."""
+    import copy
+
+    import pandas as pd
+
+    opts = copy.copy(opts)
+    if opts.columns and str(path).lower().endswith((".csv", ".txt")):
+        try:
+            header = set(pd.read_csv(path, nrows=0, sep=opts.sep or ",").columns)
+        except (OSError, ValueError, pd.errors.ParserError):
+            header = None  # load reports what is wrong with the file
+        if header is not None:
+            opts.columns = {
+                k: v
+                for k, v in opts.columns.items()
+                if all(c in header for c in ([v] if isinstance(v, str) else v))
+            }
+    return load_data(path, opts)
+
+
 def _history(data, at: str):
     from ..data import DataError
 
@@ -324,7 +347,7 @@ def forecast_command(args) -> int:
     history.require(list(model.inputs) + list(model.outputs), what=f"model {model.name}")
     fill_initial_outputs(fit, model, history)
     form = fit_form(fit, model, args.params, history, max_gap=opts.max_gap)
-    future = data if args.inputs is None else load_data(args.inputs)
+    future = data if args.inputs is None else _future_data(args.inputs, opts)
     if args.setpoint is not None:
         return _demand_command(args, form, history, future, out, opts.max_gap)
     cov = None

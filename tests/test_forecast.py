@@ -615,3 +615,27 @@ def test_cli_future_inputs_are_read_as_the_data_are(files, data, capsys):
     assert code == 0, err
     a, b = pd.read_csv(out), pd.read_csv(ref)
     np.testing.assert_allclose(a["T_zon_mean"], b["T_zon_mean"], rtol=1e-9)
+
+
+def test_cli_at_after_the_data_is_one_line(files, data, capsys):
+    """--at after the last sample: one line naming the data's end (before, the forecast started
+    silently from the last sample, or failed on the future inputs)."""
+    folder, csv, ml, _ = files
+    late = data.index[-1] + pd.Timedelta("5D")
+    code, _, err = _cli(
+        [
+            "forecast",
+            csv,
+            "--params",
+            ml,
+            "--at",
+            late,
+            "--horizon",
+            "6h",
+            "--out",
+            folder / "l.csv",
+        ],
+        capsys,
+    )
+    assert code == 2 and err.count("\n") == 1
+    assert f"after the data's last sample ({data.index[-1]})" in err

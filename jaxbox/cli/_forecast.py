@@ -302,6 +302,19 @@ def _future_data(path: str, opts):
     return load_data(path, opts)
 
 
+def _stamp(at: str, data):
+    """``--at`` as a time stamp in the data's time zone (as :meth:`Dataset.slice` reads it)."""
+    import pandas as pd
+
+    t = pd.Timestamp(at)
+    tz = getattr(data.index, "tz", None)
+    if tz is not None:
+        t = t.tz_localize(tz) if t.tzinfo is None else t.tz_convert(tz)
+    elif t.tzinfo is not None:
+        t = t.tz_localize(None)
+    return t
+
+
 def _history(data, at: str):
     from ..data import DataError
 
@@ -309,6 +322,12 @@ def _history(data, at: str):
         history = data.slice(None, at)
     except DataError as err:
         raise UsageError(f"--at {at}: {err}") from None
+    if len(history) == len(data) and history.end < _stamp(at, data):
+        raise UsageError(
+            f"--at {at} is after the data's last sample ({data.end}): the forecast starts from "
+            f"the state the filter estimates at --at from the data up to it; give --at "
+            f"{data.end} or earlier (and --inputs FUTURE.csv with the inputs after it)"
+        )
     if len(history) < 3:
         raise UsageError(
             f"--at {at}: the data hold {len(history)} sample(s) up to it; the filter needs at "

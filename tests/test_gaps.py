@@ -152,8 +152,16 @@ def test_a_requests_problem_is_the_batchs_and_may_be_set_up_quietly(two_segments
 def test_inputs_missing_in_a_whole_window_are_refused(two_segments):
     frame = two_segments.frame
     frame["Q_hea"] = np.nan
-    with pytest.raises(FitError, match="no sample with every input"):
+    # a column without any value is named, with what to do
+    with pytest.raises(FitError, match=r"input 'Q_hea' has no value in identification data.*"):
         jaxbox.fit_model(MODEL, Dataset(frame), starts=1)
+    # each input has values, never all of them together
+    apart = two_segments.frame
+    half = len(apart) // 2
+    apart.iloc[:half, apart.columns.get_loc("Q_hea")] = np.nan
+    apart.iloc[half:, apart.columns.get_loc("T_amb")] = np.nan
+    with pytest.raises(DataError, match="no sample with every input"):
+        prepare_window(Dataset(apart), ["T_amb", "Q_hea"], ["T_zon"])
     arrays_data = Dataset(two_segments.frame.iloc[:30])
     problem = make_problem(jaxbox.get_model(MODEL), arrays_data.slice(end="2024-01-01 20:00"))
     with pytest.raises(FitError, match="input 'T_amb' is missing.*prepare_window"):

@@ -266,6 +266,15 @@ def prepare_window(
             new[name] = column
         new = new[keep]
         if new.empty:
+            empty = [n for n in inputs if not np.isfinite(frame[n].to_numpy(float)).any()]
+            if empty:
+                raise DataError(
+                    f"input{'s' if len(empty) > 1 else ''} {', '.join(map(repr, empty))} "
+                    f"{'have' if len(empty) > 1 else 'has'} no value in {what} ({data.start} .. "
+                    f"{data.end}): give the values, choose another window, or leave the column "
+                    "out of the data (a --map of a column without values: drop it) so that "
+                    "no model reads it."
+                )
             raise DataError(
                 f"{what} ({data.start} .. {data.end}) holds no sample with every input of the "
                 f"model ({', '.join(map(repr, inputs))}); choose another window."

@@ -188,6 +188,13 @@ def test_the_heat_demand_form_reaches_up_to_the_conductance_the_record_shows():
     assert fit.hlc_interval[1] >= shown * (1 - 1e-9) and shown > fit.hlc
     if "record shows" in fit.hlc_method:  # where it reaches beyond the statistical interval
         assert fit.hlc_interval[1] == pytest.approx(shown, rel=1e-9)
+    # no validation period: the summary says whose RMSE it gives
+    assert not fit.validated and "W on identification (no validation period)" in fit.summary()
+    mid = data.index[len(data) // 2]
+    held_out = heat_demand_fit(
+        "Zon+Wal", grammar, Problem(data, (data.start, mid), (mid, data.end)), starts=2
+    )
+    assert held_out.validated and "W on validation (" in held_out.summary()
 
 
 def test_coheating_steady_state_covers_the_hlc():

@@ -129,6 +129,8 @@ class HeatDemandFit:
             residuals, by the delta method).
         zone_excess: the zone's mean excess over the outdoor air over the record [K], for a
             structure without an offset (``None`` otherwise): see :attr:`per_100_w`.
+        validated: whether a validation period was held out (``False``: ``rmse_valid`` and
+            ``q_std`` are the identification period's).
     """
 
     structure: str
@@ -146,6 +148,7 @@ class HeatDemandFit:
     form: str = "heat demand"
     hlc_method: str = HAC
     zone_excess: float | None = None
+    validated: bool = True
 
     @property
     def per_100_w(self) -> float | None:
@@ -166,8 +169,8 @@ class HeatDemandFit:
         lines = [
             f"{self.structure} in its heat-demand form: HLC {self.hlc:.4g} W/K "
             f"[{lo:.4g}, {hi:.4g}] ({self.hlc_method}), heating RMSE {self.rmse_valid:.4g} W on "
-            "validation "
-            f"({self.relative:.3g} of its std {self.q_std:.4g} W), "
+            + ("validation " if self.validated else "identification (no validation period) ")
+            + f"({self.relative:.3g} of its std {self.q_std:.4g} W), "
             + ("valid" if self.valid else "not valid: " + "; ".join(self.reasons))
         ]
         if self.zone_excess is not None:
@@ -479,6 +482,7 @@ def _judged(net: _Network, sol, scale: float) -> HeatDemandFit:
         reasons=tuple(reasons),
         undetermined=tuple(undetermined),
         zone_excess=_excess_over_outdoor(problem.frame, problem.zone, net.names),
+        validated=bool(problem.has_valid),
     )
 
 

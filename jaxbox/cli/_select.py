@@ -194,13 +194,16 @@ def _run_selection(
             for spec, data, ident, valid in sets
         ]
     # --margin left out: each method's own default (0.02 for the search, 0 for the chains)
+    # (the demo has no --continued, --polish or --margin: each method's own default)
     common = dict(starts=args.starts, seed=args.seed, max_steps=args.max_steps)
-    if args.continued is not None:
-        common["continued"] = args.continued
-    if args.polish is not None:
-        common["polish"] = args.polish or None
-    if args.margin is not None:
-        common["margin"] = args.margin
+    continued, polish = getattr(args, "continued", None), getattr(args, "polish", None)
+    margin = getattr(args, "margin", None)
+    if continued is not None:
+        common["continued"] = continued
+    if polish is not None:
+        common["polish"] = polish or None
+    if margin is not None:
+        common["margin"] = margin
     if candidates == "search":
         say = progress(args)
         selections = []

@@ -6,6 +6,7 @@ written out here and against the same filter over data filled by pandas."""
 import numpy as np
 import pandas as pd
 import pytest
+from test_forecast import STEP, TRUE, _inputs
 
 import jaxbox
 from jaxbox.fit import FitError
@@ -14,18 +15,6 @@ from jaxbox.forecast._bridge import bridge_inputs
 from jaxbox.forecast._form import noise_from_residuals
 from jaxbox.stochastic import simulate_sde
 
-STEP = 3600.0
-TRUE = {
-    "C_zon": 4.0e6,
-    "C_wal": 3.0e7,
-    "R_wal": 0.008,
-    "gA": 2.0,
-    "T_zon0": 20.0,
-    "T_wal0": 15.0,
-    "sigma_zon": 4e-4,
-    "sigma_wal": 1e-4,
-    "sigma_y_zon": 0.05,
-}
 #: the history's long gap: Q_hea and T_amb missing at these rows (6 h, longer than 1 h)
 LONG = slice(100, 106)
 #: a short gap: T_amb missing at one row (1 h, bridged)
@@ -36,14 +25,8 @@ SHORT = 60
 def data():
     """Eight days of hourly data of ZonWal's stochastic form with the parameters TRUE."""
     n = 8 * 24 + 1
-    rng = np.random.default_rng(1)
+    u = _inputs(n)
     t = np.arange(n) * STEP
-    day = 2 * np.pi * t / 86400.0
-    u = {
-        "T_amb": 5.0 + 4.0 * np.sin(day - 2.0) + rng.normal(0, 0.3, n),
-        "I_glo_hor": np.clip(400.0 * np.sin(day - np.pi / 2), 0.0, None),
-        "Q_hea": np.where(rng.random(n) < 0.5, 0.0, 1500.0),
-    }
     base = jaxbox.data.Dataset.from_arrays(t, {**u, "T_zon": np.zeros(n)})
     y, _ = simulate_sde("ZonWal", TRUE, base, seed=3, x0_std=0.0)
     return base.with_columns(T_zon=y[:, 0])

@@ -11,6 +11,7 @@ from __future__ import annotations
 import sys
 
 from ._common import UsageError, int_option, print_json
+from ._data import _stuck_hours
 
 __all__ = ["add_fleet_arguments", "fleet_command"]
 
@@ -90,16 +91,12 @@ _RUN_ONLY = (
 
 
 def _hours(text: str | None):
-    """``--stuck-hours`` as the config takes it: a number of hours, ``"none"``, or ``None``
-    (not given: the config's)."""
-    if text is None or text.strip().lower() in ("none", "off"):
-        return text
-    try:
-        return float(text)
-    except ValueError:
-        raise UsageError(
-            f"--stuck-hours {text}: give a positive number of hours, or none"
-        ) from None
+    """``--stuck-hours`` read as ``jaxbox select`` reads it, as the config takes it: a number
+    of hours, ``"none"`` (no check), or ``None`` (not given: the config's)."""
+    if text is None:
+        return None
+    hours = _stuck_hours(text)
+    return "none" if hours is None else hours
 
 
 def _given(args, pairs) -> list[str]:

@@ -259,9 +259,10 @@ def fit_form(
             f"{option} {path} is an output-error fit without noise parameters; its stochastic "
             "form needs data to estimate them from"
         )
-    if max_gap is None:
-        return noise_from_residuals(model, params, data)
-    return noise_from_residuals(model, params, data, max_gap=max_gap)
+    from ..data._gaps import DEFAULT_MAX_GAP
+
+    gap = DEFAULT_MAX_GAP if max_gap is None else max_gap  # None: the fits' default
+    return noise_from_residuals(model, params, data, max_gap=gap)
 
 
 def fill_initial_outputs(fit: dict, model, data) -> None:
@@ -302,19 +303,6 @@ def _future_data(path: str, opts):
     return load_data(path, opts)
 
 
-def _stamp(at: str, data):
-    """``--at`` as a time stamp in the data's time zone (as :meth:`Dataset.slice` reads it)."""
-    import pandas as pd
-
-    t = pd.Timestamp(at)
-    tz = getattr(data.index, "tz", None)
-    if tz is not None:
-        t = t.tz_localize(tz) if t.tzinfo is None else t.tz_convert(tz)
-    elif t.tzinfo is not None:
-        t = t.tz_localize(None)
-    return t
-
-
 def _history(data, at: str):
     from ..data import DataError
 
@@ -322,7 +310,7 @@ def _history(data, at: str):
         history = data.slice(None, at)
     except DataError as err:
         raise UsageError(f"--at {at}: {err}") from None
-    if len(history) == len(data) and history.end < _stamp(at, data):
+    if len(history) == len(data) and history.end < data._bound(at, "--at"):
         raise UsageError(
             f"--at {at} is after the data's last sample ({data.end}): the forecast starts from "
             f"the state the filter estimates at --at from the data up to it; give --at "

@@ -433,7 +433,7 @@ def _selection(models, checked: dict, cfg: FleetConfig, fit_json: bool, out: dic
         row = _fit_row(n, case.result, validation, unc, verdict, kp)
         if sel.case is not None:
             _selection_hlc(row, sel)
-        if sel.case is None:
+        else:
             row["status"] = "no_valid_model"
             row["message"] = f"{sel.stopped}; best attempt {case.name}: " + "; ".join(case.reasons)
         if report is not None:

@@ -18,17 +18,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..data._gaps import DEFAULT_MAX_GAP, duration_seconds
+from ..data._gaps import DEFAULT_MAX_GAP, _runs, duration_seconds
 from ..fit._problem import FitError
 
 __all__ = ["bridge_inputs", "DEFAULT_MAX_GAP"]
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs ``[start, stop)`` of True in ``mask``."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()
-    return list(zip(starts, stops, strict=True))
 
 
 def bridge_inputs(
